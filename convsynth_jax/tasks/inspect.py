@@ -1,0 +1,39 @@
+"""Task ``inspect``: report what a BVH file (``path=FILE``) or the configured corpus holds."""
+from __future__ import annotations
+
+import logging
+from pathlib import Path
+
+import numpy as np
+
+from ..io import load_bvh
+from ..kinematics import forward_kinematics
+
+log = logging.getLogger(__name__)
+
+
+def run(cfg, out_dir: Path) -> dict:
+    if cfg.get("path"):
+        motion = load_bvh(cfg.path)
+        pos = np.asarray(forward_kinematics(motion))
+        summary = {
+            "path": str(cfg.path),
+            "num_frames": motion.num_frames,
+            "fps": motion.fps,
+            "duration_s": motion.duration,
+            "num_joints": motion.skeleton.num_joints,
+            "joints": list(motion.skeleton.names),
+            "bbox_min": pos.reshape(-1, 3).min(0).tolist(),
+            "bbox_max": pos.reshape(-1, 3).max(0).tolist(),
+        }
+        log.info("%s: %d frames at %.3g fps, %d joints", cfg.path, motion.num_frames, motion.fps,
+                 motion.skeleton.num_joints)
+        return summary
+    from .common import open_corpus
+
+    corpus = open_corpus(cfg)
+    rows = []
+    for s in corpus.sessions:
+        for p in s.participants:
+            rows.append({"session": s.name, "role": p.role, "character": p.character})
+    return {"corpus_root": str(corpus.root), "num_sessions": len(corpus.sessions), "participants": rows}

@@ -1,0 +1,1 @@
+"""Experiments support: leave-one-out folds and windows, objective metrics, collection of sweeps."""

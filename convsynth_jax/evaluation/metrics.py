@@ -1,0 +1,87 @@
+"""Objective motion-quality metrics (the user study cannot be rerun here).
+
+All metrics are plain float64 NumPy on global joint positions (F, J, 3) in the file's units.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+
+def derivative(x: np.ndarray, fps: float, order: int = 1) -> np.ndarray:
+    """order-th forward-difference derivative along axis 0, in units per second**order."""
+    x = np.asarray(x, dtype=np.float64)
+    for _ in range(order):
+        x = np.diff(x, axis=0) * fps
+    return x
+
+
+def mean_acceleration(positions: np.ndarray, fps: float, weights: np.ndarray | None = None) -> float:
+    """Mean (over frames, weighted over joints) magnitude of joint acceleration."""
+    a = np.linalg.norm(derivative(positions, fps, 2), axis=-1)  # (F-2, J)
+    return _weighted_mean(a, weights)
+
+
+def mean_jerk(positions: np.ndarray, fps: float, weights: np.ndarray | None = None) -> float:
+    """Mean (over frames, weighted over joints) magnitude of joint jerk (third derivative)."""
+    j = np.linalg.norm(derivative(positions, fps, 3), axis=-1)
+    return _weighted_mean(j, weights)
+
+
+def _weighted_mean(values: np.ndarray, weights: np.ndarray | None) -> float:
+    if values.size == 0:
+        return float("nan")
+    if weights is None:
+        return float(values.mean())
+    w = np.asarray(weights, dtype=np.float64)
+    if w.sum() <= 0:
+        return float("nan")
+    return float((values.mean(axis=0) * w).sum() / w.sum())
+
+
+def joint_speeds(positions: np.ndarray, fps: float) -> np.ndarray:
+    """(F-1, J) joint speed magnitudes."""
+    return np.linalg.norm(derivative(positions, fps, 1), axis=-1)
+
+
+def hellinger_distance(p: np.ndarray, q: np.ndarray) -> float:
+    """Hellinger distance between two histograms (normalized here); 0 = identical, 1 = disjoint."""
+    p = np.asarray(p, dtype=np.float64)
+    q = np.asarray(q, dtype=np.float64)
+    if p.sum() <= 0 or q.sum() <= 0:
+        return float("nan")
+    p = p / p.sum()
+    q = q / q.sum()
+    bc = np.sum(np.sqrt(p * q))
+    return float(np.sqrt(max(0.0, 1.0 - bc)))
+
+
+def speed_histogram_distance(positions_a: np.ndarray, positions_b: np.ndarray, fps: float,
+                             bins: int = 50, max_speed: float | None = None) -> float:
+    """Hellinger distance between the joint-speed histograms of two motions (shared bins)."""
+    sa = joint_speeds(positions_a, fps).ravel()
+    sb = joint_speeds(positions_b, fps).ravel()
+    hi = max_speed if max_speed is not None else float(np.percentile(np.concatenate([sa, sb]), 99.5))
+    hi = max(hi, 1e-9)
+    ha, _ = np.histogram(np.clip(sa, 0, hi), bins=bins, range=(0, hi))
+    hb, _ = np.histogram(np.clip(sb, 0, hi), bins=bins, range=(0, hi))
+    return hellinger_distance(ha, hb)
+
+
+def window_diversity(root_relative_windows: list[np.ndarray]) -> float:
+    """Mean pairwise distance between synthesized windows: for each pair of windows (F, J, 3) the
+    mean over common frames of the per-frame mean joint distance. Higher = more varied output."""
+    ws = [np.asarray(w, dtype=np.float64) for w in root_relative_windows if w is not None and len(w)]
+    if len(ws) < 2:
+        return float("nan")
+    dists = []
+    for a in range(len(ws)):
+        for b in range(a + 1, len(ws)):
+            n = min(len(ws[a]), len(ws[b]))
+            dists.append(float(np.linalg.norm(ws[a][:n] - ws[b][:n], axis=-1).mean()))
+    return float(np.mean(dists))
+
+
+def max_frame_jump(positions: np.ndarray) -> np.ndarray:
+    """(F-1,) largest per-joint position change between consecutive frames."""
+    d = np.linalg.norm(np.diff(np.asarray(positions, dtype=np.float64), axis=0), axis=-1)
+    return d.max(axis=1) if d.size else np.zeros(0)

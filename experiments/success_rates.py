@@ -1,0 +1,18 @@
+"""Success rate per ablation condition from collected leave-one-out cases (paper Section 8.1:
+69.8% with all constraints, 86.2% without HP)."""
+from _common import done, parse, read_csv
+
+from convsynth_jax.evaluation import summaries
+from convsynth_jax.plotting_experiments import success_rate_figure
+
+if __name__ == "__main__":
+    src, out, t0 = parse(__doc__, "all_cases.csv")
+    cases = read_csv(src)
+    cases = cases[cases.get("status", "ok") != "error"] if "status" in cases else cases
+    table = summaries.success_rates(cases)
+    table.to_csv(out / "success_rates.csv", index=False)
+    (out / "success_rates.md").write_text(summaries.to_markdown(table))
+    fig = success_rate_figure(table)
+    fig.savefig(out / "success_rates.png", dpi=120)
+    fig.savefig(out / "success_rates.pdf")
+    done(out, ["success_rates.csv", "success_rates.md", "success_rates.png", "success_rates.pdf"], t0)

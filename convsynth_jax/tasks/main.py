@@ -61,6 +61,8 @@ def run(cfg, out_dir: Path) -> dict:
                    "threshold": g.meta.get("threshold"), "construction_s": fg.seconds[c]}
                   for c, g in fg.graphs.items()]
     graphs = pd.DataFrame(graph_rows)
+    for c, g in fg.graphs.items():
+        g.save(out_dir / f"graph_{c}.npz")
     _csv(graphs, out_dir / "graphs.csv")
     print("Motion graphs (held-out session %s)\n%s" % (held_out, summaries.to_markdown(graphs)))
     timings["graphs_s"] = time.perf_counter() - t0

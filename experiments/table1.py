@@ -1,0 +1,48 @@
+"""Table 1: audio-motion co-occurrence per character and hypothesis, from a `cooccurrence.csv`
+written by `convsynth task=cooccurrence` (or `table1_cooccurrence.csv` of a main run).
+Writes Markdown, LaTeX and a bar chart next to the chance rates."""
+import sys
+
+from _common import done, parse, read_csv
+
+from convsynth_jax.evaluation import summaries
+
+if __name__ == "__main__":
+    name = "cooccurrence.csv"
+    if len(sys.argv) > 1 and not sys.argv[1].endswith(".csv"):
+        from pathlib import Path
+
+        if (Path(sys.argv[1]) / "table1_cooccurrence.csv").is_file() and not (Path(sys.argv[1]) / name).is_file():
+            name = "table1_cooccurrence.csv"
+    src, out, t0 = parse(__doc__, name)
+    t = read_csv(src)
+    cols = [c for c in ("character", "hypothesis", "matched", "total", "rate", "chance_rate", "chi2", "df",
+                        "p_chi2", "p_permutation") if c in t]
+    table = t[cols].copy()
+    table["rate"] = (100 * table["rate"]).round(1)
+    if "chance_rate" in table:
+        table["chance_rate"] = (100 * table["chance_rate"]).round(1)
+    (out / "table1.md").write_text(summaries.to_markdown(table))
+    (out / "table1.tex").write_text(table.to_latex(index=False, float_format="%.4g"))
+
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    import numpy as np
+
+    chars = list(dict.fromkeys(t["character"]))
+    fig, axes = plt.subplots(1, len(chars), figsize=(5 * len(chars), 3.2), squeeze=False)
+    for ax, c in zip(axes[0], chars):
+        g = t[t["character"] == c]
+        x = np.arange(len(g))
+        ax.bar(x - 0.2, 100 * g["rate"], 0.4, label="audio windows")
+        if "chance_rate" in g:
+            ax.bar(x + 0.2, 100 * g["chance_rate"], 0.4, label="random windows", color="grey")
+        ax.set_xticks(x, g["hypothesis"], rotation=20)
+        ax.set_ylabel("matched (%)")
+        ax.set_title(c)
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    fig.savefig(out / "table1.png", dpi=120)
+    done(out, ["table1.md", "table1.tex", "table1.png"], t0)

@@ -1,0 +1,89 @@
+"""WAV audio: mono or stereo, any sample rate, 8/16/24/32-bit integer or float samples."""
+from __future__ import annotations
+
+import wave
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from scipy.io import wavfile
+
+from ..errors import AudioFormatError, MissingFileError
+from ..utils import atomic_path
+
+
+@dataclass(frozen=True)
+class Audio:
+    """samples: float32 (N,) mono or (N, C) multichannel in [-1, 1]; sample_rate in Hz."""
+
+    samples: np.ndarray
+    sample_rate: int
+    path: str = ""
+
+    @property
+    def num_channels(self) -> int:
+        return 1 if self.samples.ndim == 1 else int(self.samples.shape[1])
+
+    @property
+    def num_samples(self) -> int:
+        return int(self.samples.shape[0])
+
+    @property
+    def duration(self) -> float:
+        return self.num_samples / float(self.sample_rate)
+
+    def channel(self, i: int) -> "Audio":
+        if self.samples.ndim == 1:
+            if i != 0:
+                raise AudioFormatError(f"mono audio has no channel {i}", self.path)
+            return self
+        if not 0 <= i < self.num_channels:
+            raise AudioFormatError(f"channel {i} requested, file has {self.num_channels}", self.path)
+        return Audio(np.ascontiguousarray(self.samples[:, i]), self.sample_rate, self.path)
+
+
+def wav_duration(path: str | Path) -> float:
+    """Duration from the WAV header alone (cheap); falls back to a full read for float WAVs."""
+    path = Path(path)
+    try:
+        with wave.open(str(path), "rb") as w:
+            return w.getnframes() / float(w.getframerate())
+    except (wave.Error, EOFError):
+        return load_audio(path).duration
+    except OSError as e:
+        raise AudioFormatError(f"cannot read WAV header ({e})", path) from None
+
+
+def load_audio(path: str | Path, channel: int | None = None) -> Audio:
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFileError("audio file not found", path)
+    try:
+        rate, data = wavfile.read(path)
+    except (ValueError, EOFError, OSError) as e:
+        raise AudioFormatError(f"unreadable WAV ({e})", path) from None
+    if data.size == 0:
+        raise AudioFormatError("WAV holds no samples", path)
+    if data.dtype == np.uint8:
+        x = (data.astype(np.float32) - 128.0) / 128.0
+    elif np.issubdtype(data.dtype, np.integer):
+        x = data.astype(np.float32) / float(np.iinfo(data.dtype).max)
+    else:
+        x = data.astype(np.float32)
+    if not np.all(np.isfinite(x)):
+        bad = int(np.argwhere(~np.isfinite(x.reshape(len(x), -1)))[0, 0])
+        raise AudioFormatError(f"non-finite sample at sample {bad} ({bad / rate:.3f} s)", path, f"sample {bad}")
+    audio = Audio(x, int(rate), str(path))
+    return audio.channel(channel) if channel is not None else audio
+
+
+def save_wav(path: str | Path, samples: np.ndarray, sample_rate: int) -> Path:
+    """Write 16-bit PCM (clipped to [-1, 1]) atomically."""
+    path = Path(path)
+    x = np.asarray(samples, dtype=np.float64)
+    if not np.all(np.isfinite(x)):
+        raise AudioFormatError("refusing to write non-finite samples", path)
+    pcm = np.round(np.clip(x, -1.0, 1.0) * 32767).astype(np.int16)
+    with atomic_path(path, suffix=".wav") as tmp:
+        wavfile.write(tmp, int(sample_rate), pcm)
+    return path

@@ -1,0 +1,250 @@
+"""Dyadic corpus layouts: the GENEA 2023 dyadic layout and manifests (YAML or CSV).
+
+A corpus is a list of sessions; a session has exactly two participants; a participant has motion
+(BVH), audio (WAV, or one channel of a stereo session WAV) and a word-level transcript.
+"""
+from __future__ import annotations
+
+import json
+import re
+from dataclasses import dataclass, field
+from functools import cached_property
+from pathlib import Path
+
+import pandas as pd
+
+from ..errors import CorpusError, FormatError, MissingFileError
+from ..skeleton import Motion
+from .audio import Audio, load_audio, wav_duration
+from .bvh import load_bvh, nominal_fps
+from .transcripts import load_transcript
+
+GENEA_ROLES = ("main-agent", "interloctr")
+TRANSCRIPT_EXTS = (".tsv", ".csv", ".TextGrid", ".textgrid", ".json")
+
+
+@dataclass(eq=False)
+class Participant:
+    """One person of a session. Files load lazily and are cached."""
+
+    role: str
+    character: str
+    motion_path: Path
+    audio_path: Path | None = None
+    transcript_path: Path | None = None
+    audio_channel: int | None = None
+    session: str = ""
+    _cache: dict = field(default_factory=dict, repr=False)
+
+    def load_motion(self, fps: float | None = 30) -> Motion:
+        key = ("motion", fps)
+        if key not in self._cache:
+            self._cache[key] = load_bvh(self.motion_path, fps=fps)
+        return self._cache[key]
+
+    def load_audio(self) -> Audio:
+        if self.audio_path is None:
+            raise MissingFileError(f"session {self.session!r}, participant {self.role!r}: no audio file")
+        if "audio" not in self._cache:
+            self._cache["audio"] = load_audio(self.audio_path, channel=self.audio_channel)
+        return self._cache["audio"]
+
+    def load_transcript(self) -> pd.DataFrame:
+        if self.transcript_path is None:
+            raise MissingFileError(f"session {self.session!r}, participant {self.role!r}: no transcript file")
+        if "words" not in self._cache:
+            self._cache["words"] = load_transcript(self.transcript_path)
+        return self._cache["words"]
+
+
+@dataclass(eq=False)
+class Session:
+    name: str
+    participants: tuple[Participant, Participant]
+
+    def partner(self, i: int) -> Participant:
+        return self.participants[1 - i]
+
+
+@dataclass(eq=False)
+class Corpus:
+    root: Path
+    sessions: list[Session]
+    metadata: dict = field(default_factory=dict)
+
+    @property
+    def characters(self) -> list[str]:
+        return sorted({p.character for s in self.sessions for p in s.participants})
+
+    def session(self, name: str) -> Session:
+        for s in self.sessions:
+            if s.name == name:
+                return s
+        raise KeyError(f"no session {name!r}; sessions are {[s.name for s in self.sessions]}")
+
+
+def bvh_duration(path: Path) -> float:
+    """Duration from the BVH header lines (Frames, Frame Time) without parsing the data."""
+    frames = frame_time = None
+    with open(path, "r", errors="replace") as fh:
+        for lineno, line in enumerate(fh, 1):
+            low = line.strip().lower()
+            if low.startswith("frames:"):
+                try:
+                    frames = int(line.split(":", 1)[1])
+                except ValueError:
+                    raise FormatError("'Frames:' is not an integer", path, f"line {lineno}") from None
+            elif low.startswith("frame time:"):
+                try:
+                    frame_time = float(line.split(":", 1)[1])
+                except ValueError:
+                    raise FormatError("'Frame Time:' is not a number", path, f"line {lineno}") from None
+                break
+    if frames is None or frame_time is None or frame_time <= 0:
+        raise FormatError("missing MOTION header (Frames / Frame Time)", path)
+    return frames / nominal_fps(frame_time)
+
+
+def check_durations(p: Participant, tolerance: float) -> None:
+    """Motion, audio and transcript durations must agree within ``tolerance`` seconds."""
+    dm = bvh_duration(p.motion_path)
+    where = f"session {p.session!r}, participant {p.role!r}"
+    if p.audio_path is not None:
+        da = wav_duration(p.audio_path)
+        if abs(da - dm) > tolerance:
+            raise CorpusError(f"motion lasts {dm:.2f} s ({p.motion_path.name}) but audio lasts {da:.2f} s "
+                              f"({p.audio_path.name}); tolerance {tolerance} s", p.motion_path.parent, where)
+    if p.transcript_path is not None:
+        words = p.load_transcript()
+        if len(words):
+            end = float(words["end"].max())
+            if end > dm + tolerance:
+                raise CorpusError(f"transcript {p.transcript_path.name} ends at {end:.2f} s, after the motion "
+                                  f"({dm:.2f} s); tolerance {tolerance} s", p.motion_path.parent, where)
+
+
+def _find_transcript(stem: Path) -> Path | None:
+    for ext in TRANSCRIPT_EXTS:
+        cand = stem.with_name(stem.name + ext)
+        if cand.is_file():
+            return cand
+    return None
+
+
+def _load_characters(root: Path) -> tuple[dict, dict]:
+    meta = {}
+    f = root / "corpus.json"
+    if f.is_file():
+        try:
+            meta = json.loads(f.read_text())
+        except json.JSONDecodeError as e:
+            raise FormatError(f"invalid JSON ({e.msg})", f, f"line {e.lineno}") from None
+    return meta, dict(meta.get("characters", {}))
+
+
+def load_genea(root: str | Path, tolerance: float = 1.0, check: bool = True) -> Corpus:
+    root = Path(root)
+    if not root.is_dir():
+        raise MissingFileError("corpus folder not found", root)
+    meta, characters = _load_characters(root)
+    pat = re.compile(r"^(?P<session>.+)_(?P<role>main-agent|interloctr)\.bvh$")
+    names = sorted({m.group("session") for f in root.iterdir() if (m := pat.match(f.name))})
+    if not names:
+        raise CorpusError("no <session>_main-agent.bvh / <session>_interloctr.bvh files (GENEA dyadic layout)", root)
+    sessions = []
+    for name in names:
+        stereo = root / f"{name}.wav"
+        parts = []
+        for k, role in enumerate(GENEA_ROLES):
+            stem = root / f"{name}_{role}"
+            motion = stem.with_suffix(".bvh")
+            if not motion.is_file():
+                raise MissingFileError(f"session {name!r} lacks its {role} motion", motion)
+            audio, channel = stem.with_suffix(".wav"), None
+            if not audio.is_file():
+                if stereo.is_file():
+                    audio, channel = stereo, k
+                else:
+                    raise MissingFileError(f"session {name!r} lacks the {role} audio (or a stereo {stereo.name})", audio)
+            transcript = _find_transcript(stem)
+            if transcript is None:
+                raise MissingFileError(f"session {name!r} lacks the {role} transcript", stem.with_suffix(".tsv"))
+            parts.append(Participant(role, characters.get(role, role), motion, audio, transcript, channel, name))
+        sessions.append(Session(name, tuple(parts)))
+    corpus = Corpus(root, sessions, meta)
+    if check:
+        for s in sessions:
+            for p in s.participants:
+                check_durations(p, tolerance)
+    return corpus
+
+
+def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) -> Corpus:
+    path = Path(path)
+    if not path.is_file():
+        raise MissingFileError("manifest not found", path)
+    base = path.parent
+    if path.suffix.lower() in (".yaml", ".yml"):
+        import yaml
+
+        try:
+            data = yaml.safe_load(path.read_text()) or {}
+        except yaml.YAMLError as e:
+            raise FormatError(f"invalid YAML ({e})", path) from None
+        entries = data.get("sessions") if isinstance(data, dict) else None
+        if not isinstance(entries, list):
+            raise FormatError("expected a top-level 'sessions' list", path)
+        rows = []
+        for i, s in enumerate(entries):
+            for j, p in enumerate(s.get("participants") or []):
+                rows.append({"session": s.get("name", f"session{i}"), **p, "_where": f"sessions[{i}].participants[{j}]"})
+    elif path.suffix.lower() == ".csv":
+        df = pd.read_csv(path)
+        missing = {"session", "role", "motion"} - set(df.columns)
+        if missing:
+            raise FormatError(f"manifest CSV lacks columns {sorted(missing)}", path, "line 1")
+        rows = [{**{k: v for k, v in r.items() if not (isinstance(v, float) and pd.isna(v))}, "_where": f"line {i + 2}"}
+                for i, r in enumerate(df.to_dict("records"))]
+    else:
+        raise FormatError("manifest must be .yaml, .yml or .csv", path)
+    by_session: dict[str, list[Participant]] = {}
+    for r in rows:
+        def resolve(key):
+            v = r.get(key)
+            if v is None or v == "":
+                return None
+            p = (base / str(v)).resolve()
+            if not p.is_file():
+                raise MissingFileError(f"{r['_where']}: {key} file not found", p)
+            return p
+        motion = resolve("motion")
+        if motion is None:
+            raise FormatError(f"{r['_where']}: no motion file", path, r["_where"])
+        ch = r.get("audio_channel")
+        part = Participant(str(r["role"]), str(r.get("character", r["role"])), motion, resolve("audio"),
+                           resolve("transcript"), None if ch is None else int(ch), str(r["session"]))
+        by_session.setdefault(str(r["session"]), []).append(part)
+    sessions = []
+    for name, parts in by_session.items():
+        if len(parts) != 2:
+            raise CorpusError(f"session {name!r} has {len(parts)} participants, expected 2", path)
+        sessions.append(Session(name, tuple(parts)))
+    corpus = Corpus(base, sessions, {"manifest": str(path)})
+    if check:
+        for s in sessions:
+            for p in s.participants:
+                check_durations(p, tolerance)
+    return corpus
+
+
+def load_corpus(path: str | Path, layout: str = "auto", fps: float = 30, tolerance: float = 1.0,
+                check_durations: bool = True) -> Corpus:
+    """Open a dyadic corpus: a GENEA-layout folder or a manifest file (``layout='auto'`` decides)."""
+    path = Path(path)
+    if layout == "auto":
+        layout = "genea" if path.is_dir() else "manifest"
+    if layout == "genea":
+        return load_genea(path, tolerance, check_durations)
+    if layout == "manifest":
+        return load_manifest(path, tolerance, check_durations)
+    raise CorpusError(f"unknown corpus layout {layout!r} (expected auto, genea or manifest)", path)

@@ -1,0 +1,31 @@
+"""Task ``make_corpus``: write the synthetic corpus (``corpus=synthetic`` or ``corpus=synthetic_tiny``)
+into ``corpus.root`` or ``${cache_dir}/<name>``; ``task.force=true`` regenerates it."""
+from __future__ import annotations
+
+import json
+import time
+from pathlib import Path
+
+import pandas as pd
+
+from ..data import ensure_synthetic_corpus, make_synthetic_corpus
+from ..errors import ConfigError
+
+
+def run(cfg, out_dir: Path) -> dict:
+    if cfg.corpus.kind != "synthetic":
+        raise ConfigError(f"make_corpus needs a synthetic corpus config, got kind={cfg.corpus.kind!r}")
+    t0 = time.perf_counter()
+    if cfg.task.get("force", False):
+        root = Path(cfg.corpus.root) if cfg.corpus.get("root") else Path(cfg.cache_dir) / cfg.corpus.name
+        root = make_synthetic_corpus(root, cfg.corpus.generator)
+    else:
+        root = ensure_synthetic_corpus(cfg.corpus, cfg.cache_dir)
+    seconds = time.perf_counter() - t0
+    meta = json.loads((root / "corpus.json").read_text())
+    events = pd.read_csv(root / "events.csv")
+    counts = events.groupby(["participant", "kind"]).size().unstack(fill_value=0)
+    return {"corpus_root": str(root), "num_sessions": len(meta["sessions"]),
+            "total_seconds": sum(s["duration"] for s in meta["sessions"]),
+            "characters": meta["characters"], "event_counts": counts.to_dict(orient="index"),
+            "seconds": seconds}

@@ -23,7 +23,7 @@ if __name__ == "__main__":
     if "chance_rate" in table:
         table["chance_rate"] = (100 * table["chance_rate"]).round(1)
     (out / "table1.md").write_text(summaries.to_markdown(table))
-    (out / "table1.tex").write_text(table.to_latex(index=False, float_format="%.4g"))
+    (out / "table1.tex").write_text(summaries.to_latex(table))
 
     import matplotlib
 

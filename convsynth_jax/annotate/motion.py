@@ -1,0 +1,190 @@
+"""Motion segmentation (paper Section 5, Eq. 1-2, Figure 3).
+
+Joint speeds: each hand relative to its shoulder, in a frame that sits at the shoulder joint and
+turns with the torso (the upper arm's parent), and a point on the head (its End Site, else the head
+joint) relative to the neck in the torso frame, projected on the vertical axis (nods).
+
+A candidate window per audio segment is the segment expanded to twice its length around its centre,
+trimmed so it does not overlap the neighbouring audio segments of the same channel nor the previous
+motion segment found. The window holds a movement if the speed exceeds the clip's idle threshold
+θ_S = min + α_S (max − min) (Eq. 1); the movement starts at the first frame above
+θ_W = min_W + α_W (max_W − min_W) (Eq. 2) and ends at the last.
+"""
+from __future__ import annotations
+
+import logging
+from typing import NamedTuple
+
+import numpy as np
+import pandas as pd
+
+from ..errors import ConfigError
+from ..kinematics import global_transforms
+from ..rotations import quat_rotate
+from ..skeleton import Motion
+
+log = logging.getLogger(__name__)
+
+DEFAULT_JOINTS = {
+    "left_hand": [r"^LeftHand$", r"^Hand_L$", r"^l_?hand$", r"left.?hand$", r"^LeftWrist$"],
+    "left_shoulder": [r"^LeftArm$", r"^UpperArm_L$", r"^l_?upperarm$", r"^LeftUpperArm$", r"^l_?shoulder$"],
+    "right_hand": [r"^RightHand$", r"^Hand_R$", r"^r_?hand$", r"right.?hand$", r"^RightWrist$"],
+    "right_shoulder": [r"^RightArm$", r"^UpperArm_R$", r"^r_?upperarm$", r"^RightUpperArm$", r"^r_?shoulder$"],
+    "neck": [r"^Neck$", r"^neck", r"Neck"],
+    "head": [r"^Head$", r"^head", r"Head"],
+}
+
+
+def _cfg(cfg, key, default):
+    if cfg is None:
+        return default
+    a = cfg.get("annotate", cfg) if hasattr(cfg, "get") else {}
+    v = a.get(key, default) if hasattr(a, "get") else default
+    return default if v is None else v
+
+
+def find_joints(skeleton, patterns: dict | None = None) -> dict:
+    pats = {**DEFAULT_JOINTS, **(patterns or {})}
+    out = {}
+    for key, pl in pats.items():
+        j = skeleton.find(*([pl] if isinstance(pl, str) else list(pl)))
+        if j is None:
+            raise ConfigError(f"no joint for {key!r} among {list(skeleton.names)} (patterns {pl}); "
+                              f"set annotate.joints.{key}")
+        out[key] = j
+    return out
+
+
+def joint_speeds(motion: Motion, cfg=None) -> dict:
+    """{"LH", "RH", "Nod"}: (F,) speeds in units per second (see module docstring)."""
+    skel = motion.skeleton
+    j = find_joints(skel, dict(_cfg(cfg, "joints", {}) or {}))
+    pos, rot = global_transforms(motion)
+    pos, rot = np.asarray(pos, np.float64), np.asarray(rot, np.float64)
+    fps = motion.fps
+    out = {}
+    for key, hand, sh in (("LH", "left_hand", "left_shoulder"), ("RH", "right_hand", "right_shoulder")):
+        frame_j = skel.parents[j[sh]] if skel.parents[j[sh]] >= 0 else j[sh]
+        inv = rot[:, frame_j] * np.array([1, -1, -1, -1])
+        rel = np.asarray(quat_rotate(inv, pos[:, j[hand]] - pos[:, j[sh]]))
+        out[key] = _speed(rel, fps)
+    head, neck = j["head"], j["neck"]
+    ends = [off for parent, off in skel.end_sites if parent == head]
+    point = pos[:, head]
+    if ends:
+        point = point + np.asarray(quat_rotate(rot[:, head], np.broadcast_to(np.asarray(ends[0], float), point.shape)))
+    frame_j = skel.parents[neck] if skel.parents[neck] >= 0 else neck
+    inv = rot[:, frame_j] * np.array([1, -1, -1, -1])
+    rel = np.asarray(quat_rotate(inv, point - pos[:, neck]))
+    up = int(_cfg(cfg, "up_axis", 1))
+    out["Nod"] = _speed(rel[:, up:up + 1], fps)
+    return out
+
+
+def _speed(x: np.ndarray, fps: float) -> np.ndarray:
+    """Magnitude of the central-difference velocity of (F, D) positions."""
+    if len(x) < 2:
+        return np.zeros(len(x))
+    v = np.gradient(x, axis=0) * fps
+    return np.linalg.norm(v, axis=-1)
+
+
+def idle_threshold(v: np.ndarray, alpha: float = 0.1) -> float:
+    """Eq. 1 (over a clip) and Eq. 2 (over a window): min + alpha (max - min)."""
+    v = np.asarray(v, dtype=np.float64)
+    if v.size == 0:
+        return float("nan")
+    lo, hi = float(np.min(v)), float(np.max(v))
+    return lo + alpha * (hi - lo)
+
+
+class Window(NamedTuple):
+    start: int  # frame, inclusive
+    end: int    # frame, exclusive
+
+
+def candidate_windows(segments: pd.DataFrame, num_frames: int, fps: float, neighbours: pd.DataFrame | None = None) -> list[Window]:
+    """Figure 3: each segment expanded to twice its length around its centre, then trimmed so it
+    does not reach into the neighbouring segments (``neighbours``, default: ``segments``)."""
+    nb = segments if neighbours is None else neighbours
+    nb_s = np.asarray(nb["start"], float) if len(nb) else np.zeros(0)
+    nb_e = np.asarray(nb["end"], float) if len(nb) else np.zeros(0)
+    out = []
+    for s, e in zip(segments["start"], segments["end"]):
+        length = e - s
+        lo, hi = s - length / 2, e + length / 2
+        prev_end = nb_e[(nb_e <= s + 1e-9) & (nb_s < s - 1e-9)]
+        next_start = nb_s[(nb_s >= e - 1e-9) & (nb_e > e + 1e-9)]
+        if prev_end.size:
+            lo = max(lo, prev_end.max())
+        if next_start.size:
+            hi = min(hi, next_start.min())
+        a = int(np.clip(np.floor(lo * fps), 0, num_frames))
+        b = int(np.clip(np.ceil(hi * fps), 0, num_frames))
+        out.append(Window(a, max(a, b)))
+    return out
+
+
+def detect_in_window(v: np.ndarray, window: Window, theta_s: float, alpha_w: float = 0.1):
+    """(start, peak, end) frames of the movement in ``window`` (end exclusive), or None if the speed
+    never exceeds the clip threshold there."""
+    w = v[window.start:window.end]
+    if w.size == 0 or float(w.max()) <= theta_s:
+        return None
+    theta_w = idle_threshold(w, alpha_w)
+    above = np.flatnonzero(w > theta_w)
+    return window.start + int(above[0]), window.start + int(np.argmax(w)), window.start + int(above[-1]) + 1
+
+
+def segment_windows(v: np.ndarray, windows: list[Window], theta_s: float, alpha_w: float = 0.1,
+                    trim_motion: bool = True) -> list:
+    """Detect one movement per window in time order; with ``trim_motion`` a window may not start
+    before the end of the previous movement found (Figure 3's trimming against motion segments)."""
+    order = np.argsort([w.start for w in windows], kind="stable")
+    found = [None] * len(windows)
+    last_end = 0
+    for k in order:
+        w = windows[k]
+        if trim_motion and last_end > w.start:
+            w = Window(min(last_end, w.end), w.end)
+        hit = detect_in_window(v, w, theta_s, alpha_w)
+        found[k] = hit
+        if hit is not None:
+            last_end = max(last_end, hit[2])
+    return found
+
+
+HYPOTHESIS_SPEC = {  # hypothesis -> (audio channel, audio kind, motion kinds)
+    "PC-LH": ("own", "PC", ("LH",)),
+    "PC-RH": ("own", "PC", ("RH",)),
+    "PC-LH/RH": ("own", "PC", ("LH", "RH")),
+    "LR-Nod": ("own", "LR", ("Nod",)),
+    "PH-Nod": ("partner", "HP", ("Nod",)),
+}
+
+
+def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner_segments: pd.DataFrame | None = None,
+                   cfg=None) -> pd.DataFrame:
+    """Motion events DataFrame[kind (LH|RH|Nod), start, peak, end (seconds), channel, segment] found in
+    the candidate windows of the own PCs (hand gestures), own LRs and partner HPs (nods)."""
+    alpha_s = float(_cfg(cfg, "alpha_s", 0.1))
+    alpha_w = float(_cfg(cfg, "alpha_w", 0.1))
+    rows = []
+    n = len(next(iter(speeds.values())))
+    plan = [("LH", "own", "PC"), ("RH", "own", "PC"), ("Nod", "own", "LR"), ("Nod", "partner", "HP")]
+    for kind, channel, akind in plan:
+        segs = own_segments if channel == "own" else partner_segments
+        if segs is None or len(segs) == 0:
+            continue
+        sel = segs[segs["kind"] == akind]
+        if sel.empty:
+            continue
+        v = speeds[kind]
+        theta_s = idle_threshold(v, alpha_s)
+        wins = candidate_windows(sel, n, fps, neighbours=segs)
+        for (idx, _), hit in zip(sel.iterrows(), segment_windows(v, wins, theta_s, alpha_w)):
+            if hit is not None:
+                rows.append({"kind": kind, "start": hit[0] / fps, "peak": hit[1] / fps, "end": hit[2] / fps,
+                             "channel": channel, "segment": int(idx)})
+    ev = pd.DataFrame(rows, columns=["kind", "start", "peak", "end", "channel", "segment"])
+    return ev.drop_duplicates(["kind", "start", "end"]).sort_values("start").reset_index(drop=True)

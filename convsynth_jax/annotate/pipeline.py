@@ -1,0 +1,71 @@
+"""Corpus-level annotation: audio segments of both channels, motion events, per-frame audio status."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass
+
+import pandas as pd
+from tqdm.auto import tqdm
+
+from ..skeleton import Motion
+from .audio import annotate_audio, load_word_corpus
+from .motion import joint_speeds, segment_motion
+from .types import FrameAudio
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class ParticipantAnnotation:
+    """Everything the later stages need about one participant of one session.
+
+    segments / partner_segments: DataFrame[kind, start, peak, end, text] (seconds);
+    events: detected motion events DataFrame[kind, start, peak, end, channel, segment];
+    own / partner: FrameAudio at the motion frame rate; motion: the Motion at that rate.
+    """
+
+    session: str
+    role: str
+    character: str
+    motion: Motion
+    segments: pd.DataFrame
+    partner_segments: pd.DataFrame
+    events: pd.DataFrame
+    own: FrameAudio
+    partner: FrameAudio
+
+
+def _fps(cfg) -> float:
+    try:
+        return float(cfg.features.fps)
+    except AttributeError:
+        return 30.0
+
+
+def annotate_session(session, cfg, word_corpus: dict | None = None) -> dict:
+    """role -> ParticipantAnnotation for both participants of ``session``."""
+    a = cfg.get("annotate", {}) if hasattr(cfg, "get") else {}
+    corpus = word_corpus or load_word_corpus((a or {}).get("word_corpus"), (a or {}).get("extra_words"))
+    fps = _fps(cfg)
+    segs = []
+    for p in session.participants:
+        audio = p.load_audio() if p.audio_path is not None else None
+        segs.append(annotate_audio(p.load_transcript(), audio, cfg, word_corpus=corpus))
+    out = {}
+    for k, p in enumerate(session.participants):
+        motion = p.load_motion(fps)
+        own, partner = segs[k], segs[1 - k]
+        events = segment_motion(joint_speeds(motion, cfg), own, motion.fps, partner, cfg)
+        out[p.role] = ParticipantAnnotation(
+            session.name, p.role, p.character, motion, own, partner, events,
+            FrameAudio.from_segments(own, motion.num_frames, motion.fps),
+            FrameAudio.from_segments(partner, motion.num_frames, motion.fps))
+    return out
+
+
+def annotate_corpus(corpus, cfg, progress: bool = True) -> dict:
+    """session name -> role -> ParticipantAnnotation."""
+    a = cfg.get("annotate", {}) if hasattr(cfg, "get") else {}
+    words = load_word_corpus((a or {}).get("word_corpus"), (a or {}).get("extra_words"))
+    return {s.name: annotate_session(s, cfg, words)
+            for s in tqdm(corpus.sessions, desc="annotating sessions", disable=not progress)}

@@ -1,0 +1,48 @@
+"""Task ``cooccurrence``: Table 1 (audio-motion co-occurrence with tests against chance).
+
+Writes ``cooccurrence.csv`` (character, hypothesis, matched, total, rate, chance_matched,
+chance_total, chance_rate, chi2, df, p_chi2, p_permutation), ``cooccurrence.md``, ``cooccurrence.tex``,
+``cooccurrence_by_session.csv``, ``events.csv`` (detected motion events), ``segments.csv`` (audio
+segments) and ``cooccurrence.png``.
+"""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+
+from ..evaluation.summaries import to_latex, to_markdown
+from ..utils import atomic_path, write_text_atomic
+
+
+def _csv(df, path):
+    with atomic_path(path) as tmp:
+        df.to_csv(tmp, index=False)
+
+
+def run(cfg, out_dir: Path) -> dict:
+    from ..annotate.pipeline import annotate_corpus
+    from ..plotting import cooccurrence_figure
+    from ..stats.cooccurrence import cooccurrence_table
+    from .common import open_corpus
+
+    corpus = open_corpus(cfg)
+    ann = annotate_corpus(corpus, cfg, progress=bool(cfg.get("progress", True)))
+    parts = [a for s in ann.values() for a in s.values()]
+    table = cooccurrence_table(parts, cfg)
+    by_session = cooccurrence_table(parts, cfg, by_session=True)
+    _csv(table, out_dir / "cooccurrence.csv")
+    _csv(by_session, out_dir / "cooccurrence_by_session.csv")
+    write_text_atomic(out_dir / "cooccurrence.md", to_markdown(table))
+    write_text_atomic(out_dir / "cooccurrence.tex", to_latex(table))
+    ev = pd.concat([a.events.assign(session=a.session, role=a.role, character=a.character) for a in parts],
+                   ignore_index=True)
+    seg = pd.concat([a.segments.assign(session=a.session, role=a.role, character=a.character) for a in parts],
+                    ignore_index=True)
+    _csv(ev, out_dir / "events.csv")
+    _csv(seg, out_dir / "segments.csv")
+    fig = cooccurrence_figure(table)
+    with atomic_path(out_dir / "cooccurrence.png") as tmp:
+        fig.savefig(tmp, dpi=120, format="png")
+    print("\n" + to_markdown(table))
+    return {"corpus_root": str(corpus.root), "rows": table.drop(columns=[], errors="ignore").to_dict(orient="records")}

@@ -1,0 +1,183 @@
+"""Motion-graph construction (paper Section 6): features -> key states -> threshold from a fitted
+distribution of c(i, i+k) -> synthetic transitions between key states below the threshold ->
+original transitions -> largest strongly connected component.
+"""
+from __future__ import annotations
+
+import logging
+import time
+
+import numpy as np
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
+
+from ..errors import GraphError
+from ..stats.fits import fit_distributions
+from .cost import aligned_distance, candidate_edges
+from .database import MotionDatabase, build_database
+from .keystates import key_states
+from .types import MotionGraph
+
+log = logging.getLogger(__name__)
+
+GRAPH_DEFAULTS = {"k": 3, "quantile": 0.95, "distribution": "johnsonsb", "key_fraction": 0.2225,
+                  "w_v": "auto", "min_gap_frames": 10, "tile": 512, "n_pivots": 8, "max_out_degree": None,
+                  "local_minima": False, "use_audio_keys": True, "seed": 0, "fit_bins": 100}
+
+
+def graph_params(cfg) -> dict:
+    g = dict(GRAPH_DEFAULTS)
+    if cfg is not None and cfg.get("graph") is not None:
+        g.update({k: v for k, v in dict(cfg.graph).items() if v is not None or k in ("max_out_degree",)})
+    return g
+
+
+def k_step_costs(db: MotionDatabase, k: int, w_v: float) -> np.ndarray:
+    """c(i, i+k) = D(i, i+k-1) for every i whose i+k lies in the same clip (Figure 4's data)."""
+    i = np.arange(db.num_frames)
+    j = i + k
+    ok = j < db.num_frames
+    ok[ok] &= db.clip[j[ok]] == db.clip[i[ok]]
+    a, b = i[ok], j[ok] - 1
+    if a.size == 0:
+        return np.zeros(0)
+    out = []
+    for s in range(0, a.size, 65536):
+        out.append(np.asarray(aligned_distance(db.positions[a[s:s + 65536]], db.velocities[a[s:s + 65536]],
+                                               db.positions[b[s:s + 65536]], db.velocities[b[s:s + 65536]],
+                                               db.weights.astype(np.float32), np.float32(w_v))))
+    return np.concatenate(out).astype(np.float64)
+
+
+def auto_w_v(db: MotionDatabase, n_pairs: int = 20000, seed: int = 0) -> float:
+    """w_v so that the velocity term has the same scale as the position term: the ratio of the
+    medians of d(p_a, p_b) and d(v_a, v_b) over random frame pairs (documented rule)."""
+    rng = np.random.default_rng(seed)
+    a = rng.integers(db.num_frames, size=n_pairs)
+    b = rng.integers(db.num_frames, size=n_pairs)
+    dp = np.linalg.norm(db.positions[a] - db.positions[b], axis=-1) @ db.weights
+    dv = np.linalg.norm(db.velocities[a] - db.velocities[b], axis=-1) @ db.weights
+    mv = float(np.median(dv))
+    return float(np.median(dp) / mv) if mv > 0 else 1.0
+
+
+def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None):
+    """Synthetic transitions i -> j between key states with D(i, j-1) < threshold."""
+    src = np.flatnonzero(keys)
+    kj = np.flatnonzero(keys)
+    kj = kj[db.frame[kj] > 0]  # j-1 must be in the same clip
+    w = db.weights.astype(np.float32)
+    live = w > 0
+    P, V = db.positions[:, live], db.velocities[:, live]
+    fn = edge_fn or candidate_edges
+    a, b, c = fn(P, V, w[live], w_v, src, kj - 1, db.clip, threshold, int(params["min_gap_frames"]),
+                 **({"tile": int(params["tile"]), "n_pivots": int(params["n_pivots"]), "seed": int(params["seed"]),
+                     "stats": stats} if edge_fn is None else {}))
+    j = b + 1
+    order = np.lexsort((j, a))
+    a, j, c = a[order], j[order], c[order]
+    if params.get("local_minima"):
+        a, j, c = _local_minima(a, j, c)
+    if params.get("max_out_degree"):
+        a, j, c = _cap_degree(a, j, c, int(params["max_out_degree"]))
+    return a, j, c
+
+
+def _local_minima(a, j, c):
+    """Keep an edge only if no edge from a neighbouring source (+-1 frame) to a neighbouring target
+    (+-1 frame) is cheaper (Kovar et al.'s local minima, on the key-state grid)."""
+    best = {}
+    for x, y, z in zip(a, j, c):
+        best[(x, y)] = z
+    keep = np.ones(a.size, bool)
+    for n, (x, y, z) in enumerate(zip(a, j, c)):
+        for dx in (-1, 0, 1):
+            for dy in (-1, 0, 1):
+                if (dx or dy) and best.get((x + dx, y + dy), np.inf) < z:
+                    keep[n] = False
+    return a[keep], j[keep], c[keep]
+
+
+def _cap_degree(a, j, c, cap):
+    keep = np.zeros(a.size, bool)
+    for s in np.unique(a):
+        idx = np.flatnonzero(a == s)
+        keep[idx[np.argsort(c[idx], kind="stable")[:cap]]] = True
+    return a[keep], j[keep], c[keep]
+
+
+def assemble_graph(db: MotionDatabase, keys, a, j, c, meta: dict) -> MotionGraph:
+    """Original transitions + synthetic ones, then the largest strongly connected component."""
+    n = db.num_frames
+    t = np.arange(n - 1)
+    orig = t[db.clip[t] == db.clip[t + 1]]
+    rows = np.concatenate([orig, a])
+    cols = np.concatenate([orig + 1, j])
+    cost = np.concatenate([np.zeros(orig.size, np.float32), c.astype(np.float32)])
+    syn = np.concatenate([np.zeros(orig.size, bool), np.ones(a.size, bool)])
+    meta = dict(meta, num_states_before_scc=int(n), num_edges_before_scc=int(rows.size),
+                num_synthetic_before_scc=int(a.size))
+    adj = csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    ncomp, labels = connected_components(adj, directed=True, connection="strong")
+    sizes = np.bincount(labels)
+    keep = labels == int(np.argmax(sizes))
+    new_id = np.full(n, -1, np.int64)
+    new_id[keep] = np.arange(int(keep.sum()))
+    e = keep[rows] & keep[cols]
+    r, cc, co, sy = new_id[rows[e]], new_id[cols[e]], cost[e], syn[e]
+    order = np.lexsort((cc, r))
+    r, cc, co, sy = r[order], cc[order], co[order], sy[order]
+    S = int(keep.sum())
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=S))]).astype(np.int64)
+    meta.update(num_states=S, num_edges=int(r.size), num_synthetic_edges=int(sy.sum()), num_components=int(ncomp))
+    return MotionGraph(
+        clip_names=db.clip_names, fps=db.fps, clip=db.clip[keep], frame=db.frame[keep],
+        own_label=db.own.label[keep], own_start=db.own.seg_start[keep], own_end=db.own.seg_end[keep],
+        own_peak=db.own.seg_peak[keep], partner_label=db.partner.label[keep],
+        partner_start=db.partner.seg_start[keep], partner_end=db.partner.seg_end[keep], is_key=keys[keep],
+        indptr=indptr, indices=cc.astype(np.int64), cost=co.astype(np.float32), synthetic=sy, meta=meta)
+
+
+def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None = None) -> MotionGraph:
+    """The full construction on a database. ``edge_fn`` swaps the edge kernel (the reference
+    builder passes the NumPy one). ``meta['seconds']`` is the construction wall time."""
+    p = graph_params(cfg)
+    t0 = time.perf_counter()
+    tm = timings if timings is not None else {}
+    w_v = auto_w_v(db, seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
+    tm["w_v_s"] = time.perf_counter() - t0
+    t1 = time.perf_counter()
+    keys, step = key_states(db, float(p["key_fraction"]), bool(p["use_audio_keys"]))
+    tm["key_states_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    kc = k_step_costs(db, int(p["k"]), w_v)
+    if kc.size < 10:
+        raise GraphError(f"too few frame pairs ({kc.size}) to fit the c(i, i+{p['k']}) distribution")
+    fit = fit_distributions(kc, choose=str(p["distribution"]), bins=int(p["fit_bins"]), seed=int(p["seed"]))
+    threshold = fit.quantile(float(p["quantile"]))
+    tm["threshold_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    kstats: dict = {}
+    a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats)
+    tm["edges_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    meta = {
+        "k": int(p["k"]), "quantile": float(p["quantile"]), "distribution": fit.chosen,
+        "distribution_params": list(fit.params), "threshold": float(threshold), "w_v": float(w_v),
+        "w_v_rule": "median d(p_a,p_b) / median d(v_a,v_b) over random frame pairs" if str(p["w_v"]) == "auto" else "config",
+        "fit_table": [{"distribution": r.distribution, "rss": float(r.rss), "params": list(r.params)}
+                      for r in fit.table.itertuples()],
+        "joint_names": list(db.joint_names), "joint_weights": [float(x) for x in db.weights],
+        "key_fraction": float(keys.mean()), "num_key_states": int(keys.sum()), "keyframe_step": float(step),
+        "num_frames": int(db.num_frames), "min_gap_frames": int(p["min_gap_frames"]), "kernel": kstats,
+        **db.meta,
+    }
+    g = assemble_graph(db, keys, a, j, c, meta)
+    tm["scc_s"] = time.perf_counter() - t1
+    g.meta["seconds"] = time.perf_counter() - t0
+    g.meta["timings"] = dict(tm)
+    return g
+
+
+def build_graph_from_clips(clips, cfg=None) -> MotionGraph:
+    return build_graph(build_database(clips, cfg), cfg)

@@ -1,0 +1,131 @@
+"""Motion database of one character: every frame of its clips with root-relative pose features and
+the audio status of its own and its partner's channel."""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from ..annotate.types import FrameAudio
+from ..errors import GraphError, MissingFileError
+from ..kinematics import pose_features
+
+log = logging.getLogger(__name__)
+
+
+@dataclass
+class MotionDatabase:
+    """N frames of C clips. positions, velocities: (N, J, 3) float32 root-relative features;
+    weights: (J,) joint weights w_b; clip: (N,) clip index; frame: (N,) frame in the clip;
+    offsets: (C + 1,) first frame of each clip; own/partner: FrameAudio over all N frames (segment
+    indices are clip-frame indices)."""
+
+    clip_names: tuple
+    fps: float
+    positions: np.ndarray
+    velocities: np.ndarray
+    weights: np.ndarray
+    clip: np.ndarray
+    frame: np.ndarray
+    offsets: np.ndarray
+    own: FrameAudio
+    partner: FrameAudio
+    joint_names: tuple = ()
+    meta: dict = field(default_factory=dict)
+
+    @property
+    def num_frames(self) -> int:
+        return int(self.clip.shape[0])
+
+
+def _idle(n: int) -> FrameAudio:
+    return FrameAudio(np.zeros(n, np.int8), np.full(n, -1, np.int32), np.full(n, -1, np.int32), np.full(n, -1, np.int32))
+
+
+def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
+    """Root-relative positions and velocities of many clips of one skeleton with one FK call (the
+    frame count is padded to a power of two so the kernels compile for few shapes). Velocities are
+    differenced within each clip. Returns float32 (N, J, 3) arrays."""
+    from ..kinematics import finite_difference, fk_kernel, root_relative_kernel
+    import jax.numpy as jnp
+
+    rot = np.concatenate([m.rotations for m in motions]).astype(np.float32)
+    tr = np.concatenate([m.translations for m in motions]).astype(np.float32)
+    n = rot.shape[0]
+    size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
+    pad = size - n
+    if pad:
+        rot = np.concatenate([rot, np.broadcast_to(rot[-1:], (pad,) + rot.shape[1:])])
+        tr = np.concatenate([tr, np.broadcast_to(tr[-1:], (pad,) + tr.shape[1:])])
+    pos, grot = fk_kernel(jnp.asarray(rot), jnp.asarray(tr), tuple(motions[0].skeleton.parents))
+    rel = np.asarray(root_relative_kernel(pos, grot, up_axis=up_axis, remove_yaw=remove_yaw))[:n]
+    vel = np.empty_like(rel)
+    start = 0
+    for m in motions:
+        stop = start + m.num_frames
+        x = rel[start:stop]
+        if len(x) < 2:
+            vel[start:stop] = 0
+        else:
+            vel[start:stop] = np.gradient(x, axis=0) * m.fps
+        start = stop
+    return rel.astype(np.float32), vel.astype(np.float32)
+
+
+def build_database(clips, cfg=None) -> MotionDatabase:
+    """clips: iterable of (name, Motion, own FrameAudio or None, partner FrameAudio or None), all of
+    one skeleton and frame rate."""
+    feats = cfg.features if cfg is not None else {}
+    up = int(feats.get("up_axis", 1)) if hasattr(feats, "get") else 1
+    remove_yaw = bool(feats.get("remove_yaw", True)) if hasattr(feats, "get") else True
+    names, motions, CL, FR, own, partner = [], [], [], [], [], []
+    skel = fps = None
+    for c, (name, motion, o, p) in enumerate(clips):
+        if skel is None:
+            skel, fps = motion.skeleton, motion.fps
+        elif motion.skeleton.names != skel.names:
+            raise GraphError(f"clip {name!r} has another skeleton than {names[0]!r}")
+        elif abs(motion.fps - fps) > 1e-6:
+            raise GraphError(f"clip {name!r} is at {motion.fps} fps, the others at {fps}")
+        n = motion.num_frames
+        names.append(name)
+        motions.append(motion)
+        CL.append(np.full(n, c, np.int32))
+        FR.append(np.arange(n, dtype=np.int32))
+        for lst, fa in ((own, o), (partner, p)):
+            fa = fa if fa is not None else _idle(n)
+            if fa.num_frames != n:
+                raise GraphError(f"clip {name!r}: audio status has {fa.num_frames} frames, motion {n}")
+            lst.append(fa)
+    if not names:
+        raise GraphError("no clips to build a motion database from")
+    overrides = dict(feats.get("joint_weight_overrides", {}) or {}) if hasattr(feats, "get") else {}
+    pattern = feats.get("finger_pattern") if hasattr(feats, "get") else None
+    from ..skeleton import DEFAULT_FINGER_PATTERN
+
+    weights = skel.joint_weights(pattern or DEFAULT_FINGER_PATTERN, overrides)
+    cat = lambda fs, k: np.concatenate([getattr(x, k) for x in fs])  # noqa: E731
+    fa = lambda fs: FrameAudio(cat(fs, "label"), cat(fs, "seg_start"), cat(fs, "seg_end"), cat(fs, "seg_peak"))  # noqa: E731
+    lengths = [len(c) for c in CL]
+    P, V = batched_features(motions, up, remove_yaw)
+    return MotionDatabase(tuple(names), float(fps), P, V, weights,
+                          np.concatenate(CL), np.concatenate(FR), np.concatenate([[0], np.cumsum(lengths)]),
+                          fa(own), fa(partner), tuple(skel.names),
+                          {"remove_yaw": remove_yaw, "up_axis": up,
+                           "root_relative": "positions minus root position, rotated by the inverse root heading"
+                                            if remove_yaw else "positions minus root position"})
+
+
+def bvh_folder_clips(root, pattern: str = "**/*.bvh", fps: float = 30):
+    """(name, Motion, None, None) for every BVH file under ``root`` (motion only)."""
+    from ..io import load_bvh
+
+    root = Path(root)
+    if not root.is_dir():
+        raise MissingFileError("BVH folder not found", root)
+    files = sorted(root.glob(pattern))
+    if not files:
+        raise GraphError(f"no files matching {pattern!r}", root)
+    return [(str(f.relative_to(root)), load_bvh(f, fps=fps), None, None) for f in files]

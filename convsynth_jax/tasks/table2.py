@@ -1,0 +1,36 @@
+"""Task ``table2``: states and edges before and after keeping the largest strongly connected
+component for k = 2, 3, 4, 5 (``task.ks``), per character (or one row set for bvh_folder).
+Writes ``table2.csv`` and ``table2.md``."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import pandas as pd
+from omegaconf import OmegaConf
+
+from ..evaluation.summaries import to_markdown
+from ..utils import atomic_path, write_text_atomic
+
+
+def run(cfg, out_dir: Path) -> dict:
+    from ..graph import build_database, build_graph
+    from .build_graph import character_clip_sets
+
+    rows = []
+    for char, clips in character_clip_sets(cfg).items():
+        db = build_database(clips, cfg)
+        for k in cfg.task.get("ks", [2, 3, 4, 5]):
+            c = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
+            c.graph.k = int(k)
+            g = build_graph(db, c)
+            m = g.meta
+            rows.append({"character": char or "all", "k": int(k), "threshold": m["threshold"],
+                         "states_before_scc": m["num_states_before_scc"], "edges_before_scc": m["num_edges_before_scc"],
+                         "states_after_scc": m["num_states"], "edges_after_scc": m["num_edges"],
+                         "kept_state_fraction": m["num_states"] / m["num_states_before_scc"], "seconds": m["seconds"]})
+    table = pd.DataFrame(rows)
+    with atomic_path(out_dir / "table2.csv") as tmp:
+        table.to_csv(tmp, index=False)
+    write_text_atomic(out_dir / "table2.md", to_markdown(table))
+    print("\n" + to_markdown(table))
+    return {"rows": table.to_dict(orient="records")}

@@ -1,0 +1,14 @@
+"""Figure 4: redraw the cost histograms with fitted curves from a `figure4` task's CSVs."""
+import pandas as pd
+from _common import done, parse
+
+from convsynth_jax.plotting import cost_histogram_figure
+
+if __name__ == "__main__":
+    src, out, t0 = parse(__doc__, "figure4_histograms.csv")
+    hist = pd.read_csv(src)
+    fits = pd.read_csv(src.parent / "figure4_fits.csv")
+    fig = cost_histogram_figure(hist, fits)
+    fig.savefig(out / "figure4.png", dpi=120)
+    fig.savefig(out / "figure4.pdf")
+    done(out, ["figure4.png", "figure4.pdf"], t0)

@@ -1,0 +1,106 @@
+"""The paper's stochastic greedy search (Section 7.1) with depth-first matching (Section 7.2).
+
+The window is cut into blocks at the boundaries of the own-channel constraints. From ``n_start``
+random start states, each block is matched by a depth-first traversal that follows out-edges
+(cheapest first), checking the per-frame constraint mask at every step and the PC peak when its
+window closes; at most ``max_paths_per_start`` complete block paths are kept per start state and
+``max_expansions`` bound the work. Of all block paths found, ``n_save`` are sampled (cheaper ones
+likelier: Gumbel top-k on -cost / temperature); their end states start the next block. The best
+complete path is returned; if no path survives a block the search reports which one.
+"""
+from __future__ import annotations
+
+import time
+
+import numpy as np
+
+from .constraints import Constraints, _get, is_peak_state, state_ok_matrix
+from .result import SearchResult, failed_segment_at, path_stats
+
+
+def _blocks(c: Constraints) -> list[tuple[int, int]]:
+    cuts = {0, c.num_frames}
+    for s in c.segments:
+        if s["channel"] == "own":
+            # a block reaches one frame past the segment's end margin, so its end is checked inside it
+            for x in (s["start"] - c.tol, s["end"] + c.tol + 1):
+                if 0 < x < c.num_frames:
+                    cuts.add(int(x))
+    cuts = sorted(cuts)
+    return list(zip(cuts[:-1], cuts[1:]))
+
+
+def stochastic_greedy_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> SearchResult:
+    t_begin = time.perf_counter()
+    rng = np.random.default_rng(seed)
+    n_start = int(_get(cfg, "n_start", 50))
+    n_save = int(_get(cfg, "n_save", 200))
+    max_paths = int(_get(cfg, "max_paths_per_start", 20))
+    max_exp = int(_get(cfg, "max_expansions", 200000))
+    budget = float(_get(cfg, "time_budget", 30.0))
+    temperature = float(_get(cfg, "temperature", 0.05))
+    syn = graph.cost[graph.synthetic]
+    temp = max(temperature * (float(np.median(syn)) if syn.size else 1.0), 1e-6)
+    ok = state_ok_matrix(graph, constraints)
+    peak = is_peak_state(graph)
+    c = constraints
+    T = c.num_frames
+    indptr, indices, costs = graph.indptr, graph.indices, graph.cost
+    order = {}
+
+    max_deg = int(_get(cfg, "max_degree", 64))
+
+    def edges(s):
+        if s not in order:
+            a, b = indptr[s], indptr[s + 1]
+            k = np.argsort(costs[a:b], kind="stable")[:max_deg]
+            order[s] = (indices[a:b][k], costs[a:b][k])
+        return order[s]
+
+    first = np.flatnonzero(ok[0])
+    if first.size == 0:
+        return SearchResult(False, None, float("inf"), 0, c.total, 0, 0, failed_segment_at(c, 0),
+                            time.perf_counter() - t_begin, "dfs")
+    starts = rng.choice(first, size=min(n_start, first.size), replace=False)
+    # a candidate: (path list, cost, peak flag)
+    frontier = [([int(s)], 0.0, bool(c.peak_window[0] and peak[s])) for s in starts]
+    frontier = [f for f in frontier if not (c.peak_check[0] and not f[2])]
+    for (b0, b1) in _blocks(c):
+        if b0 == 0:
+            b0 = 1
+        if b1 <= b0:
+            continue
+        found = []
+        per_start = max(1000, max_exp // max(1, len(frontier)))
+        for path, cost, flag in frontier:
+            kept = 0
+            expansions = 0
+            stack = [(path[-1], b0, cost, flag, [])]
+            while stack and kept < max_paths and expansions < per_start and time.perf_counter() - t_begin < budget:
+                s, t, cst, fl, seg = stack.pop()
+                if t == b1:
+                    found.append((path + seg, cst, fl))
+                    kept += 1
+                    continue
+                tg, cc = edges(s)
+                for u, w in zip(tg[::-1], cc[::-1]):  # push expensive first: cheapest popped first
+                    u = int(u)
+                    if not ok[t, u]:
+                        continue
+                    f2 = (False if c.peak_reset[t] else fl) or bool(c.peak_window[t] and peak[u])
+                    if c.peak_check[t] and not f2:
+                        continue
+                    expansions += 1
+                    stack.append((u, t + 1, cst + float(w), f2, seg + [u]))
+        if not found:
+            return SearchResult(False, None, float("inf"), 0, c.total, 0, b0, failed_segment_at(c, b0),
+                                time.perf_counter() - t_begin, "dfs")
+        cost_arr = np.array([f[1] for f in found])
+        score = -cost_arr / temp + rng.gumbel(size=cost_arr.size)
+        keep = np.argsort(-score)[:n_save]
+        frontier = [found[k] for k in keep]
+    best = min(frontier, key=lambda f: f[1])
+    path = np.asarray(best[0], np.int64)
+    total, nsyn, tc = path_stats(graph, path)
+    return SearchResult(True, path, total, nsyn, c.total, c.total, None, None, time.perf_counter() - t_begin,
+                        "dfs", tc)

@@ -1,0 +1,46 @@
+"""The result of a search."""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+
+@dataclass
+class SearchResult:
+    success: bool
+    path: np.ndarray | None          # (T,) graph state per output frame
+    cost: float
+    num_synthetic_transitions: int
+    constraints_total: int
+    constraints_met: int
+    failed_frame: int | None = None  # first output frame where every candidate died
+    failed_segment: dict | None = None
+    seconds: float = 0.0
+    method: str = ""
+    transition_costs: list | None = None
+
+
+def path_stats(graph, path):
+    """(total cost, number of synthetic transitions, costs of the synthetic transitions) of a path."""
+    total, syn, costs = 0.0, 0, []
+    for a, b in zip(path[:-1], path[1:]):
+        t, c, s = graph.out_edges(int(a))
+        k = np.flatnonzero(t == b)
+        if k.size == 0:
+            raise ValueError(f"no edge {a} -> {b} in the graph")
+        k = k[np.argmin(c[k])]
+        total += float(c[k])
+        if s[k]:
+            syn += 1
+            costs.append(float(c[k]))
+    return total, syn, costs
+
+
+def failed_segment_at(constraints, frame):
+    if frame is None:
+        return None
+    for s in constraints.segments:
+        if s["start"] - constraints.tol <= frame < s["end"] + constraints.tol:
+            return dict(s)
+    return {"kind": "frame", "start": int(frame)}

@@ -42,6 +42,8 @@ class Constraints:
     peak_reset: np.ndarray
     peak_check: np.ndarray
     segments: list = field(default_factory=list)
+    own_not: np.ndarray | None = None      # (T,) label forbidden on the own channel (FREE: none)
+    partner_not: np.ndarray | None = None  # (T,) label forbidden on the partner channel
 
     @property
     def total(self) -> int:
@@ -66,9 +68,17 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
     pw = np.zeros(T, bool)
     reset = np.zeros(T, bool)
     check = np.zeros(T, bool)
+    own_not = np.full(T, FREE, np.int32)
+    par_not = np.full(T, FREE, np.int32)
     segs = []
     if not use_c:
-        return Constraints(T, fps, tol, own, par, pw, reset, check, segs)
+        return Constraints(T, fps, tol, own, par, pw, reset, check, segs, own_not, par_not)
+
+    def forbid_outside(arr, code, s, e):
+        """The run of ``code`` must start and end inside the margins: forbid it just outside them."""
+        for t in (s - tol - 1, e + tol):
+            if 0 <= t < T:
+                arr[t] = code
 
     def frames(r):
         return int(round(r.start * fps)), int(round(r.end * fps)), int(round(getattr(r, "peak", np.nan) * fps)) \
@@ -85,9 +95,11 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
         if code is None or (code == LR and not use_lr):
             continue
         a, b = max(0, s + tol), min(T, e - tol)
-        if b > a:
-            own[a:b] = code
+        if b <= a:  # its core lies outside the window: nothing to constrain here
+            continue
+        own[a:b] = code
         segs.append({"kind": r.kind, "channel": "own", "start": s, "end": e, "peak": p})
+        forbid_outside(own_not, code, s, e)
         if code == PC and p is not None and 0 <= p - tol and p + tol < T:
             pw[p - tol:p + tol + 1] = True
             reset[p - tol] = True
@@ -98,14 +110,16 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
                 continue
             s, e, _ = frames(r)
             a, b = max(0, s + tol), min(T, e - tol)
-            if min(T, e + tol) <= 0 or max(0, s - tol) >= T:
+            if b <= a:
                 continue
-            if b > a:
-                par[a:b] = HP
+            par[a:b] = HP
             segs.append({"kind": "PH", "channel": "partner", "start": s, "end": e, "peak": None})
+            forbid_outside(par_not, HP, s, e)
+    own_not[own != FREE] = FREE  # a hard requirement on a frame wins over a forbidden label
+    par_not[par != FREE] = FREE
     idle_runs = _runs(own == IDLE)
     segs += [{"kind": "idle", "channel": "own", "start": a, "end": b, "peak": None} for a, b in idle_runs]
-    return Constraints(T, fps, tol, own, par, pw, reset, check, segs)
+    return Constraints(T, fps, tol, own, par, pw, reset, check, segs, own_not, par_not)
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -119,6 +133,9 @@ def state_ok_matrix(graph, c: Constraints) -> np.ndarray:
     par = graph.partner_label.astype(np.int32)[None, :]
     ok = (c.own_req[:, None] == FREE) | (own == c.own_req[:, None])
     ok &= (c.partner_req[:, None] == FREE) | (par == c.partner_req[:, None])
+    if c.own_not is not None:
+        ok &= ~((c.own_not[:, None] != FREE) & (own == c.own_not[:, None]))
+        ok &= ~((c.partner_not[:, None] != FREE) & (par == c.partner_not[:, None]))
     return ok
 
 

@@ -154,6 +154,7 @@ def run_fold(corpus, annotations: dict, fold: int, condition: str, cfg, out_dir:
     from ..annotate.motion import joint_speeds, segment_motion
     from ..io import save_bvh
     from ..kinematics import forward_kinematics, pose_features
+    from ..search.check import check_path
     from ..synth.pipeline import synthesize_character
     from . import metrics
 
@@ -173,6 +174,7 @@ def run_fold(corpus, annotations: dict, fold: int, condition: str, cfg, out_dir:
     max_windows = loo.get("max_windows")
     if max_windows:
         windows = windows[: int(max_windows)]
+    clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in annotations.items() for r, a in d.items()}
     rows = []
     for w in windows:
         f0, n = int(round(w.start * fps)), int(round(w.duration * fps))
@@ -186,7 +188,7 @@ def run_fold(corpus, annotations: dict, fold: int, condition: str, cfg, out_dir:
                    "method": method, "construction_seconds": fg.seconds.get(char, np.nan), "status": "ok"}
             try:
                 res = synthesize_character(fg.graphs[char], fg.motions[char], own, partner, n, ccfg,
-                                           seed=seed, method=method)
+                                           seed=seed, method=method, chair_index=list(held).index(role))
             except Exception as e:  # recorded, never ends the sweep
                 log.exception("fold %d window %d %s failed", fold, w.index, char)
                 rows.append({**row, "success": False, "status": "error", "error": f"{type(e).__name__}: {e}"})
@@ -195,19 +197,26 @@ def run_fold(corpus, annotations: dict, fold: int, condition: str, cfg, out_dir:
                 "success": bool(res.success), "cost": res.cost, "search_seconds": res.search_seconds,
                 "num_synthetic_transitions": res.num_synthetic_transitions,
                 "constraints_total": res.constraints_total, "constraints_met": res.constraints_met,
-                "failure": getattr(res, "failure", None) or getattr(res, "failure_reason", None),
+                "failure": res.failure,
             })
+            if res.success:  # the full constraint set (whatever the condition) by the independent checker
+                chk = check_path(res.source_clip, res.source_frame, clip_audio, own, partner, fps,
+                                 float(cfg.search.get("tolerance", 0.1)))
+                row.update({"all_constraints_total": chk["total"], "all_constraints_met": chk["met"]})
+                for kind in ("PC", "LR", "PH", "idle"):
+                    d = [x["met"] for x in chk["details"] if x["kind"] == kind]
+                    row[f"checker_{kind}_met"], row[f"checker_{kind}_total"] = int(sum(d)), len(d)
             gt_motion = ann.motion.slice(f0, f0 + n)
             gt_pos = np.asarray(forward_kinematics(gt_motion), dtype=np.float64)
-            gt_events = segment_motion(joint_speeds(gt_motion, cfg), own, fps, cfg=cfg)
+            gt_events = segment_motion(joint_speeds(gt_motion, cfg), own, fps, partner, cfg)
             row.update(_event_counts(gt_events, own, partner, "gt"))
             row.update({"gt_jerk": metrics.mean_jerk(gt_pos, fps), "gt_acceleration": metrics.mean_acceleration(gt_pos, fps),
                         "gt_max_jump": float(metrics.max_frame_jump(gt_pos).max(initial=0.0))})
             if res.success and res.motion is not None:
                 pos = np.asarray(forward_kinematics(res.motion), dtype=np.float64)
-                ev = segment_motion(joint_speeds(res.motion, cfg), own, fps, cfg=cfg)
+                ev = segment_motion(joint_speeds(res.motion, cfg), own, fps, partner, cfg)
                 row.update(_event_counts(ev, own, partner, "synth"))
-                used = np.asarray(getattr(res, "transition_costs", []) or [], dtype=np.float64)
+                used = np.asarray(res.transition_costs or [], dtype=np.float64)
                 row.update({
                     "jerk": metrics.mean_jerk(pos, fps), "acceleration": metrics.mean_acceleration(pos, fps),
                     "speed_hellinger": metrics.speed_histogram_distance(pos, gt_pos, fps),

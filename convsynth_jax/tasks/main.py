@@ -109,7 +109,7 @@ def run(cfg, out_dir: Path) -> dict:
     steps.close()
     print("Success rates\n" + summaries.to_markdown(rates))
     log.info("report: %s", out_dir / "report.md")
-    return {"success": True, "held_out_session": held_out, "num_cases": int(len(cases)),
+    return {"success": True, "corpus_root": str(corpus.root), "held_out_session": held_out, "num_cases": int(len(cases)),
             "success_rates": rates.to_dict(orient="records"), "timings": timings,
             "seconds": time.perf_counter() - t_start}
 

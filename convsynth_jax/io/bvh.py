@@ -233,6 +233,11 @@ def _channels_to_motion(skel: Skeleton, data: np.ndarray, fps: float, name: str)
 
 def motion_to_channels(motion: Motion) -> np.ndarray:
     """(F, total_channels) BVH channel values (degrees) of a motion, in the skeleton's channel order."""
+    for name, arr in (("rotation", motion.rotations), ("translation", motion.translations)):
+        bad = np.argwhere(~np.isfinite(np.asarray(arr)))
+        if bad.size:
+            raise BVHFormatError(f"non-finite {name} at frame {bad[0][0]}, joint {motion.skeleton.names[bad[0][1]]!r}",
+                                 motion.name or None)
     skel = motion.skeleton
     F = motion.num_frames
     cols = []
@@ -288,7 +293,10 @@ def _hierarchy_text(skel: Skeleton) -> str:
 def save_bvh(motion: Motion, path: str | Path, precision: int = 6) -> Path:
     """Write ``motion`` as BVH (atomically: a failed write leaves no file behind)."""
     path = Path(path)
-    data = motion_to_channels(motion)
+    try:
+        data = motion_to_channels(motion)
+    except BVHFormatError as e:
+        raise BVHFormatError(f"refusing to write: {e.reason}", path) from None
     if not np.all(np.isfinite(data)):
         bad = np.argwhere(~np.isfinite(data))[0]
         raise BVHFormatError(f"refusing to write non-finite value at frame {bad[0]}, channel {bad[1]}", path)

@@ -1,0 +1,92 @@
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from convsynth_jax.io import load_bvh
+from convsynth_jax.kinematics import finite_difference, fk_kernel, forward_kinematics, pose_features
+from convsynth_jax.skeleton import Motion, Skeleton
+from tolerances import FK_FLOAT64, enable_x64
+
+
+def fk_reference(motion: Motion) -> np.ndarray:
+    """Slow, obvious float64 FK: loop over frames and joints with 3x3 matrices from scipy."""
+    F, J = motion.num_frames, motion.skeleton.num_joints
+    out = np.zeros((F, J, 3))
+    for f in range(F):
+        mats = [None] * J
+        for j, p in enumerate(motion.skeleton.parents):
+            local = Rotation.from_quat(motion.rotations[f, j][[1, 2, 3, 0]]).as_matrix()
+            t = motion.translations[f, j]
+            if p < 0:
+                mats[j] = local
+                out[f, j] = t
+            else:
+                mats[j] = mats[p] @ local
+                out[f, j] = out[f, p] + mats[p] @ t
+    return out
+
+
+def random_motion(rng, frames=7, joints=6):
+    parents = tuple([-1] + [int(rng.integers(0, j)) for j in range(1, joints)])
+    skel = Skeleton(tuple(f"j{j}" for j in range(joints)), parents, rng.normal(0, 10, (joints, 3)),
+                    tuple(("Zrotation", "Xrotation", "Yrotation") for _ in range(joints)))
+    q = rng.normal(size=(frames, joints, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    t = np.broadcast_to(skel.offsets, (frames, joints, 3)).copy()
+    t[:, 0] = rng.normal(0, 50, (frames, 3))
+    return Motion(skel, q, t, 30.0)
+
+
+def test_fk_matches_float64_reference_random():
+    rng = np.random.default_rng(0)
+    m = random_motion(rng)
+    with enable_x64():
+        pos, _ = fk_kernel(jnp.asarray(m.rotations, jnp.float64), jnp.asarray(m.translations, jnp.float64),
+                           m.skeleton.parents)
+        assert pos.dtype == jnp.float64
+        np.testing.assert_allclose(np.asarray(pos), fk_reference(m), atol=FK_FLOAT64)
+
+
+def test_fk_float32_close_on_real_fixture():
+    from conftest import TEST_DATA
+
+    m = load_bvh(sorted(TEST_DATA.glob("*.bvh"))[0])
+    ref = fk_reference(m.slice(0, 10))
+    np.testing.assert_allclose(np.asarray(forward_kinematics(m.slice(0, 10))), ref, atol=1e-3)
+    with enable_x64():
+        pos = forward_kinematics(m.slice(0, 10), dtype=jnp.float64)
+        np.testing.assert_allclose(np.asarray(pos), ref, atol=FK_FLOAT64)
+
+
+def test_root_relative_features_ignore_root_position_and_heading():
+    rng = np.random.default_rng(1)
+    m = random_motion(rng, frames=5)
+    f1 = pose_features(m)
+    turn = Rotation.from_euler("Y", 70, degrees=True)
+    rot = m.rotations.copy()
+    rot[:, 0] = (turn * Rotation.from_quat(rot[:, 0][:, [1, 2, 3, 0]])).as_quat()[:, [3, 0, 1, 2]]
+    tr = m.translations.copy()
+    tr[:, 0] = turn.apply(tr[:, 0]) + np.array([100.0, 0, -40])
+    f2 = pose_features(Motion(m.skeleton, rot, tr, m.fps))
+    np.testing.assert_allclose(np.asarray(f1.positions), np.asarray(f2.positions), atol=1e-3)
+    # without yaw removal the heading change shows
+    f3 = pose_features(Motion(m.skeleton, rot, tr, m.fps), remove_yaw=False)
+    assert np.abs(np.asarray(f3.positions) - np.asarray(f1.positions)).max() > 1.0
+
+
+def test_finite_difference_is_fps_aware():
+    x = np.arange(10, dtype=np.float32)[:, None] * 2.0  # 2 units per frame
+    np.testing.assert_allclose(np.asarray(finite_difference(x, 30.0)), 60.0, rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(finite_difference(x[:1], 30.0)), 0.0)
+
+
+def test_joint_weights_zero_fingers():
+    from convsynth_jax.data.skeleton_seated import seated_skeleton
+
+    s = seated_skeleton()
+    w = s.joint_weights()
+    names = np.array(s.names)
+    assert set(names[w == 0]) == {n for n in names if any(k in n for k in ("Thumb", "Index", "Middle"))}
+    assert s.joint_weights(overrides={"Head": 2.0})[s.index("Head")] == 2.0

@@ -1,0 +1,69 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from scipy.spatial.transform import Rotation
+
+from convsynth_jax import rotations as R
+from tolerances import ROTATION
+
+ORDERS = ["XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX", "XYX", "ZXZ"]
+angles = st.lists(st.floats(-3.1, 3.1), min_size=3, max_size=3)
+quats = st.lists(st.floats(-1, 1), min_size=4, max_size=4).filter(lambda q: np.linalg.norm(q) > 0.1)
+
+
+def _same_rotation(q_wxyz, rot: Rotation):
+    ref = rot.as_quat()[[3, 0, 1, 2]]
+    q = np.asarray(q_wxyz, np.float64)
+    return min(np.abs(q - ref).max(), np.abs(q + ref).max())
+
+
+@pytest.mark.parametrize("order", ORDERS)
+@settings(max_examples=8, deadline=None)
+@given(a=angles)
+def test_euler_to_quat_matches_scipy_intrinsic(order, a):
+    q = R.euler_to_quat(np.asarray(a, np.float32), order)
+    assert _same_rotation(q, Rotation.from_euler(order, a)) < ROTATION * 10
+
+
+@settings(max_examples=25, deadline=None)
+@given(q=quats)
+def test_matrix_round_trip_and_scipy(q):
+    q = np.asarray(q, np.float64) / np.linalg.norm(q)
+    m = np.asarray(R.quat_to_matrix(q))
+    np.testing.assert_allclose(m, Rotation.from_quat(q[[1, 2, 3, 0]]).as_matrix(), atol=ROTATION)
+    q2 = np.asarray(R.matrix_to_quat(m))
+    assert _same_rotation(q2, Rotation.from_quat(q[[1, 2, 3, 0]])) < ROTATION * 10
+
+
+@settings(max_examples=25, deadline=None)
+@given(a=quats, b=quats, v=st.lists(st.floats(-10, 10), min_size=3, max_size=3))
+def test_multiply_and_rotate_match_scipy(a, b, v):
+    a = np.asarray(a) / np.linalg.norm(a)
+    b = np.asarray(b) / np.linalg.norm(b)
+    ra, rb = Rotation.from_quat(a[[1, 2, 3, 0]]), Rotation.from_quat(b[[1, 2, 3, 0]])
+    assert _same_rotation(R.quat_multiply(a, b), ra * rb) < ROTATION * 10
+    np.testing.assert_allclose(R.quat_rotate(a, np.asarray(v)), ra.apply(v), atol=1e-4)
+
+
+def test_slerp_endpoints_midpoint_and_shortest_arc():
+    q0 = np.array([1.0, 0, 0, 0])
+    q1 = Rotation.from_euler("Y", 90, degrees=True).as_quat()[[3, 0, 1, 2]]
+    np.testing.assert_allclose(R.quat_slerp(q0, q1, 0.0), q0, atol=1e-6)
+    np.testing.assert_allclose(R.quat_slerp(q0, q1, 1.0), q1, atol=1e-6)
+    mid = np.asarray(R.quat_slerp(q0, q1, 0.5))
+    assert _same_rotation(mid, Rotation.from_euler("Y", 45, degrees=True)) < 1e-6
+    # -q1 is the same rotation: slerp must take the short way and give the same midpoint
+    assert _same_rotation(R.quat_slerp(q0, -q1, 0.5), Rotation.from_euler("Y", 45, degrees=True)) < 1e-6
+
+
+def test_yaw_extracts_heading():
+    r = Rotation.from_euler("YXZ", [40, 10, -5], degrees=True)
+    yaw = np.asarray(R.yaw_quat(r.as_quat()[[3, 0, 1, 2]]))
+    assert np.isclose(np.degrees(2 * np.arctan2(yaw[2], yaw[0])), 40, atol=1.5)
+    assert abs(yaw[1]) < 1e-7 and abs(yaw[3]) < 1e-7
+
+
+def test_bad_order_rejected():
+    with pytest.raises(ValueError):
+        R.euler_to_quat(np.zeros(3), "XQZ")

@@ -1,0 +1,67 @@
+import numpy as np
+import pytest
+
+from conftest import TEST_DATA
+from convsynth_jax.errors import MissingFileError, TranscriptFormatError
+from convsynth_jax.io import load_transcript, save_transcript_tsv
+
+
+def test_long_textgrid_chooses_tier_and_unquotes():
+    df = load_transcript(TEST_DATA / "words_long.TextGrid")
+    assert list(df.columns) == ["start", "end", "word"]
+    assert df["word"].tolist() == ["well", 'I said "hi"', "there"]
+    np.testing.assert_allclose(df["start"], [0.5, 0.9, 1.4])
+    with pytest.raises(TranscriptFormatError, match=r"no tier named 'phones'.*\['marks', 'words'\]"):
+        load_transcript(TEST_DATA / "words_long.TextGrid", tier="phones")
+
+
+def test_tsv_csv_and_ibm_json():
+    tsv = load_transcript(TEST_DATA / "words.tsv")
+    assert tsv["word"].tolist() == ["hello", "there", "yeah"]
+    csv = load_transcript(TEST_DATA / "words.csv")
+    assert csv["word"].tolist() == ["hello", "there"]
+    ibm = load_transcript(TEST_DATA / "words_ibm.json")
+    assert ibm["word"].tolist() == ["so", "%HESITATION", "we", "went", "yeah"]
+    np.testing.assert_allclose(ibm["end"], [0.3, 0.8, 1.0, 1.3, 2.3])
+
+
+def test_shared_short_format_textgrids_parse_and_match_praat(speech_dir, tmp_path):
+    import parselmouth
+
+    for name in ("acoustic_corpus", "cold_corpus"):
+        df = load_transcript(speech_dir / f"{name}.TextGrid")
+        assert len(df) > 50 and (df["end"] >= df["start"]).all()
+        # Praat itself writes the long format; both must give the same words
+        parselmouth.read(str(speech_dir / f"{name}.TextGrid")).save(str(tmp_path / "long.TextGrid"))
+        long = load_transcript(tmp_path / "long.TextGrid")
+        assert long["word"].tolist() == df["word"].tolist()
+        np.testing.assert_allclose(long[["start", "end"]], df[["start", "end"]])
+
+
+def test_round_trip_tsv(tmp_path):
+    df = load_transcript(TEST_DATA / "words.tsv")
+    assert load_transcript(save_transcript_tsv(df, tmp_path / "w.tsv")).equals(df)
+
+
+@pytest.mark.parametrize("text,match", [
+    ("0.5\t0.4\tbad\n", "negative duration"),
+    ("0.1\t0.4\ta\n0.05\t0.2\tb\n", "word 1 .*out of order"),
+    ("0.1\tx\ta\n", "non-numeric"),
+    ("0.1\tnan\ta\n", "non-finite"),
+    ("0.1 0.2\n", "expected start"),
+])
+def test_bad_tsv(tmp_path, text, match):
+    p = tmp_path / "bad.tsv"
+    p.write_text(text)
+    with pytest.raises(TranscriptFormatError, match=match) as e:
+        load_transcript(p)
+    assert "bad.tsv" in str(e.value)
+
+
+def test_bad_json_and_missing(tmp_path):
+    p = tmp_path / "bad.json"
+    p.write_text('{"results": [')
+    with pytest.raises(TranscriptFormatError, match="bad.json: line 1"):
+        load_transcript(p)
+    with pytest.raises(MissingFileError):
+        load_transcript(tmp_path / "none.tsv")

@@ -298,7 +298,7 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict, 
         start = max(seg.start - 0.1, peak - 0.45 * dur)
         end = start + dur
         return {"kind": kind, "start": start, "peak": peak, "end": end, "amp": amp,
-                "spread": rng.uniform(-8, 14), "source": seg.kind}
+                "spread": rng.uniform(-8, 14), "source": seg.kind, "cause_start": seg.start}
 
     for seg in segs:
         if seg.role == role and seg.kind == "PC":
@@ -315,7 +315,8 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict, 
             dur = float(np.clip(seg.end - seg.start + rng.uniform(0.1, 0.3), 0.45, 1.0))
             mid = 0.5 * (seg.start + seg.end) + rng.normal(0, 0.04)
             events.append({"kind": "Nod", "start": mid - dur / 2, "peak": mid, "end": mid + dur / 2,
-                           "amp": rng.uniform(0.8, 1.2), "cycles": int(rng.integers(1, 4)), "source": seg.kind})
+                           "amp": rng.uniform(0.8, 1.2), "cycles": int(rng.integers(1, 4)), "source": seg.kind,
+                           "cause_start": seg.start})
     # spontaneous movements, at least 1.2 s away from any audio segment of either participant
     busy = [(s.start - 1.2, s.end + 1.2) for s in segs]
     n_sp = rng.poisson(cfg["spontaneous_per_minute"] * duration / 60.0)
@@ -361,10 +362,11 @@ def _session(idx: int, cfg: dict, out: Path) -> tuple[list[dict], dict]:
             save_wav(out / f"{name}_{role}.wav", sig, sr)
         for s in own:
             rows.append({"session": name, "participant": role, "kind": s.kind, "start": s.start, "peak": s.peak,
-                         "end": s.end, "text": " ".join(w[2] for w in s.words), "source": ""})
+                         "end": s.end, "text": " ".join(w[2] for w in s.words), "source": "", "cause_start": np.nan})
         for e in events:
             rows.append({"session": name, "participant": role, "kind": e["kind"], "start": e["start"],
-                         "peak": e["peak"], "end": e["end"], "text": "", "source": e["source"]})
+                         "peak": e["peak"], "end": e["end"], "text": "", "source": e["source"],
+                         "cause_start": e.get("cause_start", np.nan)})
     return rows, {"name": name, "emotion": emotion, "duration": duration}
 
 
@@ -380,7 +382,7 @@ def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
             r, meta = _session(i, cfg, tmp)
             rows += r
             sessions.append(meta)
-        ev = pd.DataFrame(rows).round({"start": 4, "peak": 4, "end": 4})
+        ev = pd.DataFrame(rows).round({"start": 4, "peak": 4, "end": 4, "cause_start": 4})
         ev.to_csv(tmp / "events.csv", index=False, float_format="%.4f")
         meta = {"generator": "convsynth_jax.data.synthetic", "config": cfg, "config_hash": config_hash(cfg),
                 "characters": {r: cfg["characters"][r]["name"] for r in ROLES}, "sessions": sessions}

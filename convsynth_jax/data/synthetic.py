@@ -75,6 +75,8 @@ DEFAULTS: dict = {
     "clause_pause": [0.45, 0.8],
     "turn_gap": [0.5, 1.0],
     "accent_rise": 0.28,          # relative F0 rise of the pitch accent
+    "posture_sd": 2.5,            # degrees: per-session posture offset of spine, neck, head and arms
+    "drift_sd": 2.5,              # degrees: slow posture drift (about 10 s correlation time)
 }
 
 
@@ -238,17 +240,27 @@ def _bump(t, start, end):
     return np.sin(np.pi * x) ** 2
 
 
-def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: float, scale: float) -> Motion:
+POSTURE_JOINTS = ("Spine", "Spine1", "Neck", "Head", "LeftArm", "RightArm", "LeftForeArm", "RightForeArm",
+                  "LeftHand", "RightHand")
+
+
+def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: float, scale: float,
+            posture_sd: float = 2.5, drift_sd: float = 2.5) -> Motion:
     skel = seated_skeleton(scale)
     t = np.arange(n) / fps
     euler = np.broadcast_to(base_pose_degrees(), (n, len(NAMES), 3)).copy()  # (F, J, [Z, X, Y])
+    # people sit differently from one conversation to the next, and shift their posture slowly
+    for j in POSTURE_JOINTS:
+        euler[:, INDEX[j]] += rng.normal(0, posture_sd, 3)
+        for c in range(3):
+            euler[:, INDEX[j], c] += _smooth_noise(rng, n, fps, 10.0, drift_sd)
     # idle: breathing on the spine chain, slow posture drift, small noise everywhere
     breath = np.sin(2 * np.pi * t / rng.uniform(3.5, 4.5) + rng.uniform(0, 6.3))
     for j, a in (("Spine", 0.8), ("Spine1", 0.6), ("Spine2", 0.5)):
         euler[:, INDEX[j], 1] += a * breath
-    for j in ("Spine", "Spine1", "Neck", "Head", "LeftArm", "RightArm", "LeftForeArm", "RightForeArm"):
+    for j in POSTURE_JOINTS[:8]:
         for c in range(3):
-            euler[:, INDEX[j], c] += _smooth_noise(rng, n, fps, 4.0, 1.2)
+            euler[:, INDEX[j], c] += _smooth_noise(rng, n, fps, 2.0, 0.6)
     euler += rng.normal(0, 0.03, euler.shape)
     for ev in events:
         s, p, e, amp = ev["start"], ev["peak"], ev["end"], ev["amp"] * energy
@@ -353,7 +365,7 @@ def _session(idx: int, cfg: dict, out: Path) -> tuple[list[dict], dict]:
         ch = cfg["characters"][role]
         own = [s for s in segs if s.role == role]
         events = _plant_events(rng, segs, role, partner, cfg, duration)
-        motion = _motion(rng, role, events, n, fps, energy, ch["scale"])
+        motion = _motion(rng, role, events, n, fps, energy, ch["scale"], cfg["posture_sd"], cfg["drift_sd"])
         save_bvh(motion, out / f"{name}_{role}.bvh", precision=4)
         words = [(w[0], w[1], w[2]) for s in own for w in s.words]
         save_transcript_tsv(pd.DataFrame(words, columns=["start", "end", "word"]), out / f"{name}_{role}.tsv")

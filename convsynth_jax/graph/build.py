@@ -49,16 +49,25 @@ def k_step_costs(db: MotionDatabase, k: int, w_v: float) -> np.ndarray:
     return np.concatenate(out).astype(np.float64)
 
 
-def auto_w_v(db: MotionDatabase, n_pairs: int = 20000, seed: int = 0) -> float:
-    """w_v so that the velocity term has the same scale as the position term: the ratio of the
-    medians of d(p_a, p_b) and d(v_a, v_b) over random frame pairs (documented rule)."""
+def auto_w_v(db: MotionDatabase, k: int = 3, n_pairs: int = 50000, seed: int = 0) -> float:
+    """w_v so that the velocity term has the same scale as the position term on the pairs that set
+    the threshold: the ratio of the means of d(p_i, p_{i+k-1}) and d(v_i, v_{i+k-1}) over (a sample
+    of) the k-step pairs of every clip. Posture differences between distant frames do not enter."""
     rng = np.random.default_rng(seed)
-    a = rng.integers(db.num_frames, size=n_pairs)
-    b = rng.integers(db.num_frames, size=n_pairs)
+    i = np.arange(db.num_frames)
+    j = i + max(k - 1, 1)
+    ok = j < db.num_frames
+    ok[ok] &= db.clip[j[ok]] == db.clip[i[ok]]
+    a, b = i[ok], j[ok]
+    if a.size == 0:
+        return 1.0
+    if a.size > n_pairs:
+        pick = rng.choice(a.size, n_pairs, replace=False)
+        a, b = a[pick], b[pick]
     dp = np.linalg.norm(db.positions[a] - db.positions[b], axis=-1) @ db.weights
     dv = np.linalg.norm(db.velocities[a] - db.velocities[b], axis=-1) @ db.weights
-    mv = float(np.median(dv))
-    return float(np.median(dp) / mv) if mv > 0 else 1.0
+    mv = float(np.mean(dv))
+    return float(np.mean(dp) / mv) if mv > 0 else 1.0
 
 
 def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None):
@@ -144,7 +153,7 @@ def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None
     p = graph_params(cfg)
     t0 = time.perf_counter()
     tm = timings if timings is not None else {}
-    w_v = auto_w_v(db, seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
+    w_v = auto_w_v(db, int(p["k"]), seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
     tm["w_v_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
     keys, step = key_states(db, float(p["key_fraction"]), bool(p["use_audio_keys"]))
@@ -164,7 +173,7 @@ def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None
     meta = {
         "k": int(p["k"]), "quantile": float(p["quantile"]), "distribution": fit.chosen,
         "distribution_params": list(fit.params), "threshold": float(threshold), "w_v": float(w_v),
-        "w_v_rule": "median d(p_a,p_b) / median d(v_a,v_b) over random frame pairs" if str(p["w_v"]) == "auto" else "config",
+        "w_v_rule": "mean d(p_i,p_i+k-1) / mean d(v_i,v_i+k-1) over k-step pairs" if str(p["w_v"]) == "auto" else "config",
         "fit_table": [{"distribution": r.distribution, "rss": float(r.rss), "params": list(r.params)}
                       for r in fit.table.itertuples()],
         "joint_names": list(db.joint_names), "joint_weights": [float(x) for x in db.weights],

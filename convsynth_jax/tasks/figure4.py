@@ -23,7 +23,7 @@ def run(cfg, out_dir: Path) -> dict:
     hist_rows, fit_rows = [], []
     for char, clips in character_clip_sets(cfg).items():
         db = build_database(clips, cfg)
-        w_v = auto_w_v(db, seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
+        w_v = auto_w_v(db, int(p["k"]), seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
         for k in cfg.task.get("ks", [2, 3, 4, 5]):
             x = k_step_costs(db, int(k), w_v)
             fit = fit_distributions(x, choose=str(p["distribution"]), bins=int(p["fit_bins"]), seed=int(p["seed"]))

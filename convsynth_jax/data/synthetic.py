@@ -75,8 +75,8 @@ DEFAULTS: dict = {
     "clause_pause": [0.45, 0.8],
     "turn_gap": [0.5, 1.0],
     "accent_rise": 0.28,          # relative F0 rise of the pitch accent
-    "posture_sd": 2.5,            # degrees: per-session posture offset of spine, neck, head and arms
-    "drift_sd": 2.5,              # degrees: slow posture drift (about 10 s correlation time)
+    "posture_sd": 1.5,            # degrees: per-session posture offset of spine, neck, head and arms
+    "drift_sd": 1.5,              # degrees: slow posture drift (about 10 s correlation time)
 }
 
 
@@ -245,7 +245,7 @@ POSTURE_JOINTS = ("Spine", "Spine1", "Neck", "Head", "LeftArm", "RightArm", "Lef
 
 
 def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: float, scale: float,
-            posture_sd: float = 2.5, drift_sd: float = 2.5) -> Motion:
+            posture_sd: float = 1.5, drift_sd: float = 1.5) -> Motion:
     skel = seated_skeleton(scale)
     t = np.arange(n) / fps
     euler = np.broadcast_to(base_pose_degrees(), (n, len(NAMES), 3)).copy()  # (F, J, [Z, X, Y])

@@ -145,6 +145,7 @@ def yaw_quat(q, up_axis: int = 1):
 
     Swing-twist decomposition: keep the w and up-axis components and renormalize.
     """
+    q = jnp.asarray(q)
     keep = jnp.zeros(4, dtype=q.dtype).at[0].set(1.0).at[1 + up_axis].set(1.0)
     tw = q * keep
     norm = jnp.linalg.norm(tw, axis=-1, keepdims=True)

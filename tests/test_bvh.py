@@ -149,6 +149,18 @@ def test_vendored_fixtures_round_trip(tmp_path):
         np.testing.assert_allclose(np.asarray(forward_kinematics(m2)), pos, atol=ROUND_TRIP)
 
 
+def _fk_padded(m, size=1024):
+    """FK with the frame axis padded to a fixed size (one compile for every clip)."""
+    import jax.numpy as jnp
+
+    from convsynth_jax.kinematics import fk_kernel
+
+    pad = size - m.num_frames
+    rot = np.concatenate([m.rotations, np.repeat(m.rotations[-1:], pad, 0)])
+    tr = np.concatenate([m.translations, np.repeat(m.translations[-1:], pad, 0)])
+    return np.asarray(fk_kernel(jnp.asarray(rot, jnp.float32), jnp.asarray(tr, jnp.float32), m.skeleton.parents)[0])[: m.num_frames]
+
+
 def test_every_shared_bandai_file_loads_and_round_trips(bandai_dir, tmp_path):
     files = sorted(bandai_dir.glob("*.bvh"))
     assert len(files) == 465
@@ -157,8 +169,7 @@ def test_every_shared_bandai_file_loads_and_round_trips(bandai_dir, tmp_path):
         m = load_bvh(f)
         total += m.num_frames
         assert m.fps == 30 and m.skeleton.num_joints == 22
-        if k % 20 == 0:  # the round trip on a spread of files
+        if k % 5 == 0 and m.num_frames <= 1024:  # the round trip on a spread of files
             m2 = load_bvh(save_bvh(m, tmp_path / "rt.bvh"))
-            np.testing.assert_allclose(np.asarray(forward_kinematics(m2)), np.asarray(forward_kinematics(m)),
-                                       atol=ROUND_TRIP)
+            np.testing.assert_allclose(_fk_padded(m2), _fk_padded(m), atol=ROUND_TRIP)
     assert total == 54067

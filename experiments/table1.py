@@ -25,24 +25,8 @@ if __name__ == "__main__":
     (out / "table1.md").write_text(summaries.to_markdown(table))
     (out / "table1.tex").write_text(summaries.to_latex(table))
 
-    import matplotlib
+    from convsynth_jax.plotting import cooccurrence_figure
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-    import numpy as np
-
-    chars = list(dict.fromkeys(t["character"]))
-    fig, axes = plt.subplots(1, len(chars), figsize=(5 * len(chars), 3.2), squeeze=False)
-    for ax, c in zip(axes[0], chars):
-        g = t[t["character"] == c]
-        x = np.arange(len(g))
-        ax.bar(x - 0.2, 100 * g["rate"], 0.4, label="audio windows")
-        if "chance_rate" in g:
-            ax.bar(x + 0.2, 100 * g["chance_rate"], 0.4, label="random windows", color="grey")
-        ax.set_xticks(x, g["hypothesis"], rotation=20)
-        ax.set_ylabel("matched (%)")
-        ax.set_title(c)
-        ax.legend(fontsize=7)
-    fig.tight_layout()
+    fig = cooccurrence_figure(t if "chance_rate" in t else t.assign(chance_rate=float("nan")))
     fig.savefig(out / "table1.png", dpi=120)
     done(out, ["table1.md", "table1.tex", "table1.png"], t0)

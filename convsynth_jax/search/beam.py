@@ -15,7 +15,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .constraints import Constraints, build_constraints, is_peak_state, state_ok_matrix
+from .constraints import Constraints, is_peak_state
 from .result import SearchResult, failed_segment_at, path_stats
 
 
@@ -50,13 +50,23 @@ def _cached_adjacency(graph, max_degree):
     return val
 
 
+def _ok(own_label, par_label, req):
+    """Label requirements of one frame for states (any shape): req = (own, partner, own_not, partner_not)."""
+    own_r, par_r, own_n, par_n = req
+    ok = (own_r < 0) | (own_label == own_r)
+    ok &= (par_r < 0) | (par_label == par_r)
+    ok &= ~((own_n >= 0) & (own_label == own_n))
+    ok &= ~((par_n >= 0) & (par_label == par_n))
+    return ok
+
+
 @partial(jax.jit, static_argnames=("beam",))
-def _beam_kernel(key, adj, adj_cost, is_peak, ok, pw, reset, check, temp, beam: int):
+def _beam_kernel(key, adj, adj_cost, is_peak, own_label, par_label, reqs, pw, reset, check, temp, beam: int):
     S, D = adj.shape
     k0, key = jax.random.split(key)
     g0 = jax.random.gumbel(k0, (S,))
     flag0 = jnp.where(pw[0], is_peak, False)
-    valid0 = ok[0] & jnp.where(check[0], flag0, True)
+    valid0 = _ok(own_label, par_label, tuple(r[0] for r in reqs)) & jnp.where(check[0], flag0, True)
     score0 = jnp.where(valid0, g0, -jnp.inf)
     top0, states0 = jax.lax.top_k(score0, beam)
     alive0 = jnp.isfinite(top0)
@@ -65,14 +75,15 @@ def _beam_kernel(key, adj, adj_cost, is_peak, ok, pw, reset, check, temp, beam: 
 
     def step(carry, xs):
         states, cost, flag, alive, key = carry
-        ok_t, pw_t, reset_t, check_t = xs
+        req_t, pw_t, reset_t, check_t = xs
         key, sub = jax.random.split(key)
         cand = adj[states]                                   # (B, D)
         cc = cost[:, None] + adj_cost[states]
         safe = jnp.maximum(cand, 0)
         f_prev = jnp.where(reset_t, False, flag)[:, None]
         f_new = f_prev | (pw_t & is_peak[safe])
-        valid = (cand >= 0) & alive[:, None] & ok_t[safe] & jnp.where(check_t, f_new, True)
+        ok_t = _ok(own_label[safe], par_label[safe], req_t)
+        valid = (cand >= 0) & alive[:, None] & ok_t & jnp.where(check_t, f_new, True)
         score = -cc / temp + jax.random.gumbel(sub, cc.shape)
         score = jnp.where(valid, score, -jnp.inf).reshape(-1)
         top, idx = jax.lax.top_k(score, beam)
@@ -84,7 +95,8 @@ def _beam_kernel(key, adj, adj_cost, is_peak, ok, pw, reset, check, temp, beam: 
         return (new_states, new_cost, new_flag, new_alive, key), (parent, new_states, new_cost, new_alive)
 
     init = (states0, cost0, fl0, alive0, key)
-    _, (parents, states, costs, alives) = jax.lax.scan(step, init, (ok[1:], pw[1:], reset[1:], check[1:]))
+    rest = tuple(r[1:] for r in reqs)
+    _, (parents, states, costs, alives) = jax.lax.scan(step, init, (rest, pw[1:], reset[1:], check[1:]))
     return states0, alive0, parents, states, costs, alives
 
 
@@ -100,17 +112,20 @@ def beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> Sea
     temp = max(temperature * (float(np.median(syn)) if syn.size else 1.0), 1e-6)
     T = constraints.num_frames
     Tp = int(np.ceil(T / 64) * 64)
-    ok = state_ok_matrix(graph, constraints)
     pad = Tp - T
 
     def padb(x, v):
         return np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]) if pad else x
 
-    ok = padb(ok, True)
+    c = constraints
+    free = np.full(T, -1, np.int32)
+    reqs = tuple(jnp.asarray(padb(np.asarray(x if x is not None else free, np.int32), -1))
+                 for x in (c.own_req, c.partner_req, c.own_not, c.partner_not))
     pw, reset, check = padb(constraints.peak_window, False), padb(constraints.peak_reset, False), padb(constraints.peak_check, False)
     beam = min(beam, graph.num_states)
     out = _beam_kernel(jax.random.PRNGKey(seed), jnp.asarray(adj), jnp.asarray(adj_cost),
-                       jnp.asarray(is_peak_state(graph)), jnp.asarray(ok), jnp.asarray(pw), jnp.asarray(reset),
+                       jnp.asarray(is_peak_state(graph)), jnp.asarray(graph.own_label, jnp.int32),
+                       jnp.asarray(graph.partner_label, jnp.int32), reqs, jnp.asarray(pw), jnp.asarray(reset),
                        jnp.asarray(check), jnp.float32(temp), beam=beam)
     states0, alive0, parents, states, costs, alives = (np.asarray(x) for x in out)
     alive_any = np.concatenate([[alive0.any()], alives[:, :].any(axis=1)])[:T]

@@ -176,6 +176,7 @@ def run_fold(corpus, annotations: dict, fold: int, condition: str, cfg, out_dir:
         windows = windows[: int(max_windows)]
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in annotations.items() for r, a in d.items()}
     rows = []
+    synth_windows: dict = {}  # character -> root-relative positions of each solved window
     for w in windows:
         f0, n = int(round(w.start * fps)), int(round(w.duration * fps))
         for role, ann in held.items():
@@ -214,6 +215,7 @@ def run_fold(corpus, annotations: dict, fold: int, condition: str, cfg, out_dir:
                         "gt_max_jump": float(metrics.max_frame_jump(gt_pos).max(initial=0.0))})
             if res.success and res.motion is not None:
                 pos = np.asarray(forward_kinematics(res.motion), dtype=np.float64)
+                synth_windows.setdefault(char, []).append(np.asarray(pose_features(res.motion).positions))
                 ev = segment_motion(joint_speeds(res.motion, cfg), own, fps, partner, cfg)
                 row.update(_event_counts(ev, own, partner, "synth"))
                 used = np.asarray(res.transition_costs or [], dtype=np.float64)
@@ -226,4 +228,7 @@ def run_fold(corpus, annotations: dict, fold: int, condition: str, cfg, out_dir:
                 if export_bvh and out_dir is not None:
                     save_bvh(res.motion, Path(out_dir) / "bvh" / f"{held_out}_w{w.index:02d}_{char}_{condition}.bvh")
             rows.append(row)
-    return pd.DataFrame(rows)
+    out = pd.DataFrame(rows)
+    if len(out):  # diversity between the windows synthesized for each character in this fold and condition
+        out["diversity"] = out["character"].map(lambda c: metrics.window_diversity(synth_windows.get(c, [])))
+    return out

@@ -88,7 +88,7 @@ def quality_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
     """Motion-quality metrics of successful cases per condition (means)."""
     metric_cols = [c for c in ("jerk", "gt_jerk", "acceleration", "gt_acceleration", "speed_hellinger",
                                "mean_transition_cost", "num_synthetic_transitions", "max_jump", "gt_max_jump",
-                               "cost") if c in cases]
+                               "cost", "diversity") if c in cases]
     ok = cases[cases["success"].fillna(False).astype(bool)]
     if ok.empty:
         return pd.DataFrame({"condition": []})

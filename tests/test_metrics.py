@@ -1,0 +1,56 @@
+import numpy as np
+import pandas as pd
+import pytest
+
+from convsynth_jax.evaluation import metrics, summaries
+from convsynth_jax.evaluation.windows import sliding_windows, window_segments
+
+
+def test_derivative_metrics_by_hand():
+    t = np.arange(30)[:, None, None] / 30.0
+    line = np.concatenate([t * 10.0, 0 * t, 0 * t], axis=-1)          # 10 units/s, 1 joint
+    assert metrics.mean_acceleration(line, 30.0) == pytest.approx(0.0, abs=1e-9)
+    parab = np.concatenate([0.5 * 4.0 * t ** 2, 0 * t, 0 * t], axis=-1)  # acceleration 4 units/s^2
+    assert metrics.mean_acceleration(parab, 30.0) == pytest.approx(4.0, rel=1e-6)
+    assert metrics.mean_jerk(parab, 30.0) == pytest.approx(0.0, abs=1e-6)
+    assert metrics.max_frame_jump(line).max() == pytest.approx(10.0 / 30.0)
+
+
+def test_hellinger_and_speed_histograms():
+    assert metrics.hellinger_distance([1, 2, 3], [2, 4, 6]) == pytest.approx(0.0)
+    assert metrics.hellinger_distance([1, 0], [0, 1]) == pytest.approx(1.0)
+    rng = np.random.default_rng(0)
+    a = np.cumsum(rng.normal(0, 1, (200, 3, 3)), axis=0)
+    assert metrics.speed_histogram_distance(a, a, 30.0) == pytest.approx(0.0)
+    assert metrics.speed_histogram_distance(a, 5 * a, 30.0) > 0.3
+
+
+def test_window_diversity():
+    w = np.ones((10, 2, 3))
+    assert metrics.window_diversity([w, w.copy()]) == pytest.approx(0.0)
+    assert metrics.window_diversity([w, w + np.array([3.0, 4.0, 0.0])]) == pytest.approx(5.0)
+    assert np.isnan(metrics.window_diversity([w]))
+
+
+def test_sliding_windows_and_segments():
+    ws = sliding_windows(106.0, 15.0, 14.0)
+    assert [w.start for w in ws] == [0, 14, 28, 42, 56, 70, 84] and ws[-1].end == 99
+    seg = pd.DataFrame({"kind": ["PC", "LR", "PC"], "start": [13.0, 20.0, 40.0], "peak": [14.5, 20.2, 40.5],
+                        "end": [15.5, 20.5, 41.0], "text": ["a", "b", "c"]})
+    out = window_segments(seg, ws[1])
+    assert out["kind"].tolist() == ["PC", "LR"]
+    assert out["start"].tolist() == [-1.0, 6.0]  # crossing segments keep their true times
+
+
+def test_summaries_success_and_timing():
+    cases = pd.DataFrame({"fold": [0, 0, 0, 0], "session": ["s"] * 4, "condition": ["all", "all", "none", "none"],
+                          "window": [0, 0, 0, 0], "character": ["f", "m", "f", "m"], "success": [True, False, True, True],
+                          "construction_seconds": [10.0, 12.0, 10.0, 12.0], "search_seconds": [0.1, 0.2, 0.3, 0.4]})
+    r = summaries.success_rates(cases).set_index("condition")
+    assert r.loc["all", "success_rate"] == 0.0 and r.loc["none", "success_rate"] == 1.0
+    assert r.loc["all", "success_rate_f"] == 1.0
+    t = summaries.timing_table(cases).set_index("procedure")
+    assert t.loc["graph construction", "mean_s"] == 11.0 and t.loc["search", "n"] == 4
+    md = summaries.to_markdown(t.reset_index())
+    assert md.count("\n") == 4 and "| search |" in md
+    assert "\\bottomrule" in summaries.to_latex(t.reset_index())

@@ -101,12 +101,27 @@ def _beam_kernel(key, adj, adj_cost, is_peak, own_label, par_label, reqs, pw, re
 
 
 def beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> SearchResult:
+    """Beam search at ``search.temperature``; if no path survives, retry at each of
+    ``search.retry_temperatures`` (hotter sampling keeps a more diverse beam: more windows solved,
+    at the price of more synthetic transitions). The result reports the time of all attempts."""
+    from .constraints import _get
+
+    t0 = time.perf_counter()
+    temps = [float(_get(cfg, "temperature", 0.05))] + [float(t) for t in (_get(cfg, "retry_temperatures", []) or [])]
+    for k, temp in enumerate(temps):
+        res = _beam_search_once(graph, constraints, cfg, seed + 1000 * k, temp)
+        if res.success:
+            break
+    res.seconds = time.perf_counter() - t0
+    return res
+
+
+def _beam_search_once(graph, constraints: Constraints, cfg, seed: int, temperature: float) -> SearchResult:
     from .constraints import _get
 
     t0 = time.perf_counter()
     beam = int(_get(cfg, "beam_size", 256))
     max_deg = int(_get(cfg, "max_degree", 64))
-    temperature = float(_get(cfg, "temperature", 0.05))
     adj, adj_cost = _cached_adjacency(graph, max_deg)
     syn = graph.cost[graph.synthetic]
     temp = max(temperature * (float(np.median(syn)) if syn.size else 1.0), 1e-6)

@@ -149,3 +149,18 @@ def test_bad_database_inputs():
         build_database(clips + [("odd", other[1], None, None)])
     with pytest.raises(GraphError, match="no clips"):
         build_database([])
+
+
+def test_batched_features_equal_per_clip_features():
+    from convsynth_jax.graph.database import batched_features
+    from convsynth_jax.kinematics import pose_features
+
+    rng = np.random.default_rng(11)
+    clips = random_clips(rng, 3, 47)
+    P, V = batched_features([c[1] for c in clips])
+    start = 0
+    for _, m, _, _ in clips:
+        f = pose_features(m)
+        np.testing.assert_allclose(P[start:start + m.num_frames], np.asarray(f.positions), atol=1e-4)
+        np.testing.assert_allclose(V[start:start + m.num_frames], np.asarray(f.velocities), atol=1e-2)
+        start += m.num_frames

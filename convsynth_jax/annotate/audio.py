@@ -1,11 +1,16 @@
 """Audio segmentation (paper Section 4.2): words -> phonemic clauses (PC), listener responses (LR)
 and hesitation pauses (HP); F0 with Praat; the peak of a segment is the time of its F0 maximum.
 
-LR and HP come from an editable word corpus (``resources/word_corpus.yaml``): a token (or a
-phrase of up to three tokens, matched greedily, longest first) in a list gets that label. Every run
-of other words becomes a phonemic clause, split at pauses longer than ``max_gap`` seconds and at
-LR/HP tokens. Note the ambiguity the paper accepts: a one-word answer such as "yeah" inside a turn
-is labelled LR even when the speaker holds the floor.
+LR and HP come from an editable word corpus (``resources/word_corpus.yaml``, or
+``annotate.word_corpus`` in the config: a path or inline lists): a token (or a phrase of up to
+three tokens, matched greedily, longest first) in a list gets that label. Every run of other words
+becomes a phonemic clause, split at pauses longer than ``max_gap`` seconds, at LR/HP tokens and,
+optionally, when a clause reaches ``max_clause_words`` words or ``max_clause_seconds``. Note the
+ambiguity the paper accepts: a one-word answer such as "yeah" inside a turn is labelled LR even
+when the speaker holds the floor.
+
+F0 backends: Praat (praat-parselmouth, default) or openSMILE (eGeMAPS F0, optional: used only
+when ``annotate.f0_backend: opensmile`` and the ``opensmile`` package is installed).
 """
 from __future__ import annotations
 
@@ -17,7 +22,7 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from ..errors import ConfigError, FormatError
+from ..errors import ConfigError, FormatError, TranscriptFormatError
 
 log = logging.getLogger(__name__)
 
@@ -30,23 +35,75 @@ def normalize_word(w: str) -> str:
     return re.sub(r"[^\w%'\- ]", "", w)
 
 
-def load_word_corpus(path: str | Path | None = None, extra: dict | None = None) -> dict:
-    """{"listener_response": [...], "hesitation": [...]} from a YAML file (default: the shipped one)."""
-    path = Path(path) if path else _DEFAULT_CORPUS
-    try:
-        data = yaml.safe_load(path.read_text()) or {}
-    except FileNotFoundError:
-        raise FormatError("word corpus not found", path) from None
-    except yaml.YAMLError as e:
-        raise FormatError(f"invalid YAML ({e})", path) from None
+WORD_CORPUS_KEYS = ("listener_response", "hesitation")
+
+
+def load_word_corpus(path=None, extra: dict | None = None) -> dict:
+    """{"listener_response": [...], "hesitation": [...]}: sorted lower-case words and phrases.
+
+    ``path``: a YAML file with those two keys (default: the shipped ``resources/word_corpus.yaml``),
+    or a mapping with the lists themselves (inline config). ``extra``: lists added to either key.
+    """
+    if path is not None and hasattr(path, "keys"):  # inline lists (dict or DictConfig)
+        data, where = {k: path.get(k) for k in path.keys()}, "annotate.word_corpus"
+    else:
+        where = Path(path) if path else _DEFAULT_CORPUS
+        try:
+            data = yaml.safe_load(where.read_text()) or {}
+        except FileNotFoundError:
+            raise FormatError("word corpus not found", where) from None
+        except yaml.YAMLError as e:
+            raise FormatError(f"invalid YAML ({e})", where) from None
+        if not isinstance(data, dict):
+            raise FormatError(f"expected a mapping with keys {list(WORD_CORPUS_KEYS)}", where, "top level")
+    unknown = set(data) - set(WORD_CORPUS_KEYS)
+    if unknown:
+        raise FormatError(f"unknown keys {sorted(unknown)}; expected {list(WORD_CORPUS_KEYS)}", where)
     out = {}
-    for key in ("listener_response", "hesitation"):
-        items = list(data.get(key, [])) + list((extra or {}).get(key, []) or [])
-        out[key] = sorted({normalize_word(x) for x in items})
+    for key in WORD_CORPUS_KEYS:
+        items = list(data.get(key) or []) + list((extra or {}).get(key) or [])
+        words = {normalize_word(x) for x in items}
+        if "" in words:
+            raise FormatError("empty word in the list", where, key)
+        out[key] = sorted(words)
     overlap = set(out["listener_response"]) & set(out["hesitation"])
     if overlap:
-        raise ConfigError(f"word corpus {path}: words in both lists: {sorted(overlap)}")
+        raise ConfigError(f"words in both lists: {sorted(overlap)}", where)
     return out
+
+
+def word_corpus_from_config(cfg=None) -> dict:
+    """The word corpus an ``annotate`` config (or a full config) asks for."""
+    a = _annotate_cfg(cfg)
+    return load_word_corpus(a.get("word_corpus"), a.get("extra_words"))
+
+
+def _get(a, key, default):
+    v = a.get(key, default)
+    return default if v is None else v
+
+
+def _annotate_cfg(cfg) -> dict:
+    if cfg is None:
+        return {}
+    a = cfg.get("annotate", cfg) if hasattr(cfg, "get") else {}
+    return a if a is not None and hasattr(a, "get") else {}
+
+
+def check_words(words: pd.DataFrame) -> None:
+    """Raise TranscriptFormatError (naming the transcript file from ``words.attrs['path']`` when
+    known, and the word) unless words has start <= end, finite times and non-empty words."""
+    path = words.attrs.get("path") if hasattr(words, "attrs") else None
+    missing = {"start", "end", "word"} - set(words.columns)
+    if missing:
+        raise TranscriptFormatError(f"word table lacks columns {sorted(missing)}", path)
+    st = pd.to_numeric(words["start"], errors="coerce").to_numpy(np.float64)
+    en = pd.to_numeric(words["end"], errors="coerce").to_numpy(np.float64)
+    bad = np.flatnonzero(~np.isfinite(st) | ~np.isfinite(en) | (en < st))
+    if bad.size:
+        i = int(bad[0])
+        raise TranscriptFormatError(f"expected finite times with start <= end, got start={words['start'].iat[i]!r}, "
+                                    f"end={words['end'].iat[i]!r}", path, f"word {i} ({words['word'].iat[i]!r})")
 
 
 def _label_tokens(words: pd.DataFrame, corpus: dict) -> list[tuple[int, int, str]]:
@@ -71,9 +128,13 @@ def _label_tokens(words: pd.DataFrame, corpus: dict) -> list[tuple[int, int, str
 
 
 def segment_words(words: pd.DataFrame, corpus: dict | None = None, max_gap: float = 0.3,
-                  max_clause_words: int | None = None) -> pd.DataFrame:
-    """Words -> segments DataFrame[kind, start, end, text] (kind PC, LR or HP), in time order."""
+                  max_clause_words: int | None = None, max_clause_seconds: float | None = None) -> pd.DataFrame:
+    """Words DataFrame[start, end, word] (seconds) -> segments DataFrame[kind, start, end, text]
+    (kind PC, LR or HP), in time order. A clause is closed before a word that follows a pause longer
+    than ``max_gap`` s, or that would make it longer than ``max_clause_words`` / ``max_clause_seconds``."""
     corpus = corpus or load_word_corpus()
+    check_words(words)
+    words = words.sort_values("start", kind="stable").reset_index(drop=True)
     rows = []
     clause: list[int] = []
 
@@ -87,7 +148,9 @@ def segment_words(words: pd.DataFrame, corpus: dict | None = None, max_gap: floa
     for a, b, kind in _label_tokens(words, corpus):
         if kind == "W":
             if clause and (float(words["start"].iat[a]) - float(words["end"].iat[clause[-1]]) > max_gap
-                           or (max_clause_words and len(clause) >= max_clause_words)):
+                           or (max_clause_words and len(clause) >= max_clause_words)
+                           or (max_clause_seconds and float(words["end"].iat[a]) - float(words["start"].iat[clause[0]])
+                               > max_clause_seconds)):
                 flush()
             clause.append(a)
             continue
@@ -113,6 +176,26 @@ def f0_contour(audio, time_step: float = 0.01, floor: float = 75.0, ceiling: flo
     return np.asarray(pitch.xs(), dtype=np.float64), f0
 
 
+def f0_contour_opensmile(audio):
+    """(times (T,), f0 (T,) Hz, NaN where unvoiced) from openSMILE's eGeMAPS F0 (10 ms hop; times are
+    frame centres). Needs the optional ``opensmile`` package."""
+    try:
+        import opensmile
+    except ImportError:
+        raise ConfigError("annotate.f0_backend=opensmile needs the optional package: pip install opensmile") from None
+    x = np.asarray(audio.samples, dtype=np.float32)
+    if x.ndim > 1:
+        x = x.mean(axis=1)
+    smile = opensmile.Smile(feature_set=opensmile.FeatureSet.eGeMAPSv02,
+                            feature_level=opensmile.FeatureLevel.LowLevelDescriptors)
+    df = smile.process_signal(x, int(audio.sample_rate))
+    st = df["F0semitoneFrom27.5Hz_sma3nz"].to_numpy(np.float64)
+    starts = df.index.get_level_values("start").total_seconds().to_numpy()
+    ends = df.index.get_level_values("end").total_seconds().to_numpy()
+    f0 = np.where(st > 0, 27.5 * 2.0 ** (st / 12.0), np.nan)  # semitones above 27.5 Hz -> Hz
+    return 0.5 * (starts + ends), f0
+
+
 def f0_contour_adaptive(audio, time_step: float = 0.01):
     """Two-pass F0 with a speaker-adapted range (De Looze & Hirst): a wide first pass (60-700 Hz),
     then floor = 0.72 * q35 and ceiling = 1.9 * q65 of the voiced values. Cuts octave jumps."""
@@ -126,7 +209,8 @@ def f0_contour_adaptive(audio, time_step: float = 0.01):
 
 
 def local_peaks(times: np.ndarray, f0: np.ndarray, start: float, end: float) -> np.ndarray:
-    """Times of all local maxima of the voiced F0 inside [start, end]."""
+    """Times of all local maxima of the voiced F0 inside [start, end] (times, f0: (T,); a plateau
+    counts once, at its first sample; a lone voiced sample counts as a maximum)."""
     m = (times >= start) & (times <= end)
     t, f = times[m], f0[m]
     if f.size < 3:
@@ -155,19 +239,34 @@ def add_peaks(segments: pd.DataFrame, times: np.ndarray, f0: np.ndarray) -> pd.D
     return seg[SEGMENT_COLUMNS + ["f0_peak"]]
 
 
+def f0_from_config(audio, cfg=None):
+    """(times, f0) with the backend and range an ``annotate`` config asks for."""
+    a = _annotate_cfg(cfg)
+    backend = str(_get(a, "f0_backend", "praat"))
+    if backend == "opensmile":
+        return f0_contour_opensmile(audio)
+    if backend != "praat":
+        raise ConfigError(f"annotate.f0_backend must be 'praat' or 'opensmile', got {backend!r}")
+    step = float(_get(a, "f0_time_step", 0.01))
+    if str(_get(a, "f0_range", "auto")) == "auto":
+        return f0_contour_adaptive(audio, step)
+    if str(_get(a, "f0_range", "auto")) != "fixed":
+        raise ConfigError(f"annotate.f0_range must be 'auto' or 'fixed', got {a.get('f0_range')!r}")
+    return f0_contour(audio, step, float(_get(a, "f0_floor", 75.0)), float(_get(a, "f0_ceiling", 500.0)))
+
+
 def annotate_audio(words: pd.DataFrame, audio, cfg=None, word_corpus: dict | None = None) -> pd.DataFrame:
-    """Segments DataFrame[kind, start, peak, end, text, f0_peak] of one participant's channel."""
-    a = (cfg.get("annotate", cfg) if cfg is not None else {}) or {}
-    corpus = word_corpus or load_word_corpus(a.get("word_corpus"), a.get("extra_words"))
-    seg = segment_words(words, corpus, max_gap=float(a.get("max_gap", 0.3)),
-                        max_clause_words=a.get("max_clause_words"))
+    """Segments DataFrame[kind, start, peak, end, text, f0_peak] (seconds; f0_peak in Hz) of one
+    participant's channel. ``audio`` None: peaks at segment midpoints."""
+    a = _annotate_cfg(cfg)
+    corpus = word_corpus or word_corpus_from_config(a)
+    mcs = a.get("max_clause_seconds")
+    seg = segment_words(words, corpus, max_gap=float(_get(a, "max_gap", 0.3)),
+                        max_clause_words=a.get("max_clause_words"),
+                        max_clause_seconds=float(mcs) if mcs else None)
     if audio is None:
         seg["peak"] = 0.5 * (seg["start"] + seg["end"])
         seg["f0_peak"] = np.nan
         return seg[SEGMENT_COLUMNS + ["f0_peak"]]
-    step = float(a.get("f0_time_step", 0.01))
-    if str(a.get("f0_range", "auto")) == "auto":
-        times, f0 = f0_contour_adaptive(audio, step)
-    else:
-        times, f0 = f0_contour(audio, step, float(a.get("f0_floor", 75.0)), float(a.get("f0_ceiling", 500.0)))
+    times, f0 = f0_from_config(audio, a)
     return add_peaks(seg, times, f0)

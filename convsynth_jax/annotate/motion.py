@@ -44,7 +44,13 @@ def _cfg(cfg, key, default):
 
 
 def find_joints(skeleton, patterns: dict | None = None) -> dict:
-    pats = {**DEFAULT_JOINTS, **(patterns or {})}
+    """{role: joint index} for the six roles of DEFAULT_JOINTS; ``patterns`` overrides a role's
+    regex list (a None value keeps the default). Raises ConfigError naming the missing role."""
+    pats = {**DEFAULT_JOINTS, **{k: v for k, v in (patterns or {}).items() if v is not None}}
+    unknown = set(pats) - set(DEFAULT_JOINTS)
+    if unknown:
+        raise ConfigError(f"unknown joint roles {sorted(unknown)}; expected {sorted(DEFAULT_JOINTS)}",
+                          where="annotate.joints")
     out = {}
     for key, pl in pats.items():
         j = skeleton.find(*([pl] if isinstance(pl, str) else list(pl)))
@@ -56,7 +62,14 @@ def find_joints(skeleton, patterns: dict | None = None) -> dict:
 
 
 def joint_speeds(motion: Motion, cfg=None) -> dict:
-    """{"LH", "RH", "Nod"}: (F,) speeds in units per second (see module docstring)."""
+    """{"LH", "RH", "Nod"}: (F,) float64 speeds in file units per second.
+
+    LH/RH: speed of the hand position relative to the shoulder joint (upper-arm joint), expressed in
+    the shoulder's local frame (the global rotation of the upper arm's parent, so raising the arm
+    counts as motion while torso sway does not). Nod: speed of the vertical component (``up_axis``)
+    of the head point (End Site above the head, else the head joint) relative to the neck, in the
+    frame of the neck's parent. Global transforms come from the JAX forward kinematics.
+    """
     skel = motion.skeleton
     j = find_joints(skel, dict(_cfg(cfg, "joints", {}) or {}))
     pos, rot = global_transforms(motion)
@@ -103,9 +116,14 @@ class Window(NamedTuple):
     end: int    # frame, exclusive
 
 
-def candidate_windows(segments: pd.DataFrame, num_frames: int, fps: float, neighbours: pd.DataFrame | None = None) -> list[Window]:
-    """Figure 3: each segment expanded to twice its length around its centre, then trimmed so it
-    does not reach into the neighbouring segments (``neighbours``, default: ``segments``)."""
+def candidate_windows(segments: pd.DataFrame, num_frames: int, fps: float, neighbours: pd.DataFrame | None = None,
+                      motion_segments: pd.DataFrame | None = None) -> list[Window]:
+    """Figure 3: each audio segment [s, e] (seconds) expanded to twice its length around its centre,
+    [s - L/2, e + L/2], then trimmed so it does not reach into the neighbouring audio segments
+    (``neighbours``, default ``segments``: the previous one's end bounds it on the left, the next
+    one's start on the right) nor into already detected ``motion_segments`` [start, end] (seconds;
+    one ending before the segment's centre bounds the window on the left, one starting after it on
+    the right). Returns frame windows [start, end) clipped to [0, num_frames]."""
     nb = segments if neighbours is None else neighbours
     nb_s = np.asarray(nb["start"], float) if len(nb) else np.zeros(0)
     nb_e = np.asarray(nb["end"], float) if len(nb) else np.zeros(0)
@@ -119,6 +137,14 @@ def candidate_windows(segments: pd.DataFrame, num_frames: int, fps: float, neigh
             lo = max(lo, prev_end.max())
         if next_start.size:
             hi = min(hi, next_start.min())
+        if motion_segments is not None and len(motion_segments):
+            ms, me = np.asarray(motion_segments["start"], float), np.asarray(motion_segments["end"], float)
+            c = 0.5 * (s + e)
+            left, right = me[(me <= c) & (me > lo)], ms[(ms >= c) & (ms < hi)]
+            if left.size:
+                lo = max(lo, left.max())
+            if right.size:
+                hi = min(hi, right.min())
         a = int(np.clip(np.floor(lo * fps), 0, num_frames))
         b = int(np.clip(np.ceil(hi * fps), 0, num_frames))
         out.append(Window(a, max(a, b)))
@@ -127,7 +153,8 @@ def candidate_windows(segments: pd.DataFrame, num_frames: int, fps: float, neigh
 
 def detect_in_window(v: np.ndarray, window: Window, theta_s: float, alpha_w: float = 0.1):
     """(start, peak, end) frames of the movement in ``window`` (end exclusive), or None if the speed
-    never exceeds the clip threshold there."""
+    v (F,) never exceeds the clip threshold θ_S there. Start = first frame above θ_W (Eq. 2), end =
+    one past the last, peak = the frame of maximal speed."""
     w = v[window.start:window.end]
     if w.size == 0 or float(w.max()) <= theta_s:
         return None
@@ -164,11 +191,16 @@ HYPOTHESIS_SPEC = {  # hypothesis -> (audio channel, audio kind, motion kinds)
 
 
 def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner_segments: pd.DataFrame | None = None,
-                   cfg=None) -> pd.DataFrame:
+                   cfg=None, *, alpha_s: float | None = None, alpha_w: float | None = None) -> pd.DataFrame:
     """Motion events DataFrame[kind (LH|RH|Nod), start, peak, end (seconds), channel, segment] found in
-    the candidate windows of the own PCs (hand gestures), own LRs and partner HPs (nods)."""
-    alpha_s = float(_cfg(cfg, "alpha_s", 0.1))
-    alpha_w = float(_cfg(cfg, "alpha_w", 0.1))
+    the candidate windows of the own PCs (hand gestures), own LRs and partner HPs (nods).
+
+    speeds: ``joint_speeds`` output ((F,) per kind); own/partner segments: DataFrame[kind, start, end]
+    (seconds); ``segment`` = index label of the audio segment (own or partner, see ``channel``) whose
+    window held the movement. alpha_s / alpha_w (Eq. 1 / Eq. 2) default to ``cfg.annotate`` or 0.1.
+    A movement found in both an own LR window and a partner HP window is listed once per channel."""
+    alpha_s = float(_cfg(cfg, "alpha_s", 0.1) if alpha_s is None else alpha_s)
+    alpha_w = float(_cfg(cfg, "alpha_w", 0.1) if alpha_w is None else alpha_w)
     rows = []
     n = len(next(iter(speeds.values())))
     plan = [("LH", "own", "PC"), ("RH", "own", "PC"), ("Nod", "own", "LR"), ("Nod", "partner", "HP")]
@@ -187,4 +219,4 @@ def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner
                 rows.append({"kind": kind, "start": hit[0] / fps, "peak": hit[1] / fps, "end": hit[2] / fps,
                              "channel": channel, "segment": int(idx)})
     ev = pd.DataFrame(rows, columns=["kind", "start", "peak", "end", "channel", "segment"])
-    return ev.drop_duplicates(["kind", "start", "end"]).sort_values("start").reset_index(drop=True)
+    return ev.drop_duplicates(["kind", "start", "end", "channel"]).sort_values("start", kind="stable").reset_index(drop=True)

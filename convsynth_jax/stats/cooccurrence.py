@@ -2,9 +2,12 @@
 
 For each hypothesis (PC-LH, PC-RH, PC-LH/RH, LR-Nod, PH-Nod) an audio segment is *matched* when
 the motion segmentation finds a movement of the hypothesis' kind in its candidate window (Figure 3).
-Chance baseline: as many random windows of the same lengths, placed elsewhere in the same clip
-(overlapping no audio segment of the channel the hypothesis looks at), get the same test; the
-matched rates are compared with a chi-square test of independence and a permutation test.
+Chance baseline: as many random windows of the same lengths (``stats.chance_windows`` per audio
+window, default 1), placed elsewhere in the same clip (overlapping no audio segment of the channel the
+hypothesis looks at, padded by half its length), get the same test with the same clip threshold θ_S;
+the matched rates are compared with a chi-square test of independence (2x2, Yates-corrected, scipy)
+and a one-sided permutation test (are audio windows matched more often than random ones?).
+Random placement is seeded by ``cfg.seed`` and the session/role names, so tables are reproducible.
 """
 from __future__ import annotations
 
@@ -47,9 +50,11 @@ def hypothesis_matches(speeds: dict, own: pd.DataFrame, partner: pd.DataFrame, f
 
 
 def random_window_matches(speeds: dict, windows: list[Window], blocked: pd.DataFrame, fps: float, hypothesis: str,
-                          rng: np.random.Generator, alpha_s: float = 0.1, alpha_w: float = 0.1) -> np.ndarray:
-    """Matched flags of random windows with the lengths of ``windows``, placed where they overlap
-    no segment of ``blocked`` (the channel's audio segments, padded by half their length)."""
+                          rng: np.random.Generator, alpha_s: float = 0.1, alpha_w: float = 0.1,
+                          per_window: int = 1) -> np.ndarray:
+    """Matched flags of ``per_window`` random windows per window of ``windows`` (same length), placed
+    where they overlap no segment of ``blocked`` (the channel's audio segments, padded by half their
+    length). A window too long to fit anywhere is skipped (so the result may be shorter)."""
     _, _, kinds = HYPOTHESIS_SPEC[hypothesis]
     n = len(next(iter(speeds.values())))
     free = np.ones(n, bool)
@@ -57,26 +62,26 @@ def random_window_matches(speeds: dict, windows: list[Window], blocked: pd.DataF
         pad = (e - s) / 2
         free[max(0, int((s - pad) * fps)): min(n, int(np.ceil((e + pad) * fps)))] = False
     cum = np.concatenate([[0], np.cumsum(~free)])
+    thetas = {k: idle_threshold(speeds[k], alpha_s) for k in kinds}
     out = []
     for w in windows:
         L = max(1, w.end - w.start)
         starts = np.flatnonzero(cum[L:] - cum[:-L] == 0) if L <= n else np.zeros(0, int)
         if starts.size == 0:
             continue
-        a = int(rng.choice(starts))
-        rw = Window(a, a + L)
-        hit = False
-        for k in kinds:
-            v = speeds[k]
-            hit |= detect_in_window(v, rw, idle_threshold(v, alpha_s), alpha_w) is not None
-        out.append(hit)
+        for a in rng.choice(starts, size=per_window):
+            rw = Window(int(a), int(a) + L)
+            out.append(any(detect_in_window(speeds[k], rw, thetas[k], alpha_w) is not None for k in kinds))
     return np.array(out, bool)
 
 
 def clip_counts(ann, cfg=None, seed: int = 0) -> pd.DataFrame:
-    """Per hypothesis: matched/total in audio windows and in random windows, for one participant."""
+    """Per hypothesis: matched/total in audio windows and in random windows, for one participant
+    (a ParticipantAnnotation: its motion, own segments and partner segments are used). The match
+    flags themselves are in the private columns ``_hits`` and ``_chance``."""
     alpha_s = float(_cfgget(cfg, "annotate", "alpha_s", 0.1))
     alpha_w = float(_cfgget(cfg, "annotate", "alpha_w", 0.1))
+    per_window = int(_cfgget(cfg, "stats", "chance_windows", 1))
     speeds = joint_speeds(ann.motion, cfg)
     fps = ann.motion.fps
     rng = np.random.default_rng([seed, zlib.crc32(f"{ann.session}/{ann.role}".encode())])
@@ -85,7 +90,8 @@ def clip_counts(ann, cfg=None, seed: int = 0) -> pd.DataFrame:
         hit, wins = hypothesis_matches(speeds, ann.segments, ann.partner_segments, fps, h, alpha_s, alpha_w)
         channel = HYPOTHESIS_SPEC[h][0]
         blocked = ann.segments if channel == "own" else ann.partner_segments
-        rnd = random_window_matches(speeds, wins, blocked, fps, h, rng, alpha_s, alpha_w) if len(wins) else np.zeros(0, bool)
+        rnd = (random_window_matches(speeds, wins, blocked, fps, h, rng, alpha_s, alpha_w, per_window)
+               if len(wins) else np.zeros(0, bool))
         rows.append({"session": ann.session, "role": ann.role, "character": ann.character, "hypothesis": h,
                      "matched": int(hit.sum()), "total": int(hit.size),
                      "chance_matched": int(rnd.sum()), "chance_total": int(rnd.size),
@@ -93,10 +99,28 @@ def clip_counts(ann, cfg=None, seed: int = 0) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+TABLE_COLUMNS = ["character", "hypothesis", "matched", "total", "rate", "chance_matched", "chance_total",
+                 "chance_rate", "chi2", "df", "p_chi2", "p_permutation"]
+
+
+def _flatten(annotations) -> list:
+    """A list of ParticipantAnnotation from a list, or from annotate_corpus' session -> role -> ann."""
+    if isinstance(annotations, dict):
+        annotations = list(annotations.values())
+    out = []
+    for a in annotations:
+        out.extend(a.values() if isinstance(a, dict) else [a])
+    return out
+
+
 def cooccurrence_table(annotations, cfg=None, by_session: bool = False) -> pd.DataFrame:
-    """Table 1 over a list of ParticipantAnnotation: one row per character x hypothesis (or per
-    session x character x hypothesis with ``by_session``) with matched, total, rate, the chance rate
-    in random windows, chi-square (df, p) and permutation p."""
+    """Table 1 over ParticipantAnnotations (a list, or ``annotate_corpus`` output): one row per
+    character x hypothesis (or per session x character x hypothesis with ``by_session``) with the
+    columns TABLE_COLUMNS: matched, total, rate (0-1), the chance counts and rate in random windows,
+    chi-square of independence (chi2, df, p_chi2) and the one-sided permutation p (p_permutation)."""
+    annotations = _flatten(annotations)
+    if not annotations:
+        return pd.DataFrame(columns=(["session"] if by_session else []) + TABLE_COLUMNS)
     seed = int(cfg.get("seed", 0)) if cfg is not None and hasattr(cfg, "get") else 0
     n_perm = int(_cfgget(cfg, "stats", "n_permutations", 5000))
     per_clip = pd.concat([clip_counts(a, cfg, seed) for a in annotations], ignore_index=True)
@@ -113,10 +137,16 @@ def cooccurrence_table(annotations, cfg=None, by_session: bool = False) -> pd.Da
                     "chi2": ci.chi2, "df": ci.df, "p_chi2": ci.p_value,
                     "p_permutation": permutation_test(hits, chance, n_perm, seed) if t and ct else np.nan})
         rows.append(row)
-    out = pd.DataFrame(rows)
+    out = pd.DataFrame(rows, columns=keys + TABLE_COLUMNS[2:])
     order = {h: i for i, h in enumerate(HYPOTHESES)}
     return out.sort_values(keys[:-1] + ["hypothesis"], key=lambda s: s.map(order) if s.name == "hypothesis" else s,
                            kind="stable").reset_index(drop=True)
+
+
+def cooccurrence_by_session(annotations, cfg=None) -> pd.DataFrame:
+    """Per-session breakdown of Table 1: one row per session x character x hypothesis, same columns
+    as ``cooccurrence_table`` plus ``session`` (tests per session have little power; read the rates)."""
+    return cooccurrence_table(annotations, cfg, by_session=True)
 
 
 def window_matches(events: pd.DataFrame, own: pd.DataFrame, partner: pd.DataFrame) -> dict:

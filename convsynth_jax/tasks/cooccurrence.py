@@ -7,12 +7,15 @@ segments) and ``cooccurrence.png``.
 """
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import pandas as pd
 
 from ..evaluation.summaries import to_latex, to_markdown
 from ..utils import atomic_path, write_text_atomic
+
+log = logging.getLogger(__name__)
 
 
 def _csv(df, path):
@@ -23,14 +26,14 @@ def _csv(df, path):
 def run(cfg, out_dir: Path) -> dict:
     from ..annotate.pipeline import annotate_corpus
     from ..plotting import cooccurrence_figure
-    from ..stats.cooccurrence import cooccurrence_table
+    from ..stats.cooccurrence import TABLE_COLUMNS, cooccurrence_by_session, cooccurrence_table
     from .common import open_corpus
 
     corpus = open_corpus(cfg)
     ann = annotate_corpus(corpus, cfg, progress=bool(cfg.get("progress", True)))
     parts = [a for s in ann.values() for a in s.values()]
     table = cooccurrence_table(parts, cfg)
-    by_session = cooccurrence_table(parts, cfg, by_session=True)
+    by_session = cooccurrence_by_session(parts, cfg)
     _csv(table, out_dir / "cooccurrence.csv")
     _csv(by_session, out_dir / "cooccurrence_by_session.csv")
     write_text_atomic(out_dir / "cooccurrence.md", to_markdown(table))
@@ -44,5 +47,8 @@ def run(cfg, out_dir: Path) -> dict:
     fig = cooccurrence_figure(table)
     with atomic_path(out_dir / "cooccurrence.png") as tmp:
         fig.savefig(tmp, dpi=120, format="png")
-    print("\n" + to_markdown(table))
-    return {"corpus_root": str(corpus.root), "rows": table.drop(columns=[], errors="ignore").to_dict(orient="records")}
+    log.info("%s", "\n" + to_markdown(table))
+    return {"corpus_root": str(corpus.root), "columns": TABLE_COLUMNS,
+            "num_participants": len(parts), "num_events": int(len(ev)),
+            "all_significant_p_lt_0.01": bool(((table["p_chi2"] < 0.01) & (table["p_permutation"] < 0.01)).all()),
+            "rows": table.to_dict(orient="records")}

@@ -120,7 +120,8 @@ def build_fold_graphs(annotations: dict, held_out: str, cfg, cache_dir: str | Pa
     for char in characters:
         clips = character_clips(annotations, sessions, char)
         out.motions[char] = {name: m for name, m, _, _ in clips}
-        key = config_hash(sorted(out.motions[char]), cfg.graph, cfg.features)
+        # the graph stores the clips' audio labels, so the annotation settings are part of the key
+        key = config_hash(sorted(out.motions[char]), cfg.graph, cfg.features, cfg.annotate)
         cached = Path(cache_dir) / f"graph_{char}_{key}.npz" if cache_dir else None
         if cached is not None and cached.is_file():
             g = load_graph(cached)

@@ -62,6 +62,9 @@ def load_word_corpus(path=None, extra: dict | None = None) -> dict:
     out = {}
     for key in WORD_CORPUS_KEYS:
         items = list(data.get(key) or []) + list((extra or {}).get(key) or [])
+        odd = [x for x in items if not isinstance(x, str)]
+        if odd:  # e.g. a bare YAML yes/no, read as a boolean
+            raise FormatError(f"entries must be strings, got {odd!r} (quote them)", where, key)
         words = {normalize_word(x) for x in items}
         if "" in words:
             raise FormatError("empty word in the list", where, key)
@@ -177,8 +180,8 @@ def f0_contour(audio, time_step: float = 0.01, floor: float = 75.0, ceiling: flo
 
 
 def f0_contour_opensmile(audio):
-    """(times (T,), f0 (T,) Hz, NaN where unvoiced) from openSMILE's eGeMAPS F0 (10 ms hop; times are
-    frame centres). Needs the optional ``opensmile`` package."""
+    """(times (T,), f0 (T,) Hz, NaN where unvoiced) from openSMILE's eGeMAPS F0 (10 ms hop, 60 ms
+    frames; times are frame centres). Needs the optional ``opensmile`` package."""
     try:
         import opensmile
     except ImportError:
@@ -191,9 +194,9 @@ def f0_contour_opensmile(audio):
     df = smile.process_signal(x, int(audio.sample_rate))
     st = df["F0semitoneFrom27.5Hz_sma3nz"].to_numpy(np.float64)
     starts = df.index.get_level_values("start").total_seconds().to_numpy()
-    ends = df.index.get_level_values("end").total_seconds().to_numpy()
     f0 = np.where(st > 0, 27.5 * 2.0 ** (st / 12.0), np.nan)  # semitones above 27.5 Hz -> Hz
-    return 0.5 * (starts + ends), f0
+    # eGeMAPS computes F0 on 60 ms frames that start where the index says: centre = start + 30 ms
+    return starts + 0.03, f0
 
 
 def f0_contour_adaptive(audio, time_step: float = 0.01):

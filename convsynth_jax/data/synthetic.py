@@ -69,7 +69,7 @@ DEFAULTS: dict = {
     "clauses_per_turn": 3.0,      # mean (1 + Poisson(mean - 1))
     "p_hesitation": 0.3,          # chance of a hesitation before each clause after the first in a turn
     "p_listener_response": 0.45,  # chance the listener responds after a clause end
-    "spontaneous_per_minute": 2.0,  # gestures/nods away from audio segments
+    "spontaneous_per_minute": 2.0,  # gestures/nods per minute of time away from the own candidate windows
     "word_seconds": [0.20, 0.34],
     "word_gap": [0.03, 0.07],
     "clause_pause": [0.45, 0.8],
@@ -77,7 +77,10 @@ DEFAULTS: dict = {
     "accent_rise": 0.28,          # relative F0 rise of the pitch accent
     "posture_sd": 1.5,            # degrees: per-session posture offset of spine, neck, head and arms
     "drift_sd": 1.5,              # degrees: slow posture drift (about 10 s correlation time)
+    "min_event_gap": 0.3,         # seconds of idle between consecutive events of the same hand / the head
 }
+# bumped whenever the generator's output changes for the same parameters (part of the parameter hash)
+GENERATOR_VERSION = 2
 
 
 def _merge(base: dict, over) -> dict:
@@ -111,7 +114,10 @@ def resolve_config(config=None) -> dict:
 
 
 def config_hash(cfg: dict) -> str:
-    return hashlib.sha1(json.dumps(cfg, sort_keys=True).encode()).hexdigest()[:16]
+    """Hash of the resolved parameters and the generator version (a cached corpus is reused only if
+    it matches)."""
+    blob = json.dumps({"generator_version": GENERATOR_VERSION, "config": cfg}, sort_keys=True)
+    return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
 
 # ----------------------------------------------------------------------------- conversation
@@ -296,8 +302,11 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
     return Motion(skel, quats, trans, float(fps), role)
 
 
-def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict, duration: float) -> list[dict]:
-    """Motion events of ``role`` planted around its own PCs and LRs and the partner's HPs."""
+def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
+                  duration: float) -> tuple[list[dict], float]:
+    """Motion events of ``role`` planted around its own PCs and LRs and the partner's HPs, plus
+    spontaneous ones away from those windows. Returns (events sorted by start, seconds of time
+    available to spontaneous movements)."""
     ch = cfg["characters"][role]
     p_both = ch["p_pc_lh"] + ch["p_pc_rh"] - ch["p_pc_either"]
     p_lh_only = ch["p_pc_either"] - ch["p_pc_rh"]
@@ -329,22 +338,76 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict, 
             events.append({"kind": "Nod", "start": mid - dur / 2, "peak": mid, "end": mid + dur / 2,
                            "amp": rng.uniform(0.8, 1.2), "cycles": int(rng.integers(1, 4)), "source": seg.kind,
                            "cause_start": seg.start})
-    # spontaneous movements, at least 1.2 s away from any audio segment of either participant
-    busy = [(s.start - 1.2, s.end + 1.2) for s in segs]
-    n_sp = rng.poisson(cfg["spontaneous_per_minute"] * duration / 60.0)
+    events = _separate(events, cfg["min_event_gap"])
+    # spontaneous movements: a Poisson process on the time away from this participant's candidate
+    # windows (its own segments and the partner's hesitations) and away from its caused events
+    sp_rng = np.random.default_rng(rng.integers(2 ** 63))
+    busy = [_window(s) for s in segs if s.role == role or (s.role == partner and s.kind == "HP")]
+    busy += [(e["start"] - SPONTANEOUS_MARGIN, e["end"] + SPONTANEOUS_MARGIN) for e in events]
+    free = _free_intervals(busy, 1.0, duration - 1.5)
+    free_seconds = float(sum(b - a for a, b in free))
+    n_sp = sp_rng.poisson(cfg["spontaneous_per_minute"] * free_seconds / 60.0)
     for _ in range(n_sp):
-        for _try in range(20):
-            c = rng.uniform(1.0, duration - 1.5)
-            dur = rng.uniform(0.6, 1.1)
-            if all(c + dur / 2 < a or c - dur / 2 > b for a, b in busy):
-                kind = ("LH", "RH", "Nod")[rng.integers(3)]
-                ev = {"kind": kind, "start": c - dur / 2, "peak": c, "end": c + dur / 2, "amp": rng.uniform(0.7, 1.1),
-                      "spread": rng.uniform(-8, 14), "cycles": int(rng.integers(1, 3)), "source": "spontaneous"}
-                events.append(ev)
-                busy.append((c - dur / 2 - 0.5, c + dur / 2 + 0.5))
-                break
+        dur = sp_rng.uniform(0.6, 1.1)
+        room = np.array([max(b - a - dur, 0.0) for a, b in free])
+        if room.sum() <= 0:
+            log.debug("%s: no room left for spontaneous movements", role)
+            break
+        i = int(sp_rng.choice(len(free), p=room / room.sum()))
+        start = free[i][0] + sp_rng.uniform(0, room[i])
+        kind = ("LH", "RH", "Nod")[sp_rng.integers(3)]
+        events.append({"kind": kind, "start": start, "peak": start + dur / 2, "end": start + dur,
+                       "amp": sp_rng.uniform(0.7, 1.1), "spread": sp_rng.uniform(-8, 14),
+                       "cycles": int(sp_rng.integers(1, 3)), "source": "spontaneous"})
+        a, b = free.pop(i)
+        free[i:i] = [iv for iv in ((a, start - SPONTANEOUS_MARGIN), (start + dur + SPONTANEOUS_MARGIN, b)) if iv[1] > iv[0]]
     events.sort(key=lambda e: e["start"])
-    return [e for e in events if e["start"] > 0.05 and e["end"] < duration - 0.05]
+    return [e for e in events if e["start"] > 0.05 and e["end"] < duration - 0.05], free_seconds
+
+
+SPONTANEOUS_MARGIN = 0.4  # seconds of idle kept between a spontaneous movement and any other event or window
+
+
+def _window(seg: Segment) -> tuple[float, float]:
+    """The candidate window of an audio segment (paper Fig. 3): twice its length around its centre."""
+    half = 0.5 * (seg.end - seg.start)
+    return seg.start - half, seg.end + half
+
+
+def _free_intervals(busy: list[tuple[float, float]], lo: float, hi: float) -> list[tuple[float, float]]:
+    """Sorted disjoint intervals of [lo, hi] not covered by any interval in ``busy``."""
+    free, t = [], lo
+    for a, b in sorted(busy):
+        if a > t:
+            free.append((t, min(a, hi)))
+        t = max(t, b)
+        if t >= hi:
+            break
+    if t < hi:
+        free.append((t, hi))
+    return [(a, b) for a, b in free if b > a]
+
+
+def _separate(events: list[dict], gap: float, min_half: float = 0.15) -> list[dict]:
+    """Keep ``gap`` seconds of idle between consecutive events of the same channel (LH, RH, Nod):
+    where two would come closer, the earlier one ends and the later one starts earlier/later around
+    their midpoint; if that leaves less than ``min_half`` seconds between an event's peak and its
+    edge, the later event is dropped (rare: peaks of consecutive clauses are over 0.5 s apart)."""
+    out = []
+    for kind in ("LH", "RH", "Nod"):
+        prev = None
+        for e in sorted((e for e in events if e["kind"] == kind), key=lambda e: e["start"]):
+            e = dict(e)
+            if prev is not None and e["start"] < prev["end"] + gap:
+                mid = 0.5 * (prev["end"] + e["start"])
+                new_end, new_start = mid - gap / 2, mid + gap / 2
+                if new_end - prev["peak"] < min_half or e["peak"] - new_start < min_half:
+                    log.debug("dropping a %s event at %.2f s too close to the previous one", kind, e["start"])
+                    continue
+                prev["end"], e["start"] = new_end, new_start
+            out.append(e)
+            prev = e
+    return sorted(out, key=lambda e: e["start"])
 
 
 # ----------------------------------------------------------------------------- corpus
@@ -359,12 +422,12 @@ def _session(idx: int, cfg: dict, out: Path) -> tuple[list[dict], dict]:
     fps, sr = float(cfg["fps"]), int(cfg["sample_rate"])
     n = int(round(duration * fps))
     segs = _conversation(rng, cfg, duration, rate)
-    rows = []
+    rows, free_seconds = [], {}
     for k, role in enumerate(ROLES):
         partner = ROLES[1 - k]
         ch = cfg["characters"][role]
         own = [s for s in segs if s.role == role]
-        events = _plant_events(rng, segs, role, partner, cfg, duration)
+        events, free_seconds[role] = _plant_events(rng, segs, role, partner, cfg, duration)
         motion = _motion(rng, role, events, n, fps, energy, ch["scale"], cfg["posture_sd"], cfg["drift_sd"])
         save_bvh(motion, out / f"{name}_{role}.bvh", precision=4)
         words = [(w[0], w[1], w[2]) for s in own for w in s.words]
@@ -379,7 +442,8 @@ def _session(idx: int, cfg: dict, out: Path) -> tuple[list[dict], dict]:
             rows.append({"session": name, "participant": role, "kind": e["kind"], "start": e["start"],
                          "peak": e["peak"], "end": e["end"], "text": "", "source": e["source"],
                          "cause_start": e.get("cause_start", np.nan)})
-    return rows, {"name": name, "emotion": emotion, "duration": duration}
+    return rows, {"name": name, "emotion": emotion, "duration": duration,
+                  "spontaneous_free_seconds": {r: round(v, 4) for r, v in free_seconds.items()}}
 
 
 def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
@@ -396,7 +460,8 @@ def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
             sessions.append(meta)
         ev = pd.DataFrame(rows).round({"start": 4, "peak": 4, "end": 4, "cause_start": 4})
         ev.to_csv(tmp / "events.csv", index=False, float_format="%.4f")
-        meta = {"generator": "convsynth_jax.data.synthetic", "config": cfg, "config_hash": config_hash(cfg),
+        meta = {"generator": "convsynth_jax.data.synthetic", "generator_version": GENERATOR_VERSION,
+                "seed": int(cfg["seed"]), "config": cfg, "config_hash": config_hash(cfg),
                 "characters": {r: cfg["characters"][r]["name"] for r in ROLES}, "sessions": sessions}
         (tmp / "corpus.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
         os.chmod(tmp, 0o777 & ~_umask())

@@ -13,7 +13,7 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import GraphError
 from ..stats.fits import fit_distributions
-from .cost import aligned_distance, candidate_edges
+from .cost import candidate_edges, scaled_features
 from .database import MotionDatabase, build_database
 from .keystates import key_states
 from .types import MotionGraph
@@ -21,7 +21,7 @@ from .types import MotionGraph
 log = logging.getLogger(__name__)
 
 GRAPH_DEFAULTS = {"k": 3, "quantile": 0.95, "distribution": "johnsonsb", "key_fraction": 0.2225,
-                  "w_v": "auto", "min_gap_frames": 10, "tile": 512, "n_pivots": 8, "max_out_degree": None,
+                  "w_v": "auto", "min_gap_frames": 10, "tile": 128, "n_pivots": 8, "max_out_degree": None,
                   "local_minima": False, "use_audio_keys": True, "seed": 0, "fit_bins": 100}
 
 
@@ -32,21 +32,27 @@ def graph_params(cfg) -> dict:
     return g
 
 
-def k_step_costs(db: MotionDatabase, k: int, w_v: float) -> np.ndarray:
-    """c(i, i+k) = D(i, i+k-1) for every i whose i+k lies in the same clip (Figure 4's data)."""
+def k_step_pairs(db: MotionDatabase, k: int) -> tuple[np.ndarray, np.ndarray]:
+    """(i, i + k - 1) for every frame i whose i + k lies in the same clip: the pose pairs of c(i, i+k)."""
     i = np.arange(db.num_frames)
     j = i + k
     ok = j < db.num_frames
     ok[ok] &= db.clip[j[ok]] == db.clip[i[ok]]
-    a, b = i[ok], j[ok] - 1
+    return i[ok], j[ok] - 1
+
+
+def k_step_costs(db: MotionDatabase, k: int, w_v: float, features: np.ndarray | None = None) -> np.ndarray:
+    """c(i, i+k) = D(i, i+k-1) for every i whose i+k lies in the same clip (Figure 4's data), (n,)
+    float64 (computed in float32 from the scaled features, like the edge kernel)."""
+    a, b = k_step_pairs(db, k)
     if a.size == 0:
         return np.zeros(0)
-    out = []
+    X = scaled_features(db.positions, db.velocities, db.weights, w_v) if features is None else features
+    out = np.empty(a.size, np.float32)
     for s in range(0, a.size, 65536):
-        out.append(np.asarray(aligned_distance(db.positions[a[s:s + 65536]], db.velocities[a[s:s + 65536]],
-                                               db.positions[b[s:s + 65536]], db.velocities[b[s:s + 65536]],
-                                               db.weights.astype(np.float32), np.float32(w_v))))
-    return np.concatenate(out).astype(np.float64)
+        d = X[a[s:s + 65536]] - X[b[s:s + 65536]]
+        out[s:s + 65536] = np.sqrt(np.einsum("nmc,nmc->nm", d, d)).sum(-1)
+    return out.astype(np.float64)
 
 
 def auto_w_v(db: MotionDatabase, k: int = 3, n_pairs: int = 50000, seed: int = 0) -> float:
@@ -70,20 +76,22 @@ def auto_w_v(db: MotionDatabase, k: int = 3, n_pairs: int = 50000, seed: int = 0
     return float(np.mean(dp) / mv) if mv > 0 else 1.0
 
 
-def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None):
-    """Synthetic transitions i -> j between key states with D(i, j-1) < threshold."""
+def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None, features=None):
+    """Synthetic transitions i -> j between key states with c(i, j) = D(i, j-1) < threshold, not
+    between near neighbours of one clip. Returns (i, j, cost) sorted by (i, j)."""
     src = np.flatnonzero(keys)
-    kj = np.flatnonzero(keys)
-    kj = kj[db.frame[kj] > 0]  # j-1 must be in the same clip
+    kj = src[db.frame[src] > 0]  # j-1 must be in the same clip
     w = db.weights.astype(np.float32)
-    live = w > 0
-    P, V = db.positions[:, live], db.velocities[:, live]
-    fn = edge_fn or candidate_edges
-    a, b, c = fn(P, V, w[live], w_v, src, kj - 1, db.clip, threshold, int(params["min_gap_frames"]),
-                 **({"tile": int(params["tile"]), "n_pivots": int(params["n_pivots"]), "seed": int(params["seed"]),
-                     "stats": stats} if edge_fn is None else {}))
+    if edge_fn is None:
+        a, b, c = candidate_edges(db.positions, db.velocities, w, w_v, src, kj - 1, db.clip, threshold,
+                                  int(params["min_gap_frames"]), tile=int(params["tile"]),
+                                  n_pivots=int(params["n_pivots"]), seed=int(params["seed"]), stats=stats,
+                                  workers=params.get("workers"), features=features)
+    else:
+        a, b, c = edge_fn(db.positions, db.velocities, w, w_v, src, kj - 1, db.clip, threshold,
+                          int(params["min_gap_frames"]))
     j = b + 1
-    order = np.lexsort((j, a))
+    order = np.argsort(a * np.int64(db.num_frames) + j, kind="stable")
     a, j, c = a[order], j[order], c[order]
     if params.get("local_minima"):
         a, j, c = _local_minima(a, j, c)
@@ -159,7 +167,8 @@ def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None
     keys, step = key_states(db, float(p["key_fraction"]), bool(p["use_audio_keys"]))
     tm["key_states_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    kc = k_step_costs(db, int(p["k"]), w_v)
+    X = scaled_features(db.positions, db.velocities, db.weights, w_v)
+    kc = k_step_costs(db, int(p["k"]), w_v, features=X)
     if kc.size < 10:
         raise GraphError(f"too few frame pairs ({kc.size}) to fit the c(i, i+{p['k']}) distribution")
     fit = fit_distributions(kc, choose=str(p["distribution"]), bins=int(p["fit_bins"]), seed=int(p["seed"]))
@@ -167,7 +176,7 @@ def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None
     tm["threshold_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     kstats: dict = {}
-    a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats)
+    a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats, features=X)
     tm["edges_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     meta = {

@@ -29,12 +29,21 @@ def pose_change(db) -> np.ndarray:
 
 def keyframes(db, step: float) -> np.ndarray:
     """(N,) bool: a keyframe each time the accumulated pose change in a clip crosses a multiple of step."""
-    ch = pose_change(db)
-    key = np.zeros(db.num_frames, bool)
-    for a, b in zip(db.offsets[:-1], db.offsets[1:]):
-        acc = np.cumsum(ch[a:b])
-        level = np.floor(acc / step)
-        key[a + 1:b] = level[1:] > level[:-1]
+    return _keyframes(pose_change(db), np.asarray(db.offsets), step)
+
+
+def _keyframes(ch: np.ndarray, offsets: np.ndarray, step: float) -> np.ndarray:
+    """Vectorized over clips: the accumulated change of frame t in its clip is the global running
+    sum minus the sum before the clip's first frame (ch is 0 there)."""
+    n = ch.size
+    total = np.cumsum(ch)
+    lengths = np.diff(offsets)
+    start = np.repeat(offsets[:-1], lengths)
+    acc = total - total[start]
+    level = np.floor(acc / step)
+    key = np.zeros(n, bool)
+    key[1:] = level[1:] > level[:-1]
+    key[offsets[:-1]] = False
     return key
 
 
@@ -49,12 +58,14 @@ def key_states(db, fraction: float = 0.2225, use_audio: bool = True, tol: float 
     target = fraction * n
     if base.sum() >= target:
         return base, float("inf")
-    total = pose_change(db).sum()
+    ch = pose_change(db)
+    offsets = np.asarray(db.offsets)
+    total = ch.sum()
     lo, hi = total / n / 100.0, total + 1.0
     best = None
     for _ in range(60):
         mid = np.sqrt(lo * hi)
-        k = base | keyframes(db, mid)
+        k = base | _keyframes(ch, offsets, mid)
         cnt = k.sum()
         best = (k, mid)
         if abs(cnt - target) <= tol * n:

@@ -22,13 +22,13 @@ log = logging.getLogger(__name__)
 
 GRAPH_DEFAULTS = {"k": 3, "quantile": 0.95, "distribution": "johnsonsb", "key_fraction": 0.2225,
                   "w_v": "auto", "min_gap_frames": 10, "tile": 128, "n_pivots": 8, "max_out_degree": None,
-                  "local_minima": False, "use_audio_keys": True, "seed": 0, "fit_bins": 100}
+                  "max_edges": 50_000_000, "workers": None, "local_minima": False, "use_audio_keys": True, "seed": 0, "fit_bins": 100}
 
 
 def graph_params(cfg) -> dict:
     g = dict(GRAPH_DEFAULTS)
     if cfg is not None and cfg.get("graph") is not None:
-        g.update({k: v for k, v in dict(cfg.graph).items() if v is not None or k in ("max_out_degree",)})
+        g.update({k: v for k, v in dict(cfg.graph).items() if v is not None or k in ("max_out_degree", "max_edges", "workers")})
     return g
 
 
@@ -86,7 +86,9 @@ def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None, fea
         a, b, c = candidate_edges(db.positions, db.velocities, w, w_v, src, kj - 1, db.clip, threshold,
                                   int(params["min_gap_frames"]), tile=int(params["tile"]),
                                   n_pivots=int(params["n_pivots"]), seed=int(params["seed"]), stats=stats,
-                                  workers=params.get("workers"), features=features)
+                                  workers=params.get("workers"), features=features,
+                                  max_out_degree=None if params.get("local_minima") else params.get("max_out_degree"),
+                                  max_edges=params.get("max_edges"))
     else:
         a, b, c = edge_fn(db.positions, db.velocities, w, w_v, src, kj - 1, db.clip, threshold,
                           int(params["min_gap_frames"]))
@@ -102,25 +104,33 @@ def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None, fea
 
 def _local_minima(a, j, c):
     """Keep an edge only if no edge from a neighbouring source (+-1 frame) to a neighbouring target
-    (+-1 frame) is cheaper (Kovar et al.'s local minima, on the key-state grid)."""
-    best = {}
-    for x, y, z in zip(a, j, c):
-        best[(x, y)] = z
+    (+-1 frame) is cheaper (Kovar et al.'s local minima, on the key-state grid). Vectorized: edges
+    are looked up by the key a * (n + 2) + j in a sorted array."""
+    if a.size == 0:
+        return a, j, c
+    n = int(max(a.max(), j.max())) + 3
+    key = (a + 1) * n + (j + 1)
+    order = np.argsort(key, kind="stable")
+    sk, sc = key[order], c[order]
     keep = np.ones(a.size, bool)
-    for n, (x, y, z) in enumerate(zip(a, j, c)):
-        for dx in (-1, 0, 1):
-            for dy in (-1, 0, 1):
-                if (dx or dy) and best.get((x + dx, y + dy), np.inf) < z:
-                    keep[n] = False
+    for dx in (-1, 0, 1):
+        for dy in (-1, 0, 1):
+            if not (dx or dy):
+                continue
+            q = key + dx * n + dy
+            pos = np.minimum(np.searchsorted(sk, q), sk.size - 1)
+            hit = sk[pos] == q
+            keep &= ~(hit & (sc[pos] < c))
     return a[keep], j[keep], c[keep]
 
 
 def _cap_degree(a, j, c, cap):
-    keep = np.zeros(a.size, bool)
-    for s in np.unique(a):
-        idx = np.flatnonzero(a == s)
-        keep[idx[np.argsort(c[idx], kind="stable")[:cap]]] = True
-    return a[keep], j[keep], c[keep]
+    """The ``cap`` cheapest synthetic transitions of every source (ties: lower target)."""
+    from .cost import _keep_cheapest
+
+    a, j, c = _keep_cheapest(a, j, c, cap)
+    order = np.lexsort((j, a))
+    return a[order], j[order], c[order]
 
 
 def assemble_graph(db: MotionDatabase, keys, a, j, c, meta: dict) -> MotionGraph:

@@ -42,22 +42,22 @@ log = logging.getLogger(__name__)
 BOUND_MARGIN = 1e-4
 
 
-def scaled_features(P, V, w, w_v) -> np.ndarray:
-    """Fold joint weights and w_v into the features: (N, J, 3) x2 -> (N, M, 3) float32 with
+def scaled_features(P, V, w, w_v, dtype=np.float32) -> np.ndarray:
+    """Fold joint weights and w_v into the features: (N, J, 3) x2 -> (N, M, 3) ``dtype`` with
     M = 2 * (number of joints with positive weight that ever move). Joints with weight 0 or with
     constant features (the root, which is at the origin of the root-relative frame) contribute
     exactly 0 to every cost and are dropped."""
-    P = np.asarray(P, np.float32)
-    V = np.asarray(V, np.float32)
+    P = np.asarray(P, dtype)
+    V = np.asarray(V, dtype)
     w = np.asarray(w, np.float64)
     if len(P):
         moving = ((P.max(0) > P.min(0)).any(-1) | (V.max(0) != 0).any(-1) | (V.min(0) != 0).any(-1))
     else:
         moving = np.zeros(len(w), bool)
     live = np.flatnonzero((w > 0) & moving)
-    out = np.empty((P.shape[0], 2 * live.size, 3), np.float32)
-    out[:, :live.size] = P[:, live] * w[live, None].astype(np.float32)
-    out[:, live.size:] = V[:, live] * (float(w_v) * w[live, None]).astype(np.float32)
+    out = np.empty((P.shape[0], 2 * live.size, 3), dtype)
+    out[:, :live.size] = P[:, live] * w[live, None].astype(dtype)
+    out[:, live.size:] = V[:, live] * (float(w_v) * w[live, None]).astype(dtype)
     return out
 
 
@@ -174,9 +174,30 @@ def _tile_lower_bounds(ta: _Tiling, tb: _Tiling) -> np.ndarray:
     return np.maximum(gap.max(-1), 0.0) if gap.shape[-1] else np.zeros(gap.shape[:2])
 
 
+def _keep_cheapest(a, b, c, cap):
+    """Rows of (a, b, c) keeping for every source a its ``cap`` cheapest targets (ties: lower b)."""
+    order = np.lexsort((b, c, a))
+    a, b, c = a[order], b[order], c[order]
+    first = np.r_[0, np.flatnonzero(a[1:] != a[:-1]) + 1]
+    rank = np.arange(a.size) - np.repeat(first, np.diff(np.r_[first, a.size]))
+    keep = rank < cap
+    return a[keep], b[keep], c[keep]
+
+
+def _row_cheapest(m, cap):
+    """(rows, cols) of the at most ``cap`` smallest finite entries of every row of m (R, C)."""
+    if cap < m.shape[1]:
+        cols = np.argpartition(m, cap - 1, axis=1)[:, :cap]
+        rows = np.repeat(np.arange(m.shape[0]), cap).reshape(m.shape[0], cap)
+        ok = np.isfinite(m[rows, cols])
+        return rows[ok], cols[ok]
+    return np.nonzero(np.isfinite(m))
+
+
 def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=128, n_pivots=8, seed=0,
                     stats: dict | None = None, workers: int | None = None, symmetric: str | bool = "auto",
-                    features: np.ndarray | None = None):
+                    features: np.ndarray | None = None, max_out_degree: int | None = None,
+                    max_edges: int | None = 50_000_000):
     """All (a, b) with a in ``src`` and b in ``dst_prev`` (database frame indices) such that
     D(a, b) < threshold and not (same clip and |a - b| <= min_gap). Returns (a, b, cost) arrays
     (int64, int64, float32) in no particular order.
@@ -184,8 +205,14 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
     P, V: (N, J, 3) root-relative positions and velocities; w: (J,) joint weights; clip: (N,).
     tile: frames per tile side; n_pivots: pivots for the tile bounds; workers: host threads
     dispatching tiles (default: CPU count, at most 4); symmetric: "auto" (fewer pair evaluations
-    wins), True or False. ``stats`` receives tile counts and the number of pairs evaluated.
+    wins), True or False. ``features``: the :func:`scaled_features` of (P, V, w, w_v) if the caller
+    has them already. ``max_out_degree``: keep only the cheapest that many per source, applied while
+    streaming over the tiles (memory stays about N * max_out_degree edges). ``max_edges``: capacity
+    of the host edge buffer; exceeding it raises :class:`GraphError` (None: unbounded).
+    ``stats`` receives tile counts, pairs evaluated and ``candidates_found`` (before any cap).
     """
+    from ..errors import GraphError
+
     src = np.unique(np.asarray(src, np.int64))
     dst = np.unique(np.asarray(dst_prev, np.int64))
     clip = np.asarray(clip, np.int64)
@@ -234,34 +261,68 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
                                            thr32, gap32)) for p in chunk[s:s + depth]]
             yield from batch
 
-    def work(chunk):
-        out = []
-        for (pa, pb), m in dispatched(chunk):
-            m = np.asarray(m)
-            r, c = np.nonzero(m < np.inf)
-            if r.size == 0:
-                continue
-            a, b, d = ta.ids[pa][r], tb.ids[pb][c], m[r, c]
-            if not sym:
-                out.append((a, b, d))
-                continue
-            fw = in_src[a] & in_dst[b]  # a -> b+1
-            out.append((a[fw], b[fw], d[fw]))
+    cap = int(max_out_degree) if max_out_degree else None
+    limit = max_edges if (max_edges and cap is None) else None
+    found = [0] * 64  # candidates per worker (before the cap)
+    overflow = []
+
+    def directional(pa, pb, m):
+        """[(a, b, cost)] of one masked tile (both directions in the symmetric plan) and the number
+        of candidates before the cap."""
+        ia, ib = ta.ids[pa], tb.ids[pb]
+        out, n = [], 0
+        views = [(m, ia, ib)]
+        if sym:
+            mf = np.where(in_src[np.maximum(ia, 0)][:, None] & in_dst[np.maximum(ib, 0)][None], m, np.inf)
+            views = [(mf, ia, ib)]
             if pa != pb:  # the mirrored pair of an off-diagonal tile: b -> a+1
-                bw = in_src[b] & in_dst[a]
-                out.append((b[bw], a[bw], d[bw]))
+                views.append((np.where(in_src[np.maximum(ib, 0)][:, None] & in_dst[np.maximum(ia, 0)][None],
+                                       m.T, np.inf), ib, ia))
+        for mm, ra, rb in views:
+            if cap:
+                n += int(np.count_nonzero(mm < np.inf))
+                r, c = _row_cheapest(mm, cap)
+            else:
+                r, c = np.nonzero(mm < np.inf)
+                n += r.size
+            if r.size:
+                out.append((ra[r], rb[c], mm[r, c]))
+        return out, n
+
+    def work(k, chunk):
+        out, held = [], 0
+        for (pa, pb), m in dispatched(chunk):
+            if overflow:
+                break
+            parts, n_found = directional(pa, pb, np.asarray(m))
+            found[k] += n_found
+            out.extend(parts)
+            held += sum(p[0].size for p in parts)
+            if limit is not None and sum(found) > limit:
+                overflow.append(sum(found))
+                break
+            if cap and held > 4 * cap * (union.size + 1024):  # merge: keep the cap cheapest per source
+                a, b, c = _keep_cheapest(*(np.concatenate([p[i] for p in out]) for i in range(3)), cap)
+                out, held = [(a, b, c)], a.size
         return out
 
-    nw = max(1, min(workers or min(os.cpu_count() or 1, 4), pairs.shape[0] or 1))
+    nw = max(1, min(workers or min(os.cpu_count() or 1, 4), pairs.shape[0] or 1, len(found)))
     chunks = [pairs[k::nw] for k in range(nw)]
     if nw == 1:
-        parts = work(chunks[0])
+        parts = work(0, chunks[0])
     else:
         with ThreadPoolExecutor(nw) as ex:
-            parts = [x for res in ex.map(work, chunks) for x in res]
+            parts = [x for res in ex.map(work, range(nw), chunks) for x in res]
+    if stats is not None:
+        stats["candidates_found"] = int(sum(found))
+    if overflow:
+        raise GraphError(f"more than graph.max_edges={max_edges} candidate transitions (at least {overflow[0]}); "
+                         "lower graph.key_fraction or graph.quantile, or set graph.max_out_degree")
     if not parts:
         return empty
     a = np.concatenate([p[0] for p in parts]).astype(np.int64)
     b = np.concatenate([p[1] for p in parts]).astype(np.int64)
     c = np.concatenate([p[2] for p in parts]).astype(np.float32)
+    if cap:
+        a, b, c = _keep_cheapest(a, b, c, cap)
     return a, b, c

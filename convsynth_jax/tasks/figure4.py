@@ -37,7 +37,7 @@ def run(cfg, out_dir: Path) -> dict:
     for name, df in (("figure4_histograms", hist), ("figure4_fits", fits)):
         with atomic_path(out_dir / f"{name}.csv") as tmp:
             df.to_csv(tmp, index=False)
-    from ..plotting import cost_histogram_figure
+    from ..graph.figures import cost_histogram_figure
 
     fig = cost_histogram_figure(hist, fits)
     for ext in ("png", "pdf"):

@@ -1,0 +1,163 @@
+"""Transition-cost kernels (graph/cost.py) against the slow NumPy reference (graph/reference.py).
+
+Edge sets are compared exactly, except for pairs whose reference cost lies within a relative
+THRESHOLD_TIE of the threshold (float32 vs float64 rounding may put them on either side).
+"""
+import numpy as np
+import pytest
+
+from convsynth_jax.graph.cost import (_tile_lower_bounds, _tiling, candidate_edges, farthest_point_pivots,
+                                      feature_distance, kd_order, masked_tile_costs, pair_distance,
+                                      scaled_features)
+from convsynth_jax.graph.reference import reference_cost_matrix, reference_edges
+from tolerances import COST_FLOAT32, COST_FLOAT64, THRESHOLD_TIE, enable_x64
+
+
+def random_features(seed, n_clips=4, frames=90, joints=6):
+    """Smooth random walks per clip (poses recur across clips, so there are real edges), a static
+    root joint and one zero-weight joint. Returns P, V (N, J, 3) float32, w (J,), clip (N,)."""
+    rng = np.random.default_rng(seed)
+    P, V, C = [], [], []
+    for c in range(n_clips):
+        n = int(frames + rng.integers(-20, 20))
+        steps = rng.normal(0, 0.05, (n, joints, 3)).cumsum(0) + rng.normal(0, 0.3, (1, joints, 3))
+        steps[:, 0] = 0.0  # the root is at the origin of root-relative features
+        P.append(steps)
+        V.append(np.gradient(steps, axis=0) * 30.0)
+        C.append(np.full(n, c))
+    w = np.ones(joints)
+    w[-1] = 0.0
+    return (np.concatenate(P).astype(np.float32), np.concatenate(V).astype(np.float32), w,
+            np.concatenate(C).astype(np.int64))
+
+
+def edge_dict(a, b, c):
+    return dict(zip(zip(a.tolist(), b.tolist()), np.asarray(c, np.float64).tolist()))
+
+
+def assert_same_edges(fast, ref, thr):
+    """Exactly the reference edges, pairs within the tie band of the threshold excluded; costs
+    within float32 tolerance."""
+    fa, ra = edge_dict(*fast), edge_dict(*ref)
+    tie = THRESHOLD_TIE * thr
+    ref_core = {e for e, c in ra.items() if abs(c - thr) > tie}
+    fast_core = {e for e, c in fa.items() if abs(ra.get(e, c) - thr) > tie}
+    assert ref_core <= set(fa), f"{len(ref_core - set(fa))} reference edges missing"
+    assert fast_core <= set(ra), f"{len(fast_core - set(ra))} edges not in the reference"
+    common = sorted(set(fa) & set(ra))
+    assert common
+    np.testing.assert_allclose([fa[e] for e in common], [ra[e] for e in common], rtol=COST_FLOAT32)
+
+
+def test_scaled_features_reproduce_eq_3_4():
+    P, V, w, clip = random_features(0, 2, 40)
+    w = w * np.linspace(0.5, 1.5, w.size)
+    X = scaled_features(P, V, w, 0.7)
+    # the static root and the zero-weight joint are dropped: 2 * (J - 2) rows
+    assert X.shape == (P.shape[0], 2 * (P.shape[1] - 2), 3)
+    a, b = np.arange(0, 30), np.arange(10, 40)
+    ref = reference_cost_matrix(P[a], V[a], P[b], V[b], w, 0.7)
+    np.testing.assert_allclose(np.asarray(feature_distance(X[a], X[b])), ref, rtol=COST_FLOAT32)
+    np.testing.assert_allclose(np.asarray(pair_distance(P[a], V[a], P[b], V[b], w.astype(np.float32), 0.7)), ref,
+                               rtol=COST_FLOAT32)
+
+
+@pytest.mark.parametrize("seed,tile,workers,symmetric", [(0, 16, 1, False), (1, 32, 2, False), (2, 16, 2, True),
+                                                         (3, 64, 1, "auto")])
+def test_candidate_edges_equal_reference(seed, tile, workers, symmetric):
+    P, V, w, clip = random_features(seed)
+    rng = np.random.default_rng(100 + seed)
+    n = P.shape[0]
+    src = np.flatnonzero(rng.random(n) < 0.4)
+    dst = np.flatnonzero(rng.random(n) < 0.4)
+    all_costs = reference_edges(P, V, w, 0.2, src, dst, clip, np.inf, 5)[2]
+    thr = float(np.quantile(all_costs, 0.08))
+    ref = reference_edges(P, V, w, 0.2, src, dst, clip, thr, 5)
+    stats = {}
+    fast = candidate_edges(P, V, w, 0.2, src, dst, clip, thr, 5, tile=tile, n_pivots=4, workers=workers,
+                           symmetric=symmetric, stats=stats)
+    assert stats["symmetric"] == (symmetric is True)  # "auto": the rectangle is cheaper for these subsets
+    assert_same_edges(fast, ref, thr)
+    # no trivial neighbours within one clip
+    a, b, _ = fast
+    assert not np.any((clip[a] == clip[b]) & (np.abs(a - b) <= 5))
+
+
+def test_every_frame_a_candidate_uses_the_symmetric_plan():
+    P, V, w, clip = random_features(4, 3, 70)
+    n = P.shape[0]
+    src = np.arange(n)
+    starts = np.flatnonzero(np.r_[True, clip[1:] != clip[:-1]])
+    dst = np.setdiff1d(src, starts) - 1  # j - 1 for every j that has a predecessor in its clip
+    thr = float(np.quantile(reference_edges(P, V, w, 0.3, src[::7], dst[::7], clip, np.inf, 3)[2], 0.05))
+    stats = {}
+    fast = candidate_edges(P, V, w, 0.3, src, dst, clip, thr, 3, tile=32, n_pivots=6, stats=stats)
+    assert stats["symmetric"] is True
+    # the union is evaluated once: upper-triangle tiles only
+    nt = -(-n // 32)
+    assert stats["tiles_computed"] + stats["tiles_skipped"] == nt * (nt + 1) // 2
+    assert_same_edges(fast, reference_edges(P, V, w, 0.3, src, dst, clip, thr, 3), thr)
+
+
+def test_tile_bounds_never_exceed_the_true_minimum_and_skip_tiles():
+    P, V, w, clip = random_features(5, 6, 100)
+    X = scaled_features(P, V, w, 0.2)
+    rng = np.random.default_rng(0)
+    idx = np.arange(P.shape[0])
+    piv = farthest_point_pivots(X, idx, 6, rng)
+    emb = np.asarray(feature_distance(X[idx], X[piv]), np.float64)
+    t = _tiling(X, idx, emb, clip, 32)
+    lb = _tile_lower_bounds(t, t)
+    D = reference_cost_matrix(P, V, P, V, w, 0.2)
+    for i in range(t.ids.shape[0]):
+        for j in range(t.ids.shape[0]):
+            a, b = t.ids[i][t.ids[i] >= 0], t.ids[j][t.ids[j] >= 0]
+            assert lb[i, j] <= D[np.ix_(a, b)].min() * (1 + 1e-5) + 1e-4
+    # a tight threshold skips tiles and stays exact
+    thr = float(np.quantile(D, 0.01))
+    stats = {}
+    fast = candidate_edges(P, V, w, 0.2, idx, idx, clip, thr, 2, tile=32, n_pivots=6, stats=stats)
+    assert stats["tiles_skipped"] > 0
+    assert_same_edges(fast, reference_edges(P, V, w, 0.2, idx, idx, clip, thr, 2), thr)
+
+
+def test_kd_order_is_a_permutation_with_tile_aligned_leaves():
+    rng = np.random.default_rng(1)
+    E = rng.normal(size=(203, 3))
+    o = kd_order(E, 16)
+    assert np.array_equal(np.sort(o), np.arange(203))
+    # leaves are compact: the mean spread inside the tiles is well below the overall spread
+    full = E.max(0) - E.min(0)
+    spread = np.mean([(E[o[s:s + 16]].max(0) - E[o[s:s + 16]].min(0)).max() for s in range(0, 192, 16)])
+    assert spread < 0.6 * full.max()
+
+
+def test_masked_tile_kernel_in_float64_matches_reference_tightly():
+    import jax.numpy as jnp
+
+    P, V, w, clip = random_features(6, 2, 40)
+    X = scaled_features(P.astype(np.float64), V.astype(np.float64), w, 0.4, dtype=np.float64)
+    T = 24
+    ia = np.r_[np.arange(0, 20), [-1] * 4].astype(np.int32)   # 4 padding rows
+    ib = np.r_[np.arange(10, 34)].astype(np.int32)
+    xa = X[np.maximum(ia, 0)].transpose(1, 2, 0)[None]
+    xb = X[ib].transpose(1, 2, 0)[None]
+    ca, cb = clip[np.maximum(ia, 0)].astype(np.int32)[None], clip[ib].astype(np.int32)[None]
+    ref = reference_cost_matrix(P.astype(np.float64)[np.maximum(ia, 0)], V.astype(np.float64)[np.maximum(ia, 0)],
+                                P.astype(np.float64)[ib], V.astype(np.float64)[ib], w, 0.4)
+    thr = float(np.quantile(ref, 0.5))
+    with enable_x64():
+        m = np.asarray(masked_tile_costs(jnp.asarray(xa), jnp.asarray(xb), jnp.asarray(ia[None]), jnp.asarray(ib[None]),
+                                         jnp.asarray(ca), jnp.asarray(cb), 0, 0, jnp.float64(thr), 3))
+    assert m.dtype == np.float64 and m.shape == (T, T)
+    near = (ca[0][:, None] == cb[0][None]) & (np.abs(ia[:, None] - ib[None]) <= 3)
+    expect = np.where((ref < thr) & ~near & (ia[:, None] >= 0), ref, np.inf)
+    assert np.array_equal(np.isfinite(m), np.isfinite(expect))
+    np.testing.assert_allclose(m[np.isfinite(m)], expect[np.isfinite(expect)], rtol=COST_FLOAT64)
+
+
+def test_empty_inputs_give_no_edges():
+    P, V, w, clip = random_features(7, 1, 30)
+    for src, dst, thr in ((np.arange(0), np.arange(10), 1.0), (np.arange(10), np.arange(10), 0.0)):
+        a, b, c = candidate_edges(P, V, w, 0.2, src, dst, clip, thr, 1)
+        assert a.size == b.size == c.size == 0

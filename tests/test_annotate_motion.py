@@ -66,6 +66,19 @@ def test_segment_windows_trims_against_the_previous_movement():
     assert untrimmed[1][0] == 10  # would start inside the earlier movement
 
 
+def test_trimming_uses_the_full_extent_of_a_movement_that_outlasts_its_window():
+    v = np.zeros(40)
+    v[5:18] = [2, 5, 8, 10, 8, 6, 5, 4, 3, 3, 2, 2, 0.5]  # a gesture outlasting its window [0, 12)
+    v[25:30] = [2, 6, 8, 6, 2]                             # the next clause's own gesture
+    wins = [Window(0, 12), Window(12, 30)]
+    theta_s = idle_threshold(v, 0.1)  # 1.0
+    # window 1: theta_W = 1 -> frames 5..11, end cut at the window's end (frame 12)
+    # paper-literal: window 2 [12, 30) starts with the tail (4, 3, 3, 2, 2 > theta_W 0.8) -> counted again
+    assert segment_windows(v, wins, theta_s, 0.1, extend_trim=False) == [(5, 8, 12), (12, 27, 30)]
+    # extended: the first movement occupies frames up to 17, where its speed falls to 0.5 <= 1
+    assert segment_windows(v, wins, theta_s, 0.1, extend_trim=True) == [(5, 8, 12), (25, 27, 30)]
+
+
 def test_segment_motion_events_and_alphas():
     fps = 10.0
     n = 200

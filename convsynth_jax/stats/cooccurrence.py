@@ -32,8 +32,9 @@ def _cfgget(cfg, group, key, default):
 
 
 def hypothesis_matches(speeds: dict, own: pd.DataFrame, partner: pd.DataFrame, fps: float, hypothesis: str,
-                       alpha_s: float = 0.1, alpha_w: float = 0.1):
-    """(matched flags per audio segment, the candidate windows) for one hypothesis in one clip."""
+                       alpha_s: float = 0.1, alpha_w: float = 0.1, extend_trim: bool = True):
+    """(matched flags per audio segment, the candidate windows) for one hypothesis in one clip: the
+    same windows and detections as ``segment_motion`` (LH/RH: a clause is matched if either hand moved)."""
     channel, akind, kinds = HYPOTHESIS_SPEC[hypothesis]
     segs = own if channel == "own" else partner
     if segs is None or len(segs) == 0:
@@ -44,7 +45,7 @@ def hypothesis_matches(speeds: dict, own: pd.DataFrame, partner: pd.DataFrame, f
     hit = np.zeros(len(wins), bool)
     for k in kinds:
         v = speeds[k]
-        found = segment_windows(v, wins, idle_threshold(v, alpha_s), alpha_w)
+        found = segment_windows(v, wins, idle_threshold(v, alpha_s), alpha_w, extend_trim=extend_trim)
         hit |= np.array([f is not None for f in found], bool)
     return hit, wins
 
@@ -82,12 +83,13 @@ def clip_counts(ann, cfg=None, seed: int = 0) -> pd.DataFrame:
     alpha_s = float(_cfgget(cfg, "annotate", "alpha_s", 0.1))
     alpha_w = float(_cfgget(cfg, "annotate", "alpha_w", 0.1))
     per_window = int(_cfgget(cfg, "stats", "chance_windows", 1))
+    extend = bool(_cfgget(cfg, "annotate", "extend_trim", True))
     speeds = joint_speeds(ann.motion, cfg)
     fps = ann.motion.fps
     rng = np.random.default_rng([seed, zlib.crc32(f"{ann.session}/{ann.role}".encode())])
     rows = []
     for h in HYPOTHESES:
-        hit, wins = hypothesis_matches(speeds, ann.segments, ann.partner_segments, fps, h, alpha_s, alpha_w)
+        hit, wins = hypothesis_matches(speeds, ann.segments, ann.partner_segments, fps, h, alpha_s, alpha_w, extend)
         channel = HYPOTHESIS_SPEC[h][0]
         blocked = ann.segments if channel == "own" else ann.partner_segments
         rnd = (random_window_matches(speeds, wins, blocked, fps, h, rng, alpha_s, alpha_w, per_window)

@@ -269,3 +269,56 @@ def test_detected_peaks_and_bounds_lie_near_planted(tiny):
             assert (a.events["start"] <= a.events["peak"]).all() and (a.events["peak"] < a.events["end"]).all()
     # the planted stroke (a 90 ms beat on a slower bump) is where the hand is fastest, within a few frames
     assert len(errs) > 50 and np.median(errs) < 0.15
+
+
+# --------------------------------------------------------------------------- pipeline (shim session)
+class _Participant:
+    """The participant interface annotate_session uses, without files (no audio: midpoint peaks)."""
+
+    def __init__(self, role, character, motion, words):
+        self.role, self.character, self._motion, self._words = role, character, motion, words
+        self.audio_path = None
+
+    def load_motion(self, fps):
+        return self._motion
+
+    def load_transcript(self):
+        return self._words
+
+
+class _Session:
+    def __init__(self, name, participants):
+        self.name, self.participants = name, participants
+
+
+def test_annotate_session_on_shim_participants():
+    from convsynth_jax.annotate.pipeline import annotate_corpus, annotate_session
+    from convsynth_jax.annotate.types import HP, IDLE, LR, PC
+
+    skel = seated_skeleton()
+    n, fps = 90, 30.0
+    q = np.zeros((n, skel.num_joints, 4))
+    q[..., 0] = 1.0
+    trans = np.broadcast_to(skel.offsets, (n, skel.num_joints, 3)).copy()
+    t = np.arange(n) / fps
+    lift = 40 * np.sin(np.pi * np.clip((t - 0.7) / 0.8, 0, 1)) ** 2  # a left-arm gesture over 0.7-1.5 s
+    moving = q.copy()
+    moving[:, INDEX["LeftArm"]] = Rotation.from_euler("X", -lift[:, None], degrees=True).as_quat()[:, [3, 0, 1, 2]]
+    a_words = pd.DataFrame({"start": [0.8, 1.0, 2.2], "end": [1.0, 1.3, 2.5], "word": ["so", "then", "yeah"]})
+    b_words = pd.DataFrame({"start": [1.6], "end": [1.9], "word": ["um"]})
+    session = _Session("s1", (_Participant("A", "female", Motion(skel, moving, trans, fps), a_words),
+                              _Participant("B", "male", Motion(skel, q.copy(), trans, fps), b_words)))
+    ann = annotate_session(session, {"features": {"fps": fps}})
+    a, b = ann["A"], ann["B"]
+    assert a.segments["kind"].tolist() == ["PC", "LR"] and b.segments["kind"].tolist() == ["HP"]
+    assert a.partner_segments.equals(b.segments) and b.partner_segments.equals(a.segments)
+    assert a.own.label[[20, 30, 45, 70]].tolist() == [IDLE, PC, IDLE, LR]
+    assert a.partner.label[50] == HP and b.own.label[50] == HP and b.partner.label[30] == PC
+    # PC [0.8, 1.3] s -> frames [24, 39); no audio: peak at the midpoint 1.05 s = frame 31.5, rounded to 32
+    assert a.own.seg_start[30] == 24 and a.own.seg_end[30] == 39 and a.own.seg_peak[30] == 32
+    lh = a.events[a.events.kind == "LH"]
+    assert len(lh) == 1 and lh["segment"].iat[0] == 0 and 0.6 <= lh["start"].iat[0] <= 0.9
+    assert b.events.empty  # B never moves
+    assert (a.character, b.character, a.session) == ("female", "male", "s1") and a.motion.num_frames == n
+    assert list(annotate_corpus(type("C", (), {"sessions": [session]})(), {"features": {"fps": fps}},
+                                progress=False)) == ["s1"]

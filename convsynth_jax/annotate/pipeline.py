@@ -8,7 +8,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from ..skeleton import Motion
-from .audio import annotate_audio, load_word_corpus
+from .audio import annotate_audio, word_corpus_from_config
 from .motion import joint_speeds, segment_motion
 from .types import FrameAudio
 
@@ -43,13 +43,15 @@ def _fps(cfg) -> float:
 
 
 def annotate_session(session, cfg, word_corpus: dict | None = None) -> dict:
-    """role -> ParticipantAnnotation for both participants of ``session``."""
-    a = cfg.get("annotate", {}) if hasattr(cfg, "get") else {}
-    corpus = word_corpus or load_word_corpus((a or {}).get("word_corpus"), (a or {}).get("extra_words"))
+    """role -> ParticipantAnnotation for both participants of ``session`` (an object with ``name`` and
+    two ``participants`` having role, character, load_motion(fps), load_audio(), load_transcript() and
+    audio_path, as ``convsynth_jax.io.corpus.Session``). Motion is loaded at ``cfg.features.fps``;
+    a participant without audio gets F0 peaks at segment midpoints."""
+    corpus = word_corpus or word_corpus_from_config(cfg)
     fps = _fps(cfg)
     segs = []
     for p in session.participants:
-        audio = p.load_audio() if p.audio_path is not None else None
+        audio = p.load_audio() if getattr(p, "audio_path", None) is not None else None
         segs.append(annotate_audio(p.load_transcript(), audio, cfg, word_corpus=corpus))
     out = {}
     for k, p in enumerate(session.participants):
@@ -64,8 +66,8 @@ def annotate_session(session, cfg, word_corpus: dict | None = None) -> dict:
 
 
 def annotate_corpus(corpus, cfg, progress: bool = True) -> dict:
-    """session name -> role -> ParticipantAnnotation."""
-    a = cfg.get("annotate", {}) if hasattr(cfg, "get") else {}
-    words = load_word_corpus((a or {}).get("word_corpus"), (a or {}).get("extra_words"))
+    """session name -> role -> ParticipantAnnotation, for every session of ``corpus`` (e.g.
+    ``convsynth_jax.io.load_corpus(...)``), with a progress bar unless ``progress`` is false."""
+    words = word_corpus_from_config(cfg)
     return {s.name: annotate_session(s, cfg, words)
             for s in tqdm(corpus.sessions, desc="annotating sessions", disable=not progress)}

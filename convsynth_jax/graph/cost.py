@@ -114,13 +114,30 @@ def masked_tile_costs(XA, XB, IA, IB, CA, CB, pa, pb, threshold, min_gap):
     return jnp.where(ok, d, jnp.inf)
 
 
+def _bucket(n: int, least: int = 256) -> int:
+    """Padded size for n rows: the next power of two (at least ``least``), so kernels compile for
+    few shapes however the database size varies (e.g. across leave-one-out folds)."""
+    return max(least, 1 << int(np.ceil(np.log2(max(n, 1)))))
+
+
+def _pad_rows(x: np.ndarray, size: int) -> np.ndarray:
+    return np.concatenate([x, np.repeat(x[-1:], size - x.shape[0], axis=0)]) if size > x.shape[0] else x
+
+
+def distances_to(X, idx, targets) -> np.ndarray:
+    """(len(idx), len(targets)) float64 D between frames ``idx`` and frames ``targets`` of X,
+    evaluated with rows padded to a bucket size (few compiles)."""
+    xa = _pad_rows(X[idx], _bucket(len(idx)))
+    xb = _pad_rows(X[targets], _bucket(len(targets), 8))
+    return np.asarray(feature_distance(xa, xb), np.float64)[:len(idx), :len(targets)]
+
+
 def farthest_point_pivots(X, cand, n_pivots, rng) -> np.ndarray:
     """Pivot frames spread out over ``cand`` (farthest-point sampling from a random start)."""
     piv = [int(rng.choice(cand))]
     dmin = np.full(cand.size, np.inf)
     for _ in range(max(0, n_pivots - 1)):
-        d = np.asarray(feature_distance(X[cand], X[piv[-1]][None]))[:, 0]
-        dmin = np.minimum(dmin, d)
+        dmin = np.minimum(dmin, distances_to(X, cand, [piv[-1]])[:, 0])
         piv.append(int(cand[int(np.argmax(dmin))]))
     return np.asarray(piv, np.int64)
 
@@ -159,13 +176,16 @@ def _tiling(X, idx, emb, clip, tile) -> _Tiling:
     nt = -(-idx.size // tile)
     pad = nt * tile - idx.size
     ids = np.concatenate([idx, np.full(pad, -1, idx.dtype)]).reshape(nt, tile)
-    safe = np.where(ids >= 0, ids, idx[0])
-    xt = np.ascontiguousarray(X[safe].transpose(0, 2, 3, 1))
-    cl = np.where(ids >= 0, clip[safe], -1).astype(np.int32)
     e = np.concatenate([emb, np.full((pad, emb.shape[1]), np.nan)]).reshape(nt, tile, -1)
     with np.errstate(all="ignore"):
         lo, hi = (np.nanmin(e, 1), np.nanmax(e, 1)) if e.shape[-1] else (np.zeros((nt, 0)),) * 2
-    return _Tiling(ids, jnp.asarray(xt), jnp.asarray(ids, jnp.int32), jnp.asarray(cl), lo, hi)
+    # the device stacks hold a power-of-two number of tiles (extra tiles are never referenced)
+    stack = np.full((_bucket(nt, 1), tile), -1, idx.dtype)
+    stack[:nt] = ids
+    safe = np.where(stack >= 0, stack, idx[0])
+    xt = np.ascontiguousarray(X[safe].transpose(0, 2, 3, 1))
+    cl = np.where(stack >= 0, clip[safe], -1).astype(np.int32)
+    return _Tiling(ids, jnp.asarray(xt), jnp.asarray(stack, jnp.int32), jnp.asarray(cl), lo, hi)
 
 
 def _tile_lower_bounds(ta: _Tiling, tb: _Tiling) -> np.ndarray:
@@ -228,8 +248,7 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
     union = np.union1d(src, dst)
     sym = bool(symmetric) if symmetric != "auto" else union.size ** 2 / 2 < src.size * dst.size
     piv = farthest_point_pivots(X, union, n_pivots, rng) if n_pivots > 0 else np.zeros(0, np.int64)
-    emb_all = (np.asarray(feature_distance(X[union], X[piv]), np.float64) if piv.size
-               else np.zeros((union.size, 0)))
+    emb_all = distances_to(X, union, piv) if piv.size else np.zeros((union.size, 0))
     emb_of = lambda idx: emb_all[np.searchsorted(union, idx)]  # noqa: E731
     if sym:
         ta = tb = _tiling(X, union, emb_all, clip, tile)
@@ -301,7 +320,7 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
             if limit is not None and sum(found) > limit:
                 overflow.append(sum(found))
                 break
-            if cap and held > 4 * cap * (union.size + 1024):  # merge: keep the cap cheapest per source
+            if cap and held > 2 * cap * (union.size + 1024):  # merge: keep the cap cheapest per source
                 a, b, c = _keep_cheapest(*(np.concatenate([p[i] for p in out]) for i in range(3)), cap)
                 out, held = [(a, b, c)], a.size
         return out

@@ -19,6 +19,8 @@ import numpy as np
 import pandas as pd
 from scipy import stats
 
+from ..errors import ConfigError, ConvSynthError
+
 CANDIDATES = ("johnsonsb", "gamma", "lognorm", "weibull_min", "beta", "johnsonsu", "expon")
 
 
@@ -62,7 +64,8 @@ def fit_distributions(x: np.ndarray, candidates=CANDIDATES, bins: int = 100, max
     x = np.asarray(x, dtype=np.float64)
     x = x[np.isfinite(x)]
     if x.size < 10:
-        raise ValueError(f"need at least 10 finite values to fit a distribution, got {x.size}")
+        raise ConvSynthError(f"need at least 10 finite values to fit a distribution, got {x.size}",
+                             where="transition-cost distribution fit")
     density, edges = np.histogram(x, bins=bins, density=True)
     centres = 0.5 * (edges[1:] + edges[:-1])
     rng = np.random.default_rng(seed)
@@ -91,8 +94,9 @@ def fit_distributions(x: np.ndarray, candidates=CANDIDATES, bins: int = 100, max
     table = pd.DataFrame(rows).sort_values("rss", kind="stable").reset_index(drop=True)
     chosen = table["distribution"].iat[0] if choose == "auto" else choose
     if chosen not in set(table["distribution"]):
-        raise ValueError(f"distribution {chosen!r} not among the fitted candidates {list(candidates)}")
+        raise ConfigError(f"distribution {chosen!r} is not one of auto, {', '.join(candidates)}",
+                          where="graph.distribution")
     params = table.set_index("distribution").loc[chosen, "params"]
     if not params:
-        raise ValueError(f"fitting {chosen} failed")
+        raise ConvSynthError(f"fitting {chosen} to {x.size} costs failed", where="transition-cost distribution fit")
     return FitResult(table, chosen, params, edges, density)

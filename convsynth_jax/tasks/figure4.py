@@ -23,15 +23,16 @@ def run(cfg, out_dir: Path) -> dict:
     hist_rows, fit_rows = [], []
     for char, clips in character_clip_sets(cfg).items():
         db = build_database(clips, cfg)
-        w_v = auto_w_v(db, int(p["k"]), seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
         for k in cfg.task.get("ks", [2, 3, 4, 5]):
+            # w_v as build_graph would choose it for this k, so each panel's threshold is the graph's
+            w_v = auto_w_v(db, int(k), seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
             x = k_step_costs(db, int(k), w_v)
             fit = fit_distributions(x, choose=str(p["distribution"]), bins=int(p["fit_bins"]), seed=int(p["seed"]))
             for lo, hi, d in zip(fit.bin_edges[:-1], fit.bin_edges[1:], fit.density):
                 hist_rows.append({"character": char or "all", "k": int(k), "bin_left": lo, "bin_right": hi, "density": d})
             for r in fit.table.itertuples():
                 fit_rows.append({"character": char or "all", "k": int(k), "distribution": r.distribution,
-                                 "params": json.dumps(list(r.params)), "rss": r.rss, "chosen": r.distribution == fit.chosen,
+                                 "params": json.dumps(list(r.params)), "rss": r.rss, "chosen": r.distribution == fit.chosen, "w_v": w_v,
                                  "threshold": fit.quantile(float(p["quantile"]), r.distribution) if r.params else np.nan})
     hist, fits = pd.DataFrame(hist_rows), pd.DataFrame(fit_rows)
     for name, df in (("figure4_histograms", hist), ("figure4_fits", fits)):

@@ -20,8 +20,7 @@ def run(cfg, out_dir: Path) -> dict:
     for char, clips in character_clip_sets(cfg).items():
         db = build_database(clips, cfg)
         for k in cfg.task.get("ks", [2, 3, 4, 5]):
-            c = OmegaConf.create(OmegaConf.to_container(cfg, resolve=True))
-            c.graph.k = int(k)
+            c = OmegaConf.merge(cfg, {"graph": {"k": int(k)}})  # no resolution: works outside Hydra too
             g = build_graph(db, c)
             m = g.meta
             rows.append({"character": char or "all", "k": int(k), "threshold": m["threshold"],

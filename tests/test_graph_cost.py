@@ -121,6 +121,27 @@ def test_tile_bounds_never_exceed_the_true_minimum_and_skip_tiles():
     assert_same_edges(fast, reference_edges(P, V, w, 0.2, idx, idx, clip, thr, 2), thr)
 
 
+@pytest.mark.parametrize("symmetric,cap", [(False, 3), (True, 2), (True, 40)])
+def test_streaming_degree_cap_keeps_the_cheapest_per_source(symmetric, cap):
+    P, V, w, clip = random_features(8, 3, 80)
+    n = P.shape[0]
+    src = np.arange(n)
+    dst = np.arange(1, n)
+    ra, rb, rc = reference_edges(P, V, w, 0.2, src, dst, clip, np.inf, 4)
+    thr = float(np.quantile(rc, 0.2))
+    ra, rb, rc = reference_edges(P, V, w, 0.2, src, dst, clip, thr, 4)
+    stats = {}
+    a, b, c = candidate_edges(P, V, w, 0.2, src, dst, clip, thr, 4, tile=32, n_pivots=4, symmetric=symmetric,
+                              max_out_degree=cap, stats=stats, workers=2)
+    assert stats["candidates_found"] == ra.size  # counted before the cap
+    for s in np.unique(ra):
+        ref = np.sort(rc[ra == s])[:cap]
+        mine = np.sort(c[a == s])
+        # the same cheapest costs (a tie at the boundary could swap targets, costs stay equal)
+        np.testing.assert_allclose(mine, ref, rtol=COST_FLOAT32)
+    assert set(np.unique(a)) == set(np.unique(ra))
+
+
 def test_kd_order_is_a_permutation_with_tile_aligned_leaves():
     rng = np.random.default_rng(1)
     E = rng.normal(size=(203, 3))

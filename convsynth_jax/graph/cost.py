@@ -204,16 +204,6 @@ def _keep_cheapest(a, b, c, cap):
     return a[keep], b[keep], c[keep]
 
 
-def _row_cheapest(m, cap):
-    """(rows, cols) of the at most ``cap`` smallest finite entries of every row of m (R, C)."""
-    if cap < m.shape[1]:
-        cols = np.argpartition(m, cap - 1, axis=1)[:, :cap]
-        rows = np.repeat(np.arange(m.shape[0]), cap).reshape(m.shape[0], cap)
-        ok = np.isfinite(m[rows, cols])
-        return rows[ok], cols[ok]
-    return np.nonzero(np.isfinite(m))
-
-
 def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=128, n_pivots=8, seed=0,
                     stats: dict | None = None, workers: int | None = None, symmetric: str | bool = "auto",
                     features: np.ndarray | None = None, max_out_degree: int | None = None,
@@ -282,47 +272,62 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
 
     cap = int(max_out_degree) if max_out_degree else None
     limit = max_edges if (max_edges and cap is None) else None
-    found = [0] * 64  # candidates per worker (before the cap)
+    found = [0] * 64  # candidates per worker (before any cap)
     overflow = []
 
-    def directional(pa, pb, m):
-        """[(a, b, cost)] of one masked tile (both directions in the symmetric plan) and the number
-        of candidates before the cap."""
+    def views(pa, pb, m):
+        """(masked costs, row frame ids, column frame ids) of one tile in every direction it serves:
+        a -> b+1, and in the symmetric plan also the mirrored b -> a+1 of an off-diagonal tile."""
         ia, ib = ta.ids[pa], tb.ids[pb]
-        out, n = [], 0
-        views = [(m, ia, ib)]
-        if sym:
-            mf = np.where(in_src[np.maximum(ia, 0)][:, None] & in_dst[np.maximum(ib, 0)][None], m, np.inf)
-            views = [(mf, ia, ib)]
-            if pa != pb:  # the mirrored pair of an off-diagonal tile: b -> a+1
-                views.append((np.where(in_src[np.maximum(ib, 0)][:, None] & in_dst[np.maximum(ia, 0)][None],
-                                       m.T, np.inf), ib, ia))
-        for mm, ra, rb in views:
-            if cap:
-                n += int(np.count_nonzero(mm < np.inf))
-                r, c = _row_cheapest(mm, cap)
-            else:
-                r, c = np.nonzero(mm < np.inf)
-                n += r.size
-            if r.size:
-                out.append((ra[r], rb[c], mm[r, c]))
-        return out, n
+        if not sym:
+            return [(m, ia, ib)]
+        sa, sb = np.maximum(ia, 0), np.maximum(ib, 0)
+        fw = in_src[sa][:, None] & in_dst[sb][None]
+        out = [(m if fw.all() else np.where(fw, m, np.inf), ia, ib)]
+        if pa != pb:
+            bw = in_src[sb][:, None] & in_dst[sa][None]
+            out.append((m.T if bw.all() else np.where(bw, m.T, np.inf), ib, ia))
+        return out
 
     def work(k, chunk):
-        out, held = [], 0
+        """Candidates of the worker's tiles: a list of (a, b, cost), or with a cap the dense
+        per-source tables (best costs (N, cap), their targets (N, cap)) updated tile by tile."""
+        out = []
+        if cap:
+            best_c = np.full((clip.size, cap), np.inf, np.float32)
+            best_b = np.full((clip.size, cap), -1, np.int64)
         for (pa, pb), m in dispatched(chunk):
             if overflow:
                 break
-            parts, n_found = directional(pa, pb, np.asarray(m))
-            found[k] += n_found
-            out.extend(parts)
-            held += sum(p[0].size for p in parts)
+            for mm, ra, rb in views(pa, pb, np.asarray(m)):
+                fin = mm < np.inf
+                n = int(np.count_nonzero(fin))
+                found[k] += n
+                if n == 0:
+                    continue
+                if not cap:
+                    r, c = np.nonzero(fin)
+                    out.append((ra[r], rb[c], mm[r, c]))
+                    continue
+                rows = np.flatnonzero(fin.any(1))
+                sub = mm[rows]
+                if cap < sub.shape[1]:
+                    cols = np.argpartition(sub, cap - 1, axis=1)[:, :cap]
+                    sub = np.take_along_axis(sub, cols, 1)
+                else:
+                    cols = np.broadcast_to(np.arange(sub.shape[1]), sub.shape)
+                src_rows = ra[rows]
+                allc = np.concatenate([best_c[src_rows], sub], 1)
+                allb = np.concatenate([best_b[src_rows], rb[cols]], 1)
+                keep = np.argpartition(allc, cap - 1, axis=1)[:, :cap]
+                best_c[src_rows] = np.take_along_axis(allc, keep, 1)
+                best_b[src_rows] = np.take_along_axis(allb, keep, 1)
             if limit is not None and sum(found) > limit:
                 overflow.append(sum(found))
                 break
-            if cap and held > 2 * cap * (union.size + 1024):  # merge: keep the cap cheapest per source
-                a, b, c = _keep_cheapest(*(np.concatenate([p[i] for p in out]) for i in range(3)), cap)
-                out, held = [(a, b, c)], a.size
+        if cap:
+            r, c = np.nonzero(best_c < np.inf)
+            out.append((r, best_b[r, c], best_c[r, c]))
         return out
 
     nw = max(1, min(workers or min(os.cpu_count() or 1, 4), pairs.shape[0] or 1, len(found)))

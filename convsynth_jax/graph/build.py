@@ -204,6 +204,10 @@ def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None
     tm["scc_s"] = time.perf_counter() - t1
     g.meta["seconds"] = time.perf_counter() - t0
     g.meta["timings"] = dict(tm)
+    log.info("motion graph: %d frames, %d key states (%.2f%%), threshold %.4g (%s, k=%d, q=%.3f), w_v %.4g; "
+             "%d synthetic candidates; after SCC %d states, %d edges; %.2f s",
+             db.num_frames, meta["num_key_states"], 100 * meta["key_fraction"], threshold, fit.chosen, meta["k"],
+             meta["quantile"], w_v, a.size, g.num_states, g.num_edges, g.meta["seconds"])
     return g
 
 

@@ -3,6 +3,7 @@ component for k = 2, 3, 4, 5 (``task.ks``), per character (or one row set for bv
 Writes ``table2.csv`` and ``table2.md``."""
 from __future__ import annotations
 
+import logging
 from pathlib import Path
 
 import pandas as pd
@@ -10,6 +11,8 @@ from omegaconf import OmegaConf
 
 from ..evaluation.summaries import to_markdown
 from ..utils import atomic_path, write_text_atomic
+
+log = logging.getLogger(__name__)
 
 
 def run(cfg, out_dir: Path) -> dict:
@@ -31,5 +34,5 @@ def run(cfg, out_dir: Path) -> dict:
     with atomic_path(out_dir / "table2.csv") as tmp:
         table.to_csv(tmp, index=False)
     write_text_atomic(out_dir / "table2.md", to_markdown(table))
-    print("\n" + to_markdown(table))
+    log.info("Table 2\n%s", to_markdown(table))
     return {"rows": table.to_dict(orient="records")}

@@ -1,6 +1,22 @@
 """Motion-graph construction (paper Section 6): features -> key states -> threshold from a fitted
 distribution of c(i, i+k) -> synthetic transitions between key states below the threshold ->
 original transitions -> largest strongly connected component.
+
+Rules (all configurable under ``graph.``):
+* w_v (``w_v: auto``): the mean of the position term over the mean of the velocity term of
+  D(i, i+k-1), over every frame pair (i, i+k-1) inside one clip (a seeded sample of 50,000 pairs if
+  there are more), so both terms weigh equally on the pairs that set the threshold.
+* key states: audio-status changes (own or partner label; clip starts) plus adaptive keyframes
+  (a keyframe whenever the accumulated weighted joint-position change crosses a multiple of a step;
+  the step is bisected so that ``key_fraction`` of all frames are key states).
+* threshold: the ``quantile`` of ``distribution`` (Johnson SB by default, ``auto`` = lowest RSS)
+  fitted to c(i, i+k) over all clips (stats/fits.py).
+* synthetic transitions i -> j: i and j key states, c(i, j) = D(i, j-1) < threshold, not
+  (same clip and |i - (j-1)| <= ``min_gap_frames``); optional ``local_minima``, ``max_out_degree``.
+* original transitions: consecutive frames of a clip, cost 0. Then the largest strongly connected
+  component is kept and its states renumbered (CSR sorted by source, then target).
+``meta`` records every choice (threshold, w_v and its rule, fit table, joint weights and names,
+root-relative method) so a cost can be recomputed from the BVH files alone.
 """
 from __future__ import annotations
 

@@ -42,6 +42,27 @@ def summary(g):
     return {k: g.meta[k] for k in keys}
 
 
+def vm_kb(field: str) -> float:
+    """A VmXXX field of /proc/self/status in MB (Linux), NaN elsewhere."""
+    try:
+        for line in open("/proc/self/status"):
+            if line.startswith(field + ":"):
+                return float(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return float("nan")
+
+
+def reset_peak() -> bool:
+    """Reset the process's peak RSS (VmHWM) so that it measures what follows (Linux >= 4.0)."""
+    try:
+        with open("/proc/self/clear_refs", "w") as fh:
+            fh.write("5")
+        return True
+    except OSError:
+        return False
+
+
 def child(flag, *extra):
     """Run this script in a fresh process for an isolated measurement; returns its JSON result."""
     r = subprocess.run([sys.executable, __file__, flag, *extra], capture_output=True, text=True)
@@ -63,12 +84,14 @@ def markdown(res) -> str:
                      f"same edges: {res['reference_same_edges']}) | >= {GOALS['speedup']}x |")
     m = res.get("memory", {})
     if "peak_rss_mb" in m:
-        lines.append(f"| peak RSS, separate process (load + one construction) | {m['peak_rss_mb']:.0f} MB | "
-                     f"< {GOALS['peak_mb']} MB |")
+        lines.append(f"| peak RSS, separate process (load + one construction) | {m['peak_rss_mb']:.0f} MB "
+                     f"(after loading {m['rss_after_load_mb']:.0f} MB; peak during the construction "
+                     f"{m['peak_rss_during_construction_mb']:.0f} MB) | < {GOALS['peak_mb']} MB |")
     n = res.get("no_key_state_pruning", {})
     if "seconds" in n:
         lines.append(f"| every frame a key state, out-degree <= {n['max_out_degree']} | {n['seconds']:.1f} s "
-                     f"({n['candidates_found']:,} candidate transitions; peak {n['peak_rss_mb']:.0f} MB) | completes |")
+                     f"({n['candidates_found']:,} candidate transitions; peak during the construction "
+                     f"{n['peak_rss_during_construction_mb']:.0f} MB) | completes |")
     lines += ["", f"Graph: {g['num_key_states']} key states ({100 * g['key_fraction']:.2f}%), threshold "
               f"{g['threshold']:.2f}, w_v {g['w_v']:.4f}; before SCC {g['num_states_before_scc']} states / "
               f"{g['num_edges_before_scc']} edges, after {g['num_states']} / {g['num_edges']}. Kernel: "
@@ -95,8 +118,11 @@ if __name__ == "__main__":
     clips = bvh_folder_clips(ROOT)
     if args.memory_only or args.no_pruning_only:
         extra = [] if args.memory_only else ["graph.key_fraction=1.0", f"graph.max_out_degree={args.no_pruning_degree}"]
+        rss_loaded = vm_kb("VmRSS")
+        reset = reset_peak()
         g, t = timed(construct, clips, compose(base + extra))
-        out = {"seconds_including_compile": t, "peak_rss_mb": peak_rss_mb(), **summary(g),
+        out = {"seconds_including_compile": t, "peak_rss_mb": peak_rss_mb(), "rss_after_load_mb": rss_loaded,
+               "peak_rss_during_construction_mb": vm_kb("VmHWM") if reset else None, **summary(g),
                "candidates_found": g.meta["kernel"].get("candidates_found"), "max_out_degree": args.no_pruning_degree}
         if args.no_pruning_only:  # warm second run
             g, out["seconds"] = timed(construct, clips, compose(base + extra))

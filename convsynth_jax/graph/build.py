@@ -94,7 +94,8 @@ def auto_w_v(db: MotionDatabase, k: int = 3, n_pairs: int = 50000, seed: int = 0
 
 def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None, features=None):
     """Synthetic transitions i -> j between key states with c(i, j) = D(i, j-1) < threshold, not
-    between near neighbours of one clip. Returns (i, j, cost) sorted by (i, j)."""
+    between near neighbours of one clip. Returns (i, j, cost) (E,) arrays in a deterministic but
+    unspecified order (:func:`assemble_graph` sorts)."""
     src = np.flatnonzero(keys)
     kj = src[db.frame[src] > 0]  # j-1 must be in the same clip
     w = db.weights.astype(np.float32)
@@ -109,8 +110,6 @@ def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None, fea
         a, b, c = edge_fn(db.positions, db.velocities, w, w_v, src, kj - 1, db.clip, threshold,
                           int(params["min_gap_frames"]))
     j = b + 1
-    order = np.argsort(a * np.int64(db.num_frames) + j, kind="stable")
-    a, j, c = a[order], j[order], c[order]
     if params.get("local_minima"):
         a, j, c = _local_minima(a, j, c)
     if params.get("max_out_degree"):
@@ -160,7 +159,16 @@ def assemble_graph(db: MotionDatabase, keys, a, j, c, meta: dict) -> MotionGraph
     syn = np.concatenate([np.zeros(orig.size, bool), np.ones(a.size, bool)])
     meta = dict(meta, num_states_before_scc=int(n), num_edges_before_scc=int(rows.size),
                 num_synthetic_before_scc=int(a.size))
-    adj = csr_matrix((np.ones(rows.size), (rows, cols)), shape=(n, n))
+    # CSR by scipy's linear-time COO -> CSR conversion, carrying each edge's index (+1: no zeros)
+    # as its value, then sorted within rows: that gives the (source, target) order of all edges
+    # without a general O(E log E) sort. Since the renumbering of the kept states is increasing,
+    # the kept edges stay sorted.
+    adj = csr_matrix((np.arange(1, rows.size + 1, dtype=np.int64), (rows, cols)), shape=(n, n))
+    adj.sort_indices()
+    if adj.nnz != rows.size:
+        raise GraphError(f"duplicate transitions in the edge list ({rows.size - adj.nnz})")
+    order = adj.data - 1
+    rows, cols, cost, syn = np.repeat(np.arange(n), np.diff(adj.indptr)), adj.indices, cost[order], syn[order]
     ncomp, labels = connected_components(adj, directed=True, connection="strong")
     sizes = np.bincount(labels)
     keep = labels == int(np.argmax(sizes))
@@ -168,8 +176,6 @@ def assemble_graph(db: MotionDatabase, keys, a, j, c, meta: dict) -> MotionGraph
     new_id[keep] = np.arange(int(keep.sum()))
     e = keep[rows] & keep[cols]
     r, cc, co, sy = new_id[rows[e]], new_id[cols[e]], cost[e], syn[e]
-    order = np.lexsort((cc, r))
-    r, cc, co, sy = r[order], cc[order], co[order], sy[order]
     S = int(keep.sum())
     indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=S))]).astype(np.int64)
     meta.update(num_states=S, num_edges=int(r.size), num_synthetic_edges=int(sy.sum()), num_components=int(ncomp))

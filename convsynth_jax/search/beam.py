@@ -1,10 +1,34 @@
 """Vectorized JAX search: a frame-synchronous stochastic beam over a padded adjacency.
 
-Each output frame the B beam paths expand along their (at most D cheapest) out-edges; candidates
-that break the frame's constraint mask die; B survivors are drawn without replacement with
-probabilities proportional to exp(-cost / temperature) (Gumbel top-k), so cheap paths are likelier
-but not certain — the stochastic greedy selection of the paper, done for all paths at once. The
-frame count is padded to a bucket (multiple of 64) so one compile serves all windows of a graph.
+Each output frame the B beam paths expand along their out-edges (each state's at most D cheapest,
+kept cheapest first); candidates that break the frame's constraint mask die; B survivors are drawn
+without replacement with probabilities proportional to exp(-cost / temperature) (Gumbel top-k), so
+cheap paths are likelier but not certain: the stochastic greedy selection of the paper, done for all
+paths at once. The per-frame work is kept small in three ways:
+
+* **Candidate budget.** Most states have one out-edge (the original transition) and a few key states
+  have many, so a dense B x D block is mostly padding. Instead the candidates of a frame fill
+  ``max_candidates`` (M) slots path by path, in beam order, each path contributing its e_b = min(deg_b,
+  r*) cheapest edges, where r* is the largest edge count such that sum_b min(deg_b, r*) <= M: when the
+  beam's edges do not all fit, the most expensive ranks are dropped for every path alike. The slot
+  layout is computed with a histogram, a cumulative sum and a cumulative max (no sort).
+* **Noise pool.** Slot m of frame t draws the Gumbel noise ``pool[offset_t + m]`` from one pool of
+  N = 4 M draws, with one random offset per frame, instead of fresh draws per candidate (threefry
+  for B x D draws per frame cost more than the search itself on CPU). Within a frame all draws are
+  distinct; across frames the offsets and the re-ordered beam make a repeated pairing unlikely to
+  matter.
+* **State deduplication.** Two paths that end in the same graph state with the same peak flag have
+  the same future, so only the better-scored one is kept (hash table of H slots keyed by
+  ``2 * state + flag``; H >= 2 S on small graphs makes it exact, on large graphs two states exactly a
+  multiple of H / 2 apart may collide, which only drops a candidate). This keeps the beam diverse at
+  low temperature, so it solves more windows without sampling hot.
+
+The next beam is the top B of the M scores (``lax.top_k``, in descending order, which is the beam
+order of the next frame). The frame count is padded to a multiple of 16 and the state count to a
+multiple of 4096, so one compile serves all windows of one length on every LOO fold's graph. The path
+is traced back inside the kernel; only the path and the edge ranks it used come back to the host.
+:func:`convsynth_jax.search.reference.reference_beam_search` does the same search with plain NumPy
+loops and the same noise; tests require identical paths.
 """
 from __future__ import annotations
 
@@ -15,42 +39,78 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .constraints import Constraints, is_peak_state
-from .result import SearchResult, failed_segment_at, path_stats
+from .constraints import Constraints, _get, is_peak_state
+from .result import SearchResult, failed_segment_at
+
+FRAME_BUCKET = 16
+STATE_BUCKET = 4096  # graphs are padded to a multiple of this many states, so LOO folds share compiles
 
 
 def padded_adjacency(graph, max_degree: int = 64):
-    """(S, D) targets (-1 padded) and costs (inf padded): each state's D cheapest out-edges."""
+    """Each state's at most D cheapest out-edges, cheapest first (ties: CSR order):
+    targets (S, D) int32 (0 padded), costs (S, D) float32 (inf padded), synthetic (S, D) bool and the
+    number of kept edges per state (S,) int32."""
     deg = np.diff(graph.indptr)
     D = int(min(max(1, deg.max() if deg.size else 1), max_degree))
     S = graph.num_states
-    adj = np.full((S, D), -1, np.int32)
+    row = np.repeat(np.arange(S), deg)
+    order = np.lexsort((np.arange(row.size), graph.cost, row))      # by row, then cost, then CSR position
+    rank = np.arange(row.size) - graph.indptr[row[order]]
+    keep = rank < D
+    o, rk = order[keep], rank[keep]
+    r = row[o]
+    adj = np.zeros((S, D), np.int32)
     cost = np.full((S, D), np.inf, np.float32)
-    for s in range(S):
-        a, b = graph.indptr[s], graph.indptr[s + 1]
-        t, c = graph.indices[a:b], graph.cost[a:b]
-        if t.size > D:
-            k = np.argsort(c, kind="stable")[:D]
-            t, c = t[k], c[k]
-        adj[s, :t.size] = t
-        cost[s, :t.size] = c
-    return adj, cost
+    syn = np.zeros((S, D), bool)
+    adj[r, rk] = graph.indices[o]
+    cost[r, rk] = graph.cost[o]
+    syn[r, rk] = graph.synthetic[o]
+    return adj, cost, syn, np.minimum(deg, D).astype(np.int32)
 
 
-_ADJ_CACHE: list = []  # small LRU of (graph, max_degree, adjacency); graphs are immutable
+_CACHE: list = []  # small LRU of (graph, max_degree, host adjacency, device arrays); graphs are immutable
 
 
-def _cached_adjacency(graph, max_degree):
-    for g, d, val in _ADJ_CACHE:
+def _graph_arrays(graph, max_degree):
+    for g, d, host, dev in _CACHE:
         if g is graph and d == max_degree:
-            return val
-    val = padded_adjacency(graph, max_degree)
-    _ADJ_CACHE.append((graph, max_degree, val))
-    del _ADJ_CACHE[:-4]
-    return val
+            return host, dev
+    host = padded_adjacency(graph, max_degree)
+    adj, cost, _, deg = host
+    if graph.num_states >= 2 ** (31 - CODE_BITS):
+        raise ValueError(f"graph too large for the packed beam search ({graph.num_states} states)")
+    code = state_codes(graph)
+    packed = (adj.astype(np.int64) << CODE_BITS | code[adj]).astype(np.int32)
+    pad = -graph.num_states % STATE_BUCKET   # padding states: no edges, never a start state
+
+    def padrows(x, v):
+        return np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)])
+
+    dev = (jnp.asarray(padrows(packed, 0)), jnp.asarray(padrows(cost, np.inf)), jnp.asarray(padrows(deg, 0)),
+           jnp.asarray(padrows(code, 0)))
+    syn = graph.cost[graph.synthetic]
+    host = host + (float(np.median(syn)) if syn.size else 1.0,)
+    _CACHE.append((graph, max_degree, host, dev))
+    del _CACHE[:-4]
+    return host, dev
 
 
-def _ok(own_label, par_label, req):
+CODE_BITS = 9  # packed edge: target << 9 | is_peak << 8 | partner label << 4 | own label
+
+
+def state_codes(graph) -> np.ndarray:
+    """(S,) int32: own label | partner label << 4 | is_peak << 8."""
+    own, par = np.asarray(graph.own_label, np.int64), np.asarray(graph.partner_label, np.int64)
+    if own.size and (own.min() < 0 or own.max() > 15 or par.min() < 0 or par.max() > 15):
+        raise ValueError("audio label codes must lie in 0..15 for the packed beam search")
+    return (own | (par << 4) | (is_peak_state(graph).astype(np.int64) << 8)).astype(np.int32)
+
+
+def unpack_code(x):
+    return x & 15, (x >> 4) & 15, ((x >> 8) & 1).astype(bool)
+
+
+def label_ok(own_label, par_label, req):
     """Label requirements of one frame for states (any shape): req = (own, partner, own_not, partner_not)."""
     own_r, par_r, own_n, par_n = req
     ok = (own_r < 0) | (own_label == own_r)
@@ -60,52 +120,84 @@ def _ok(own_label, par_label, req):
     return ok
 
 
-@partial(jax.jit, static_argnames=("beam",))
-def _beam_kernel(key, adj, adj_cost, is_peak, own_label, par_label, reqs, pw, reset, check, temp, beam: int):
-    S, D = adj.shape
-    k0, key = jax.random.split(key)
-    g0 = jax.random.gumbel(k0, (S,))
-    flag0 = jnp.where(pw[0], is_peak, False)
-    valid0 = _ok(own_label, par_label, tuple(r[0] for r in reqs)) & jnp.where(check[0], flag0, True)
-    score0 = jnp.where(valid0, g0, -jnp.inf)
-    top0, states0 = jax.lax.top_k(score0, beam)
+def sizes(num_states: int, beam: int, max_degree: int, max_candidates: int):
+    """(B, M, N, H): beam, candidate slots, noise pool size, dedup table size (a power of two)."""
+    B = int(min(beam, num_states))
+    M = max(int(min(max_candidates, B * max_degree)), B)
+    N = 4 * M
+    H = 1 << int(np.ceil(np.log2(max(min(2 * num_states, max(4 * M, 1 << 14)), 2))))
+    return B, M, N, H
+
+
+@partial(jax.jit, static_argnames=("beam", "M", "H"))
+def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, reqs, pw, reset, check, temp,
+                 num_frames, num_states, beam: int, M: int, H: int):
+    """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,))."""
+    S, D = packed.shape
+    B = beam
+    flat_packed, flat_cost = packed.reshape(-1), adj_cost.reshape(-1)
+    own0, par0, peak0 = unpack_code(state_code)
+    flag0 = pw[0] & peak0
+    valid0 = label_ok(own0, par0, tuple(r[0] for r in reqs)) & jnp.where(check[0], flag0, True)
+    valid0 &= jnp.arange(S) < num_states
+    top0, states0 = jax.lax.top_k(jnp.where(valid0, init_noise, -jnp.inf), B)
     alive0 = jnp.isfinite(top0)
-    cost0 = jnp.zeros(beam, jnp.float32)
-    fl0 = flag0[states0]
+    slots = jnp.arange(M, dtype=jnp.int32)
+    rows = jnp.arange(B, dtype=jnp.int32)
 
     def step(carry, xs):
-        states, cost, flag, alive, key = carry
-        req_t, pw_t, reset_t, check_t = xs
-        key, sub = jax.random.split(key)
-        cand = adj[states]                                   # (B, D)
-        cc = cost[:, None] + adj_cost[states]
-        safe = jnp.maximum(cand, 0)
-        f_prev = jnp.where(reset_t, False, flag)[:, None]
-        f_new = f_prev | (pw_t & is_peak[safe])
-        ok_t = _ok(own_label[safe], par_label[safe], req_t)
-        valid = (cand >= 0) & alive[:, None] & ok_t & jnp.where(check_t, f_new, True)
-        score = -cc / temp + jax.random.gumbel(sub, cc.shape)
-        score = jnp.where(valid, score, -jnp.inf).reshape(-1)
-        top, idx = jax.lax.top_k(score, beam)
-        parent = idx // D
-        new_states = safe.reshape(-1)[idx]
-        new_cost = cc.reshape(-1)[idx]
-        new_flag = f_new.reshape(-1)[idx]
-        new_alive = jnp.isfinite(top)
-        return (new_states, new_cost, new_flag, new_alive, key), (parent, new_states, new_cost, new_alive)
+        states, cost, flag, alive = carry
+        req_t, pw_t, reset_t, check_t, off_t = xs
+        # candidate layout: path by path (beam order), each path's e_b cheapest edges; e_b = min(deg, r*)
+        d = jnp.where(alive, deg[states], 0)
+        hist = jnp.zeros(D + 1, jnp.int32).at[d].add(1)
+        cum = jnp.cumsum(B - jnp.cumsum(hist)[:D])                           # sum_b min(d_b, r + 1)
+        rstar = jnp.sum(cum <= M)
+        e = jnp.minimum(d, rstar)
+        first = jnp.cumsum(e) - e                                            # first slot of each path
+        row = jnp.clip(jax.lax.cummax(jnp.full((M,), -1, jnp.int32).at[first].max(rows, mode="drop")), 0, B - 1)
+        j = slots - first[row]                                               # edge rank of the slot
+        jc = jnp.minimum(j, D - 1)
+        flat = states[row] * D + jc
+        pk = flat_packed[flat]
+        cand = pk >> CODE_BITS
+        own, par, peak = unpack_code(pk)
+        c = cost[row] + flat_cost[flat]
+        f_new = jnp.where(reset_t, False, flag[row]) | (pw_t & peak)
+        valid = (j < e[row]) & label_ok(own, par, req_t) & jnp.where(check_t, f_new, True)
+        noise = jax.lax.dynamic_slice(pool, (off_t,), (M,))
+        score = jnp.where(valid, -c / temp + noise, -jnp.inf)
+        # keep only the best candidate per (state, peak flag): same future, so the rest is redundant
+        h = (cand * 2 + f_new.astype(jnp.int32)) & (H - 1)
+        best = jnp.full((H,), -jnp.inf, score.dtype).at[h].max(score)
+        score = jnp.where(score >= best[h], score, -jnp.inf)
+        top, idx = jax.lax.top_k(score, B)
+        new = (cand[idx], c[idx], f_new[idx], jnp.isfinite(top))
+        return new, (row[idx], jc[idx], new[0], new[1], new[3])
 
-    init = (states0, cost0, fl0, alive0, key)
-    rest = tuple(r[1:] for r in reqs)
-    _, (parents, states, costs, alives) = jax.lax.scan(step, init, (rest, pw[1:], reset[1:], check[1:]))
-    return states0, alive0, parents, states, costs, alives
+    init = (states0, jnp.zeros(B, jnp.float32), flag0[states0], alive0)
+    rest = tuple(x[1:] for x in reqs)
+    _, (parents, ranks, states, costs, alives) = jax.lax.scan(
+        step, init, (rest, pw[1:], reset[1:], check[1:], offsets[1:]))
+    # trace back the cheapest live path of the true last frame (the frames after it are padding)
+    last = jnp.maximum(num_frames - 2, 0)
+    b_last = jnp.argmin(jnp.where(alives[last], costs[last], jnp.inf)).astype(jnp.int32)
+
+    def back(b, t):
+        active = t <= last
+        return jnp.where(active, parents[t, b], b), (states[t, b], ranks[t, b])
+
+    b0, (path_rest, rank_rest) = jax.lax.scan(back, b_last, jnp.arange(parents.shape[0]), reverse=True)
+    path = jnp.concatenate([jnp.where(num_frames > 1, states0[b0], states0[jnp.argmax(alive0)])[None], path_rest])
+    rank = jnp.concatenate([jnp.full((1,), -1, jnp.int32), rank_rest])
+    alive_any = jnp.concatenate([alive0.any()[None], alives.any(axis=1)])
+    return path, rank, alive_any
 
 
 def beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> SearchResult:
     """Beam search at ``search.temperature``; if no path survives, retry at each of
-    ``search.retry_temperatures`` (hotter sampling keeps a more diverse beam: more windows solved,
-    at the price of more synthetic transitions). The result reports the time of all attempts."""
-    from .constraints import _get
-
+    ``search.retry_temperatures`` (hotter sampling: more diverse, at the price of more synthetic
+    transitions). The result reports the time of all attempts."""
     t0 = time.perf_counter()
     temps = [float(_get(cfg, "temperature", 0.05))] + [float(t) for t in (_get(cfg, "retry_temperatures", []) or [])]
     for k, temp in enumerate(temps):
@@ -117,49 +209,50 @@ def beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> Sea
 
 
 def _beam_search_once(graph, constraints: Constraints, cfg, seed: int, temperature: float) -> SearchResult:
-    from .constraints import _get
-
     t0 = time.perf_counter()
-    beam = int(_get(cfg, "beam_size", 256))
     max_deg = int(_get(cfg, "max_degree", 64))
-    adj, adj_cost = _cached_adjacency(graph, max_deg)
-    syn = graph.cost[graph.synthetic]
-    temp = max(temperature * (float(np.median(syn)) if syn.size else 1.0), 1e-6)
-    T = constraints.num_frames
-    Tp = int(np.ceil(T / 64) * 64)
-    pad = Tp - T
+    (adj, adj_cost, adj_syn, _, median_syn), dev = _graph_arrays(graph, max_deg)
+    B, M, N, H = sizes(graph.num_states, int(_get(cfg, "beam_size", 256)), adj.shape[1],
+                       int(_get(cfg, "max_candidates", 2048)))
+    temp = max(temperature * median_syn, 1e-6)
+    c = constraints
+    T = c.num_frames
+    Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
+    S_pad = dev[0].shape[0]
+    init_noise, pool, offsets = noise(seed, S_pad, N, M, Tp)
 
     def padb(x, v):
-        return np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]) if pad else x
+        x = np.asarray(x)
+        return np.concatenate([x, np.full((Tp - T,) + x.shape[1:], v, x.dtype)])
 
-    c = constraints
     free = np.full(T, -1, np.int32)
-    reqs = tuple(jnp.asarray(padb(np.asarray(x if x is not None else free, np.int32), -1))
+    reqs = tuple(padb(np.asarray(x if x is not None else free, np.int32), -1)
                  for x in (c.own_req, c.partner_req, c.own_not, c.partner_not))
-    pw, reset, check = padb(constraints.peak_window, False), padb(constraints.peak_reset, False), padb(constraints.peak_check, False)
-    beam = min(beam, graph.num_states)
-    out = _beam_kernel(jax.random.PRNGKey(seed), jnp.asarray(adj), jnp.asarray(adj_cost),
-                       jnp.asarray(is_peak_state(graph)), jnp.asarray(graph.own_label, jnp.int32),
-                       jnp.asarray(graph.partner_label, jnp.int32), reqs, jnp.asarray(pw), jnp.asarray(reset),
-                       jnp.asarray(check), jnp.float32(temp), beam=beam)
-    states0, alive0, parents, states, costs, alives = (np.asarray(x) for x in out)
-    alive_any = np.concatenate([[alive0.any()], alives[:, :].any(axis=1)])[:T]
-    seconds = time.perf_counter() - t0
+    out = _beam_kernel(init_noise, pool, offsets, *dev, reqs, padb(c.peak_window, False), padb(c.peak_reset, False),
+                       padb(c.peak_check, False), np.float32(temp), np.int32(T), np.int32(graph.num_states),
+                       beam=B, M=M, H=H)
+    path, rank, alive_any = (np.asarray(x)[:T] for x in out)
     if not alive_any.all():
         fail = int(np.argmin(alive_any))
-        return SearchResult(False, None, float("inf"), 0, constraints.total, 0, fail,
-                            failed_segment_at(constraints, fail), seconds, "beam")
-    if T == 1:
-        path = np.array([states0[np.argmax(alive0)]])
-    else:
-        last = T - 2
-        live = alives[last]
-        b = int(np.argmin(np.where(live, costs[last], np.inf)))
-        path = np.empty(T, np.int64)
-        for t in range(last, -1, -1):
-            path[t + 1] = states[t, b]
-            b = int(parents[t, b])
-        path[0] = states0[b]
-    total, nsyn, tc = path_stats(graph, path)
-    return SearchResult(True, path, total, nsyn, constraints.total, constraints.total, None, None,
-                        time.perf_counter() - t0, "beam", tc)
+        return SearchResult(False, None, float("inf"), 0, c.total, 0, fail, failed_segment_at(c, fail),
+                            time.perf_counter() - t0, "beam")
+    path = path.astype(np.int64)
+    src, rk = path[:-1], rank[1:]
+    edge_cost = adj_cost[src, rk].astype(np.float64)
+    edge_syn = adj_syn[src, rk]
+    return SearchResult(True, path, float(edge_cost.sum()), int(edge_syn.sum()), c.total, c.total, None, None,
+                        time.perf_counter() - t0, "beam", [float(x) for x in edge_cost[edge_syn]])
+
+
+@partial(jax.jit, static_argnames=("S", "N", "M", "Tp"))
+def _noise(key, S: int, N: int, M: int, Tp: int):
+    k0, k1, k2 = jax.random.split(key, 3)
+    return (jax.random.gumbel(k0, (S,), jnp.float32), jax.random.gumbel(k1, (N,), jnp.float32),
+            jax.random.randint(k2, (Tp,), 0, N - M + 1, jnp.int32))
+
+
+def noise(seed: int, num_states: int, pool_size: int, slots: int, num_frames: int):
+    """Gumbel noise of a search: (initial-state noise (S,), pool (N,), per-frame pool offsets (Tp,));
+    candidate slot m of frame t draws pool[offsets[t] + m]. Shared by the kernel and the NumPy
+    reference so both make the same draws."""
+    return _noise(jax.random.PRNGKey(seed), num_states, pool_size, slots, num_frames)

@@ -1,0 +1,116 @@
+"""Slow, obvious NumPy reference of the JAX beam search (:mod:`convsynth_jax.search.beam`).
+
+One frame at a time, one path at a time, one edge at a time, with Python lists and a dict for the
+duplicate states. It draws the same noise as the kernel (:func:`convsynth_jax.search.beam.noise`) and
+follows the same documented rules, so on graphs whose deduplication table is exact (2 S <= H) it must
+return the same path. It shares no code with the kernel beyond the noise and the label rule.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from .beam import FRAME_BUCKET, STATE_BUCKET, noise, sizes
+from .constraints import Constraints, _get, is_peak_state
+
+
+@dataclass
+class ReferenceBeamResult:
+    success: bool
+    path: np.ndarray | None
+    cost: float                 # float32 running sum, as in the kernel
+    failed_frame: int | None
+    truncated_frames: int       # frames where the candidate budget dropped edges
+
+
+def _requirement_ok(own, par, req):
+    own_r, par_r, own_n, par_n = req
+    if own_r >= 0 and own != own_r:
+        return False
+    if par_r >= 0 and par != par_r:
+        return False
+    if own_n >= 0 and own == own_n:
+        return False
+    if par_n >= 0 and par == par_n:
+        return False
+    return True
+
+
+def reference_beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0,
+                          temperature: float | None = None) -> ReferenceBeamResult:
+    """One attempt at ``temperature`` (default ``search.temperature``), as ``beam._beam_search_once``."""
+    if temperature is None:
+        temperature = float(_get(cfg, "temperature", 0.05))
+    max_deg = int(_get(cfg, "max_degree", 64))
+    S = graph.num_states
+    # each state's edges, cheapest first (ties: CSR order), at most D of them
+    edges = []
+    for s in range(S):
+        t, c, _ = graph.out_edges(s)
+        o = sorted(range(len(t)), key=lambda k: (float(c[k]), k))
+        edges.append([(int(t[k]), np.float32(c[k])) for k in o])
+    D = max(1, min(max(len(e) for e in edges), max_deg))
+    edges = [e[:D] for e in edges]
+    B, M, N, H = sizes(S, int(_get(cfg, "beam_size", 256)), D, int(_get(cfg, "max_candidates", 2048)))
+    if 2 * S > H:
+        raise ValueError(f"the reference deduplicates exactly; the kernel's table ({H} slots) is only exact "
+                         f"for graphs of at most {H // 2} states, this one has {S}")
+    syn = graph.cost[graph.synthetic]
+    temp = np.float32(max(temperature * (float(np.median(syn)) if syn.size else 1.0), 1e-6))
+    T = constraints.num_frames
+    Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
+    S_pad = S + (-S % STATE_BUCKET)
+    init_noise, pool, offsets = (np.asarray(x) for x in noise(seed, S_pad, N, M, Tp))
+    own_l, par_l = np.asarray(graph.own_label), np.asarray(graph.partner_label)
+    peak = is_peak_state(graph)
+    c = constraints
+    free = np.full(T, -1)
+    req_arrays = [np.asarray(x if x is not None else free) for x in (c.own_req, c.partner_req, c.own_not, c.partner_not)]
+
+    def req(t):
+        return tuple(int(a[t]) for a in req_arrays)
+
+    # frame 0: the B valid states with the largest noise, in descending order (ties: lower state first)
+    flag0 = [bool(c.peak_window[0] and peak[s]) for s in range(S)]
+    valid0 = [s for s in range(S) if _requirement_ok(own_l[s], par_l[s], req(0)) and (not c.peak_check[0] or flag0[s])]
+    valid0.sort(key=lambda s: (-float(init_noise[s]), s))
+    # beam entries: (state, cost, flag, index of the parent entry in the previous frame's beam)
+    beam = [(s, np.float32(0.0), flag0[s], -1) for s in valid0[:B]]
+    history = [beam]
+    truncated = 0
+    for t in range(1, T):
+        if not beam:
+            return ReferenceBeamResult(False, None, float("inf"), t - 1, truncated)
+        degrees = [len(edges[s]) for s, *_ in beam]
+        rstar = max(k for k in range(D + 1) if sum(min(d, k) for d in degrees) <= M)
+        truncated += rstar < max(degrees)
+        cands = []     # (score, slot, state, cost, flag, parent)
+        slot = 0
+        for b, (s, cost, flag, _) in enumerate(beam):
+            for target, ec in edges[s][:min(degrees[b], rstar)]:
+                cc = np.float32(cost + ec)
+                f = (False if c.peak_reset[t] else flag) or bool(c.peak_window[t] and peak[target])
+                ok = _requirement_ok(own_l[target], par_l[target], req(t)) and (f or not c.peak_check[t])
+                score = np.float32(np.float32(-cc) / temp) + np.float32(pool[offsets[t] + slot])
+                if ok:
+                    cands.append((float(score), slot, target, cc, f, b))
+                slot += 1
+        best = {}
+        for cand in cands:
+            key = (cand[2], cand[4])
+            if key not in best or cand[0] > best[key][0]:
+                best[key] = cand
+        kept = sorted(best.values(), key=lambda x: (-x[0], x[1]))[:B]
+        beam = [(st, cc, f, b) for _, _, st, cc, f, b in kept]
+        history.append(beam)
+    if not beam:
+        return ReferenceBeamResult(False, None, float("inf"), T - 1, truncated)
+    b = min(range(len(beam)), key=lambda i: (float(beam[i][1]), i))
+    final_cost = float(beam[b][1])
+    path = np.empty(T, np.int64)
+    for t in range(T - 1, -1, -1):
+        s, _, _, parent = history[t][b]
+        path[t] = s
+        b = parent
+    return ReferenceBeamResult(True, path, final_cost, None, truncated)

@@ -1,0 +1,133 @@
+"""The JAX beam kernel against its slow NumPy reference (same noise, same documented rules)."""
+import numpy as np
+import pandas as pd
+import pytest
+
+from convsynth_jax.annotate.types import HP, LR, PC, FrameAudio
+from convsynth_jax.graph.types import MotionGraph
+from convsynth_jax.search.beam import beam_search, padded_adjacency
+from convsynth_jax.search.check import check_path
+from convsynth_jax.search.constraints import build_constraints
+from convsynth_jax.search.reference import reference_beam_search
+
+FPS = 10.0
+
+
+def hub_graph(rng, n_clips=5, frames=50):
+    """Clips of random PC / LR / idle runs (partner: random HP runs); original chains, a few hub states
+    with many synthetic edges and the rest with 0-3, so path degrees vary a lot."""
+    own, par, clip, frame, start, end, peak = [], [], [], [], [], [], []
+    for c in range(n_clips):
+        lab = np.zeros(frames, np.int8)
+        st, en, pk = (np.full(frames, -1, np.int32) for _ in range(3))
+        f = int(rng.integers(2, 8))
+        while f < frames - 6:
+            n = int(rng.integers(4, 12))
+            kind = int(rng.choice([PC, PC, LR]))
+            e = min(f + n, frames)
+            lab[f:e] = kind
+            st[f:e], en[f:e] = f, e
+            if kind == PC:
+                pk[f:e] = f + int(rng.integers(0, e - f))
+            f = e + int(rng.integers(2, 8))
+        p = np.zeros(frames, np.int8)
+        for _ in range(2):
+            a = int(rng.integers(0, frames - 5)); p[a:a + int(rng.integers(2, 5))] = HP
+        own.append(lab); par.append(p); clip.append(np.full(frames, c)); frame.append(np.arange(frames))
+        start.append(st); end.append(en); peak.append(pk)
+    S = n_clips * frames
+    rows, cols, cost, syn = [], [], [], []
+    hubs = set(rng.choice(S, S // 10, replace=False).tolist())
+    for s in range(S):
+        if (s + 1) % frames:
+            rows.append(s); cols.append(s + 1); cost.append(0.0); syn.append(False)
+        else:
+            rows.append(s); cols.append(s - frames + 1); cost.append(4.0); syn.append(True)
+        k = int(rng.integers(15, 40)) if s in hubs else int(rng.integers(0, 4))
+        for t in rng.choice(S, k, replace=False):
+            if t != s + 1:
+                rows.append(s); cols.append(int(t)); cost.append(float(rng.uniform(0.5, 10))); syn.append(True)
+    rows, cols, cost, syn = map(np.asarray, (rows, cols, cost, syn))
+    o = np.argsort(rows, kind="stable")
+    rows, cols, cost, syn = rows[o], cols[o], cost[o], syn[o]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=S))])
+    cat = lambda x: np.concatenate(x).astype(np.int32)  # noqa: E731
+    z = np.zeros(S, np.int32)
+    g = MotionGraph(tuple(f"c{c}" for c in range(n_clips)), FPS, cat(clip), cat(frame), cat(own), cat(start),
+                    cat(end), cat(peak), cat(par), z - 1, z - 1, np.ones(S, bool), indptr, cols,
+                    cost.astype(np.float32), syn, {})
+    audio = {f"c{c}": (FrameAudio(own[c], start[c], end[c], peak[c]),
+                       FrameAudio(par[c], *(np.full(frames, -1, np.int32),) * 3)) for c in range(n_clips)}
+    return g, audio
+
+
+def input_from_clip(audio, name, T):
+    """Constraints copied from one database clip: its PC / LR runs and its partner's HP runs."""
+    own_fa, par_fa = audio[name]
+    rows = []
+    lab = own_fa.label[:T]
+    d = np.flatnonzero(np.diff(np.concatenate([[0], lab, [0]])))
+    for a, b in zip(d[:-1], d[1:]):
+        if a < T and lab[a] in (PC, LR):
+            kind = "PC" if lab[a] == PC else "LR"
+            p = own_fa.seg_peak[a] / FPS if kind == "PC" else np.nan
+            rows.append((kind, a / FPS, p, b / FPS))
+    own = pd.DataFrame(rows, columns=["kind", "start", "peak", "end"]).drop_duplicates()
+    plab = par_fa.label[:T]
+    d = np.flatnonzero(np.diff(np.concatenate([[0], (plab == HP).astype(np.int8), [0]])))
+    par = pd.DataFrame([("HP", a / FPS, np.nan, b / FPS) for a, b in zip(d[::2], d[1::2])],
+                       columns=["kind", "start", "peak", "end"])
+    return own, par
+
+
+@pytest.mark.parametrize("seed", range(4))
+@pytest.mark.parametrize("beam,max_candidates", [(32, 4096), (32, 48), (8, 8)])
+@pytest.mark.parametrize("temperature", [0.05, 1.0])
+def test_kernel_equals_reference(seed, beam, max_candidates, temperature):
+    rng = np.random.default_rng(seed)
+    g, audio = hub_graph(rng)
+    own, par = input_from_clip(audio, f"c{seed % 5}", 40)
+    cfg = {"search": {"tolerance": 0.1, "beam_size": beam, "max_candidates": max_candidates, "max_degree": 24,
+                      "temperature": temperature, "retry_temperatures": []}}
+    cons = build_constraints(own, par, 40, FPS, cfg)
+    ref = reference_beam_search(g, cons, cfg, seed=seed, temperature=temperature)
+    res = beam_search(g, cons, cfg, seed=seed)
+    assert res.success == ref.success
+    if ref.success:
+        np.testing.assert_array_equal(res.path, ref.path)
+        assert res.cost == pytest.approx(ref.cost, rel=1e-5, abs=1e-4)
+        rep = check_path([g.clip_names[g.clip[s]] for s in res.path], [int(g.frame[s]) for s in res.path],
+                         audio, own, par, FPS, 0.1)
+        assert rep["met"] == rep["total"], rep
+    else:
+        assert res.failed_frame == ref.failed_frame
+    if max_candidates < beam * 24:
+        # the budget really dropped edges in these cases, so the truncation rule was exercised
+        assert ref.truncated_frames > 0
+
+
+def test_no_duplicate_states_in_the_beam_and_impossible_input_fails_at_the_same_frame():
+    rng = np.random.default_rng(7)
+    g, audio = hub_graph(rng)
+    own = pd.DataFrame([("LR", 1.0, np.nan, 1.6)], columns=["kind", "start", "peak", "end"])
+    cfg = {"search": {"beam_size": 16, "max_candidates": 64, "retry_temperatures": []}}
+    # no state is an HP on its own channel, so requiring one is impossible
+    cons = build_constraints(own, None, 30, FPS, cfg)
+    cons.own_req[12:15] = HP
+    ref = reference_beam_search(g, cons, cfg, seed=1)
+    res = beam_search(g, cons, cfg, seed=1)
+    assert not ref.success and not res.success and ref.failed_frame == res.failed_frame == 12
+
+
+def test_padded_adjacency_keeps_the_cheapest_edges_in_order():
+    rng = np.random.default_rng(3)
+    g, _ = hub_graph(rng)
+    adj, cost, syn, deg = padded_adjacency(g, 6)
+    for s in range(g.num_states):
+        t, c, y = g.out_edges(s)
+        o = sorted(range(len(t)), key=lambda k: (c[k], k))[:6]
+        assert deg[s] == len(o)
+        np.testing.assert_array_equal(adj[s, :len(o)], t[o])
+        np.testing.assert_array_equal(cost[s, :len(o)], c[o])
+        np.testing.assert_array_equal(syn[s, :len(o)], y[o])
+        assert np.isinf(cost[s, len(o):]).all()

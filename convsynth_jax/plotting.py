@@ -45,26 +45,4 @@ def user_study_figure(table):
     return fig
 
 
-def cost_histogram_figure(hist, fits):
-    """Figure 4: per character and k, the normalized histogram of c(i, i+k) and the chosen fit."""
-    import json
-
-    from scipy import stats
-
-    groups = list(hist.groupby(["character", "k"], sort=False))
-    chars = list(dict.fromkeys(hist["character"]))
-    ks = list(dict.fromkeys(hist["k"]))
-    fig, axes = plt.subplots(len(chars), len(ks), figsize=(3.2 * len(ks), 2.6 * len(chars)), squeeze=False)
-    for (char, k), h in groups:
-        ax = axes[chars.index(char)][ks.index(k)]
-        ax.bar(h["bin_left"], h["density"], width=h["bin_right"] - h["bin_left"], align="edge", color="#9b7fc4")
-        f = fits[(fits["character"] == char) & (fits["k"] == k) & fits["chosen"].astype(bool)]
-        if len(f):
-            r = f.iloc[0]
-            x = np.linspace(h["bin_left"].min(), h["bin_right"].max(), 300)
-            ax.plot(x, getattr(stats, r["distribution"]).pdf(x, *json.loads(r["params"])), "k", lw=1)
-            ax.axvline(r["threshold"], color="r", lw=0.8, ls="--")
-        ax.set_title(f"{char} k={k}", fontsize=9)
-        ax.set_xlabel("c(i, i+k)", fontsize=8)
-    fig.tight_layout()
-    return fig
+# Figure 4 (cost histograms with fitted curves) lives in convsynth_jax.graph.figures.

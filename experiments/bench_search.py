@@ -8,6 +8,7 @@ Goal: beam < 50 ms median (paper: 1.16 s for its search).
     python experiments/bench_search.py [--cache DIR] [--windows N] [--repeats R] [search.beam_size=...]
 """
 import argparse
+import pickle
 import time
 
 import numpy as np
@@ -28,6 +29,8 @@ if __name__ == "__main__":
     ap.add_argument("--windows", type=int, default=7)
     ap.add_argument("--repeats", type=int, default=3)
     ap.add_argument("--name", default="bench_search", help="result file name under experiments/results")
+    ap.add_argument("--export", default=None, help="also write the graphs and window constraints to this pickle, "
+                    "for bench_search_device.py on a machine without the corpus (e.g. a GPU box)")
     ap.add_argument("overrides", nargs="*", help="Hydra-style overrides, e.g. search.max_candidates=4096")
     args = ap.parse_args()
     cfg = compose([f"cache_dir={args.cache}", "progress=false", *args.overrides])
@@ -37,11 +40,13 @@ if __name__ == "__main__":
     held = corpus.sessions[0].name
     fg = build_fold_graphs(ann, held, cfg, f"{args.cache}/loo_cache")
     out = {"search_config": OmegaConf.to_container(cfg.search)}
+    export = {}
     for role, a in ann[held].items():
         g = fg.graphs[a.character]
         wins = sliding_windows(a.motion.num_frames / 30.0)[: args.windows]
         cons = [build_constraints(window_segments(a.segments, w), window_segments(a.partner_segments, w), 450, 30.0, cfg)
                 for w in wins]
+        export[a.character] = (g, cons)
         t0 = time.perf_counter()
         beam_search(g, cons[0], cfg, seed=0)
         compile_s = time.perf_counter() - t0
@@ -68,3 +73,6 @@ if __name__ == "__main__":
                             "dfs_mean_cost": mean(dfs_cost), "dfs_mean_synthetic_transitions": mean(dfs_syn)}
     out["goal_beam_median_s"] = 0.05
     write(args.name, out)
+    if args.export:
+        with open(args.export, "wb") as f:
+            pickle.dump(({"search": out["search_config"]}, export), f)

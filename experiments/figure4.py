@@ -2,7 +2,7 @@
 import pandas as pd
 from _common import done, parse
 
-from convsynth_jax.plotting import cost_histogram_figure
+from convsynth_jax.graph.figures import cost_histogram_figure
 
 if __name__ == "__main__":
     src, out, t0 = parse(__doc__, "figure4_histograms.csv")

@@ -20,6 +20,7 @@ import os
 import subprocess
 import sys
 
+import jax
 import numpy as np
 from _bench import RESULTS, SHARED, peak_rss_mb, timed, write
 
@@ -75,7 +76,7 @@ def markdown(res) -> str:
     g = res["graph"]
     lines = ["# Motion-graph construction benchmark (bandai2, all files)", "",
              f"{res['frames']} frames, {res['files']} files; load average at start {res['loadavg_start']}, "
-             f"at end {res.get('loadavg_end')} (2-core machine shared with other jobs).", "",
+             f"at end {res.get('loadavg_end')}; {res.get('machine', '')}.", "",
              "| measure | value | goal |", "|---|---|---|",
              f"| construction, warm median of 3 | {res['warm_median_s']:.2f} s | < {GOALS['construction_s']} s |",
              f"| construction, cold (compiles) | {res['cold_s']:.2f} s | |"]
@@ -131,7 +132,8 @@ if __name__ == "__main__":
 
     cfg = compose(base)
     res = {"frames": sum(c[1].num_frames for c in clips), "files": len(clips), "loadavg_start": os.getloadavg(),
-           "command": "python experiments/bench_graph.py " + " ".join(sys.argv[1:])}
+           "command": "python experiments/bench_graph.py " + " ".join(sys.argv[1:]),
+           "machine": f"{os.cpu_count()} CPU cores, JAX device {jax.devices()[0].device_kind}"}
     _, res["cold_s"] = timed(construct, clips, cfg)
     runs = [timed(construct, clips, cfg) for _ in range(3)]
     g = runs[-1][0]

@@ -222,3 +222,17 @@ def test_real_bandai_clips_fast_equals_reference(bandai_dir):
     tie = {tuple(k) for k, c in zip(er[EDGE].values.tolist(), er["cost"]) if abs(c - thr) <= THRESHOLD_TIE * thr}
     assert g.num_states > 0 and ef["synthetic"].sum() > 0
     assert set(map(tuple, ef[EDGE].values.tolist())) - tie == set(map(tuple, er[EDGE].values.tolist())) - tie
+
+
+def test_batched_features_equal_per_clip_features():
+    from convsynth_jax.graph.database import batched_features
+    from convsynth_jax.kinematics import pose_features
+
+    clips = random_clips(11, 3, 47)
+    P, V = batched_features([c[1] for c in clips])
+    start = 0
+    for _, m, _, _ in clips:
+        f = pose_features(m)
+        np.testing.assert_allclose(P[start:start + m.num_frames], np.asarray(f.positions), atol=1e-4)
+        np.testing.assert_allclose(V[start:start + m.num_frames], np.asarray(f.velocities), atol=1e-2)
+        start += m.num_frames

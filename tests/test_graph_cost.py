@@ -62,6 +62,18 @@ def test_scaled_features_reproduce_eq_3_4():
                                rtol=COST_FLOAT32)
 
 
+def test_pair_distance_in_float64_matches_reference_tightly():
+    import jax.numpy as jnp
+
+    P, V, w, _ = random_features(8, 2, 40)
+    a, b = np.arange(0, 60, 3), np.arange(1, 60, 4)
+    P64, V64 = P.astype(np.float64), V.astype(np.float64)
+    with enable_x64():
+        d = np.asarray(pair_distance(*(jnp.asarray(x, jnp.float64) for x in (P64[a], V64[a], P64[b], V64[b], w)), 0.3))
+    assert d.dtype == np.float64
+    np.testing.assert_allclose(d, reference_cost_matrix(P64[a], V64[a], P64[b], V64[b], w, 0.3), rtol=COST_FLOAT64)
+
+
 @pytest.mark.parametrize("seed,tile,workers,symmetric", [(0, 16, 1, False), (1, 32, 2, False), (2, 16, 2, True),
                                                          (3, 64, 1, "auto")])
 def test_candidate_edges_equal_reference(seed, tile, workers, symmetric):

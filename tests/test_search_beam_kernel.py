@@ -131,3 +131,15 @@ def test_padded_adjacency_keeps_the_cheapest_edges_in_order():
         np.testing.assert_array_equal(cost[s, :len(o)], c[o])
         np.testing.assert_array_equal(syn[s, :len(o)], y[o])
         assert np.isinf(cost[s, len(o):]).all()
+
+
+def test_bad_labels_and_settings_are_reported():
+    from convsynth_jax.errors import ConfigError, LabelError
+
+    g, _ = hub_graph(np.random.default_rng(5))
+    cons = build_constraints(pd.DataFrame(columns=["kind", "start", "peak", "end"]), None, 20, FPS, None)
+    with pytest.raises(ConfigError, match="max_candidates"):
+        beam_search(g, cons, {"search": {"max_candidates": 0}})
+    g.own_label[7] = 99
+    with pytest.raises(LabelError, match="graph state 7 .*clip c0, frame 7"):
+        beam_search(g, cons, None)

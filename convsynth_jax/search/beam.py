@@ -34,11 +34,13 @@ from __future__ import annotations
 
 import time
 from functools import partial
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
 import numpy as np
 
+from ..errors import ConfigError, GraphError, LabelError
 from .constraints import Constraints, _get, is_peak_state
 from .result import SearchResult, failed_segment_at
 
@@ -68,46 +70,57 @@ def padded_adjacency(graph, max_degree: int = 64):
     return adj, cost, syn, np.minimum(deg, D).astype(np.int32)
 
 
-_CACHE: list = []  # small LRU of (graph, max_degree, host adjacency, device arrays); graphs are immutable
-
-
-def _graph_arrays(graph, max_degree):
-    for g, d, host, dev in _CACHE:
-        if g is graph and d == max_degree:
-            return host, dev
-    host = padded_adjacency(graph, max_degree)
-    adj, cost, _, deg = host
-    if graph.num_states >= 2 ** (31 - CODE_BITS):
-        raise ValueError(f"graph too large for the packed beam search ({graph.num_states} states)")
-    code = state_codes(graph)
-    packed = (adj.astype(np.int64) << CODE_BITS | code[adj]).astype(np.int32)
-    pad = -graph.num_states % STATE_BUCKET   # padding states: no edges, never a start state
-
-    def padrows(x, v):
-        return np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)])
-
-    dev = (jnp.asarray(padrows(packed, 0)), jnp.asarray(padrows(cost, np.inf)), jnp.asarray(padrows(deg, 0)),
-           jnp.asarray(padrows(code, 0)))
-    syn = graph.cost[graph.synthetic]
-    host = host + (float(np.median(syn)) if syn.size else 1.0,)
-    _CACHE.append((graph, max_degree, host, dev))
-    del _CACHE[:-4]
-    return host, dev
-
-
 CODE_BITS = 9  # packed edge: target << 9 | is_peak << 8 | partner label << 4 | own label
 
 
 def state_codes(graph) -> np.ndarray:
     """(S,) int32: own label | partner label << 4 | is_peak << 8."""
     own, par = np.asarray(graph.own_label, np.int64), np.asarray(graph.partner_label, np.int64)
-    if own.size and (own.min() < 0 or own.max() > 15 or par.min() < 0 or par.max() > 15):
-        raise ValueError("audio label codes must lie in 0..15 for the packed beam search")
+    bad = np.flatnonzero((own < 0) | (own > 15) | (par < 0) | (par > 15))
+    if bad.size:
+        s = int(bad[0])
+        raise LabelError(f"audio label codes must lie in 0..15 for the packed beam search (own {own[s]}, "
+                         f"partner {par[s]})", where=f"graph state {s} (clip {graph.clip_names[graph.clip[s]]}, "
+                         f"frame {graph.frame[s]})")
     return (own | (par << 4) | (is_peak_state(graph).astype(np.int64) << 8)).astype(np.int32)
 
 
 def unpack_code(x):
     return x & 15, (x >> 4) & 15, ((x >> 8) & 1).astype(bool)
+
+
+class _Prepared(NamedTuple):
+    """A graph made ready for the kernel (cached per graph object; graphs are immutable)."""
+    adj_cost: np.ndarray     # (S, D) host copies, for the path's statistics
+    adj_syn: np.ndarray
+    median_syn: float        # median synthetic edge cost: the temperature's unit
+    device: tuple            # (packed targets+labels, costs, degrees, state codes), padded to STATE_BUCKET
+
+
+_CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)
+
+
+def _prepare(graph, max_degree) -> _Prepared:
+    for g, d, prep in _CACHE:
+        if g is graph and d == max_degree:
+            return prep
+    if graph.num_states >= 2 ** (31 - CODE_BITS):
+        raise GraphError(f"graph too large for the packed beam search ({graph.num_states} states, "
+                         f"at most {2 ** (31 - CODE_BITS) - 1})")
+    adj, cost, syn, deg = padded_adjacency(graph, max_degree)
+    code = state_codes(graph)
+    packed = (adj.astype(np.int64) << CODE_BITS | code[adj]).astype(np.int32)
+    pad = -graph.num_states % STATE_BUCKET   # padding states: no edges, never a start state
+
+    def padrows(x, v):
+        return jnp.asarray(np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]))
+
+    syn_costs = graph.cost[graph.synthetic]
+    prep = _Prepared(cost, syn, float(np.median(syn_costs)) if syn_costs.size else 1.0,
+                     (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)))
+    _CACHE.append((graph, max_degree, prep))
+    del _CACHE[:-4]
+    return prep
 
 
 def label_ok(own_label, par_label, req):
@@ -210,11 +223,15 @@ def beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> Sea
 
 def _beam_search_once(graph, constraints: Constraints, cfg, seed: int, temperature: float) -> SearchResult:
     t0 = time.perf_counter()
-    max_deg = int(_get(cfg, "max_degree", 64))
-    (adj, adj_cost, adj_syn, _, median_syn), dev = _graph_arrays(graph, max_deg)
-    B, M, N, H = sizes(graph.num_states, int(_get(cfg, "beam_size", 256)), adj.shape[1],
-                       int(_get(cfg, "max_candidates", 2048)))
-    temp = max(temperature * median_syn, 1e-6)
+    max_deg, beam, budget = (int(_get(cfg, k, d)) for k, d in
+                             (("max_degree", 64), ("beam_size", 256), ("max_candidates", 2048)))
+    if min(max_deg, beam, budget) < 1:
+        raise ConfigError(f"search.max_degree, search.beam_size and search.max_candidates must be >= 1 "
+                          f"(got {max_deg}, {beam}, {budget})")
+    prep = _prepare(graph, max_deg)
+    dev = prep.device
+    B, M, N, H = sizes(graph.num_states, beam, prep.adj_cost.shape[1], budget)
+    temp = max(temperature * prep.median_syn, 1e-6)
     c = constraints
     T = c.num_frames
     Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
@@ -238,8 +255,8 @@ def _beam_search_once(graph, constraints: Constraints, cfg, seed: int, temperatu
                             time.perf_counter() - t0, "beam")
     path = path.astype(np.int64)
     src, rk = path[:-1], rank[1:]
-    edge_cost = adj_cost[src, rk].astype(np.float64)
-    edge_syn = adj_syn[src, rk]
+    edge_cost = prep.adj_cost[src, rk].astype(np.float64)
+    edge_syn = prep.adj_syn[src, rk]
     return SearchResult(True, path, float(edge_cost.sum()), int(edge_syn.sum()), c.total, c.total, None, None,
                         time.perf_counter() - t0, "beam", [float(x) for x in edge_cost[edge_syn]])
 

@@ -41,7 +41,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError, GraphError, LabelError
-from .constraints import Constraints, _get, is_peak_state
+from .constraints import Constraints, _get, is_peak_state, label_ok, median_synthetic_cost, requirement_arrays
 from .result import SearchResult, failed_segment_at
 
 FRAME_BUCKET = 16
@@ -115,22 +115,11 @@ def _prepare(graph, max_degree) -> _Prepared:
     def padrows(x, v):
         return jnp.asarray(np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]))
 
-    syn_costs = graph.cost[graph.synthetic]
-    prep = _Prepared(cost, syn, float(np.median(syn_costs)) if syn_costs.size else 1.0,
+    prep = _Prepared(cost, syn, median_synthetic_cost(graph),
                      (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)))
     _CACHE.append((graph, max_degree, prep))
     del _CACHE[:-4]
     return prep
-
-
-def label_ok(own_label, par_label, req):
-    """Label requirements of one frame for states (any shape): req = (own, partner, own_not, partner_not)."""
-    own_r, par_r, own_n, par_n = req
-    ok = (own_r < 0) | (own_label == own_r)
-    ok &= (par_r < 0) | (par_label == par_r)
-    ok &= ~((own_n >= 0) & (own_label == own_n))
-    ok &= ~((par_n >= 0) & (par_label == par_n))
-    return ok
 
 
 def sizes(num_states: int, beam: int, max_degree: int, max_candidates: int):
@@ -242,9 +231,7 @@ def _beam_search_once(graph, constraints: Constraints, cfg, seed: int, temperatu
         x = np.asarray(x)
         return np.concatenate([x, np.full((Tp - T,) + x.shape[1:], v, x.dtype)])
 
-    free = np.full(T, -1, np.int32)
-    reqs = tuple(padb(np.asarray(x if x is not None else free, np.int32), -1)
-                 for x in (c.own_req, c.partner_req, c.own_not, c.partner_not))
+    reqs = tuple(padb(r, -1) for r in requirement_arrays(c))
     out = _beam_kernel(init_noise, pool, offsets, *dev, reqs, padb(c.peak_window, False), padb(c.peak_reset, False),
                        padb(c.peak_check, False), np.float32(temp), np.int32(T), np.int32(graph.num_states),
                        beam=B, M=M, H=H)

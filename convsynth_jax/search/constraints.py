@@ -127,16 +127,34 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
+def label_ok(own_label, par_label, req):
+    """Label requirements of one frame, for states of any shape (NumPy or JAX arrays; broadcasts):
+    req = (own, partner, own_not, partner_not) codes, FREE (-1) for none."""
+    own_r, par_r, own_n, par_n = req
+    ok = (own_r < 0) | (own_label == own_r)
+    ok &= (par_r < 0) | (par_label == par_r)
+    ok &= ~((own_n >= 0) & (own_label == own_n))
+    ok &= ~((par_n >= 0) & (par_label == par_n))
+    return ok
+
+
+def requirement_arrays(c: Constraints) -> tuple[np.ndarray, ...]:
+    """(own, partner, own_not, partner_not), each (T,) int32, FREE where unconstrained."""
+    free = np.full(c.num_frames, FREE, np.int32)
+    return tuple(np.asarray(x if x is not None else free, np.int32)
+                 for x in (c.own_req, c.partner_req, c.own_not, c.partner_not))
+
+
 def state_ok_matrix(graph, c: Constraints) -> np.ndarray:
     """(T, S) bool: state s may be used at output frame t (label requirements only)."""
-    own = graph.own_label.astype(np.int32)[None, :]
-    par = graph.partner_label.astype(np.int32)[None, :]
-    ok = (c.own_req[:, None] == FREE) | (own == c.own_req[:, None])
-    ok &= (c.partner_req[:, None] == FREE) | (par == c.partner_req[:, None])
-    if c.own_not is not None:
-        ok &= ~((c.own_not[:, None] != FREE) & (own == c.own_not[:, None]))
-        ok &= ~((c.partner_not[:, None] != FREE) & (par == c.partner_not[:, None]))
-    return ok
+    return label_ok(graph.own_label.astype(np.int32)[None, :], graph.partner_label.astype(np.int32)[None, :],
+                    tuple(r[:, None] for r in requirement_arrays(c)))
+
+
+def median_synthetic_cost(graph) -> float:
+    """The unit of the searches' sampling temperature (1.0 for a graph without synthetic edges)."""
+    syn = graph.cost[graph.synthetic]
+    return float(np.median(syn)) if syn.size else 1.0
 
 
 def is_peak_state(graph) -> np.ndarray:

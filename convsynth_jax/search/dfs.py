@@ -14,7 +14,7 @@ import time
 
 import numpy as np
 
-from .constraints import Constraints, _get, is_peak_state, state_ok_matrix
+from .constraints import Constraints, _get, is_peak_state, median_synthetic_cost, state_ok_matrix
 from .result import SearchResult, failed_segment_at, path_stats
 
 
@@ -39,8 +39,7 @@ def stochastic_greedy_search(graph, constraints: Constraints, cfg=None, seed: in
     max_exp = int(_get(cfg, "max_expansions", 200000))
     budget = float(_get(cfg, "time_budget", 30.0))
     temperature = float(_get(cfg, "temperature", 0.05))
-    syn = graph.cost[graph.synthetic]
-    temp = max(temperature * (float(np.median(syn)) if syn.size else 1.0), 1e-6)
+    temp = max(temperature * median_synthetic_cost(graph), 1e-6)
     ok = state_ok_matrix(graph, constraints)
     peak = is_peak_state(graph)
     c = constraints

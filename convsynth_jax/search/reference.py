@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .beam import FRAME_BUCKET, STATE_BUCKET, noise, sizes
-from .constraints import Constraints, _get, is_peak_state
+from .constraints import Constraints, _get, is_peak_state, median_synthetic_cost, requirement_arrays
 
 
 @dataclass
@@ -56,8 +56,7 @@ def reference_beam_search(graph, constraints: Constraints, cfg=None, seed: int =
     if 2 * S > H:
         raise ValueError(f"the reference deduplicates exactly; the kernel's table ({H} slots) is only exact "
                          f"for graphs of at most {H // 2} states, this one has {S}")
-    syn = graph.cost[graph.synthetic]
-    temp = np.float32(max(temperature * (float(np.median(syn)) if syn.size else 1.0), 1e-6))
+    temp = np.float32(max(temperature * median_synthetic_cost(graph), 1e-6))
     T = constraints.num_frames
     Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
     S_pad = S + (-S % STATE_BUCKET)
@@ -65,8 +64,7 @@ def reference_beam_search(graph, constraints: Constraints, cfg=None, seed: int =
     own_l, par_l = np.asarray(graph.own_label), np.asarray(graph.partner_label)
     peak = is_peak_state(graph)
     c = constraints
-    free = np.full(T, -1)
-    req_arrays = [np.asarray(x if x is not None else free) for x in (c.own_req, c.partner_req, c.own_not, c.partner_not)]
+    req_arrays = requirement_arrays(c)
 
     def req(t):
         return tuple(int(a[t]) for a in req_arrays)

@@ -143,3 +143,23 @@ def test_bad_labels_and_settings_are_reported():
     g.own_label[7] = 99
     with pytest.raises(LabelError, match="graph state 7 .*clip c0, frame 7"):
         beam_search(g, cons, None)
+
+
+def test_reported_synthetic_transitions_match_the_path():
+    from convsynth_jax.search.dfs import stochastic_greedy_search
+    from convsynth_jax.search.result import path_stats
+
+    g, audio = hub_graph(np.random.default_rng(2))
+    own, par = input_from_clip(audio, "c1", 40)
+    own[["start", "peak", "end"]] += 0.7  # shifted, so playing clip c1 straight does not fit
+    par[["start", "peak", "end"]] += 0.7
+    cfg = {"search": {"beam_size": 32, "retry_temperatures": [1.0]}}
+    cons = build_constraints(own, par, 40, FPS, cfg)
+    for res in (beam_search(g, cons, cfg, seed=0), stochastic_greedy_search(g, cons, cfg, seed=0)):
+        assert res.success
+        # independently: a transition is synthetic when it is not the next frame of the same clip
+        jumps = [t for t in range(1, 40) if not (g.clip[res.path[t]] == g.clip[res.path[t - 1]]
+                                                 and g.frame[res.path[t]] == g.frame[res.path[t - 1]] + 1)]
+        assert res.synthetic_at == jumps and res.num_synthetic_transitions == len(jumps) > 0
+        total, costs, at = path_stats(g, res.path)
+        assert at == jumps and res.cost == pytest.approx(total, rel=1e-6)

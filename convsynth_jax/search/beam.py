@@ -245,7 +245,8 @@ def _beam_search_once(graph, constraints: Constraints, cfg, seed: int, temperatu
     edge_cost = prep.adj_cost[src, rk].astype(np.float64)
     edge_syn = prep.adj_syn[src, rk]
     return SearchResult(True, path, float(edge_cost.sum()), int(edge_syn.sum()), c.total, c.total, None, None,
-                        time.perf_counter() - t0, "beam", [float(x) for x in edge_cost[edge_syn]])
+                        time.perf_counter() - t0, "beam", [float(x) for x in edge_cost[edge_syn]],
+                        (np.flatnonzero(edge_syn) + 1).tolist())
 
 
 @partial(jax.jit, static_argnames=("S", "N", "M", "Tp"))

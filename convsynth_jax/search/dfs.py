@@ -100,6 +100,6 @@ def stochastic_greedy_search(graph, constraints: Constraints, cfg=None, seed: in
         frontier = [found[k] for k in keep]
     best = min(frontier, key=lambda f: f[1])
     path = np.asarray(best[0], np.int64)
-    total, nsyn, tc = path_stats(graph, path)
-    return SearchResult(True, path, total, nsyn, c.total, c.total, None, None, time.perf_counter() - t_begin,
-                        "dfs", tc)
+    total, tc, at = path_stats(graph, path)
+    return SearchResult(True, path, total, len(tc), c.total, c.total, None, None, time.perf_counter() - t_begin,
+                        "dfs", tc, at)

@@ -19,22 +19,24 @@ class SearchResult:
     seconds: float = 0.0
     method: str = ""
     transition_costs: list | None = None
+    synthetic_at: list | None = None  # output frames t whose transition t-1 -> t is synthetic
 
 
 def path_stats(graph, path):
-    """(total cost, number of synthetic transitions, costs of the synthetic transitions) of a path."""
-    total, syn, costs = 0.0, 0, []
-    for a, b in zip(path[:-1], path[1:]):
-        t, c, s = graph.out_edges(int(a))
-        k = np.flatnonzero(t == b)
+    """(total cost, costs of the synthetic transitions, output frames where they arrive) of a path,
+    each transition taken along its cheapest edge."""
+    total, costs, at = 0.0, [], []
+    for i, (a, b) in enumerate(zip(path[:-1], path[1:])):
+        tg, c, s = graph.out_edges(int(a))
+        k = np.flatnonzero(tg == b)
         if k.size == 0:
             raise ValueError(f"no edge {a} -> {b} in the graph")
         k = k[np.argmin(c[k])]
         total += float(c[k])
         if s[k]:
-            syn += 1
             costs.append(float(c[k]))
-    return total, syn, costs
+            at.append(i + 1)
+    return total, costs, at
 
 
 def failed_segment_at(constraints, frame):

@@ -49,7 +49,7 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     path = res.path
     clips = [graph.clip_names[int(graph.clip[s])] for s in path]
     frames = [int(graph.frame[s]) for s in path]
-    syn_at = [t + 1 for t, (a, b) in enumerate(zip(path[:-1], path[1:])) if _is_synthetic(graph, a, b)]
+    syn_at = res.synthetic_at or []
     chair, yaw = CHAIRS.get(chair_index, CHAIRS[0])
     s = cfg.get("synth", {}) if cfg is not None and hasattr(cfg, "get") else {}
     blend = int((s or {}).get("blend_frames", 6))
@@ -61,8 +61,3 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
                            res.constraints_total, res.constraints_met, res.seconds, blink_curve(bt, num_frames, fps),
                            None, res.transition_costs or [], method)
 
-
-def _is_synthetic(graph, a, b) -> bool:
-    t, c, s = graph.out_edges(int(a))
-    k = np.flatnonzero(t == b)
-    return bool(k.size and s[k[np.argmin(c[k])]])

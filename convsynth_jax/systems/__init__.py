@@ -1,0 +1,1 @@
+"""Speech-driven synthesis systems: the shared interface (base.py) and the registered systems."""

@@ -1,0 +1,156 @@
+"""The speech-driven synthesis-system interface shared by every system of the framework.
+
+A *system* turns held-out conversation audio into motion for one character. The leave-one-out
+evaluation (``convsynth_jax.evaluation.loo``), the main job, the summaries and the notebooks only
+talk to this interface, so a new system is one module plus one ``conf/system/<name>.yaml``:
+
+1. ``fit(clips, character, condition, cache_dir)`` learns a model from the training sessions of a
+   fold (the motion graph builds a graph; the CDBN trains a DBN). ``clips`` are the character's
+   :class:`~convsynth_jax.annotate.pipeline.ParticipantAnnotation` records (motion, own and partner
+   audio segments and per-frame labels). ``fit_key(condition)`` says which conditions share one
+   model (the motion graph: all of them; a system whose training depends on the condition returns
+   the condition), so a fold fits each distinct model once.
+2. ``synthesize(model, window, condition)`` produces a :class:`WindowResult` for one
+   :class:`WindowInput` (audio segments, per-frame labels and samples of both channels over the
+   window, plus a seed derived by :func:`convsynth_jax.seeding.derive_seed`).
+
+Ablation conditions are named in the system's config (``system.conditions``: name -> option dict);
+the evaluation checks the requested condition against them and passes its options through.
+Results carry generic fields only; anything system-specific goes into ``diagnostics``.
+"""
+from __future__ import annotations
+
+import abc
+import importlib
+from dataclasses import dataclass, field
+from typing import Any, Mapping, Sequence
+
+import numpy as np
+import pandas as pd
+
+from ..errors import ConfigError
+
+
+@dataclass(frozen=True)
+class SystemParams:
+    """``conf/system/<name>.yaml``.
+
+    name: registry name; factory: ``"package.module:Class"`` building the system from
+    ``(params, system_params)``; conditions: ablation condition name -> options (system-specific
+    switches, e.g. ``{use_lr: false}``); options: further system-specific settings.
+    """
+
+    name: str
+    factory: str
+    conditions: dict
+    options: dict = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class WindowInput:
+    """One held-out window of one character: everything a speech-driven system may look at.
+
+    Segment times are seconds relative to the window start (segments crossing an edge keep their
+    true times). ``own_frames``/``partner_frames`` are per-frame labels over the window
+    (``num_frames`` frames at ``fps``); ``own_audio``/``partner_audio`` are the window's samples
+    (None when the corpus has no audio). ``chair_index`` places the character in the scene (0 or 1).
+    """
+
+    session: str
+    role: str
+    character: str
+    start_frame: int
+    num_frames: int
+    fps: float
+    own_segments: pd.DataFrame
+    partner_segments: pd.DataFrame
+    own_frames: Any = None
+    partner_frames: Any = None
+    own_audio: Any = None
+    partner_audio: Any = None
+    chair_index: int = 0
+    seed: int = 0
+
+
+@dataclass
+class WindowResult:
+    """What a system returns for one window.
+
+    motion: a :class:`~convsynth_jax.skeleton.Motion` of ``num_frames`` frames (None on failure);
+    seconds: synthesis wall-clock time; constraints_total/met: the audio constraints the system
+    tried to satisfy and how many it met (0/0 for systems without constraints); source_clip /
+    source_frame: per-frame provenance (the training clip and frame each output frame comes from)
+    where the system has one, else None; failure: why no motion was produced; diagnostics:
+    system-specific scalars (e.g. path cost, synthetic transitions), written as ``diag_<key>`` columns.
+    """
+
+    success: bool
+    motion: Any = None
+    seconds: float = 0.0
+    constraints_total: int = 0
+    constraints_met: int = 0
+    failure: str | None = None
+    source_clip: Sequence[str] | None = None
+    source_frame: np.ndarray | None = None
+    diagnostics: dict = field(default_factory=dict)
+    synthetic_at: Sequence[int] | None = None  # output frames where a synthetic transition arrives
+
+
+class SynthesisSystem(abc.ABC):
+    """Base class of a speech-driven synthesis system (see the module docstring)."""
+
+    #: hand motion produced? (False: hand co-occurrence hypotheses are reported as not applicable)
+    produces_hands: bool = True
+
+    def __init__(self, params, system: SystemParams):
+        self.params = params
+        self.system = system
+
+    @property
+    def name(self) -> str:
+        return self.system.name
+
+    @property
+    def conditions(self) -> Mapping[str, dict]:
+        return self.system.conditions
+
+    def condition_options(self, condition: str) -> dict:
+        if condition not in self.system.conditions:
+            raise ConfigError(f"system {self.name!r} has no condition {condition!r}; "
+                              f"its conditions are {sorted(self.system.conditions)} (conf/system/{self.name}.yaml)")
+        return dict(self.system.conditions[condition] or {})
+
+    def fit_key(self, condition: str) -> Any:
+        """Conditions with equal keys share one fitted model (default: one model for all)."""
+        return None
+
+    @abc.abstractmethod
+    def fit(self, clips: Sequence, character: str, condition: str, cache_dir=None) -> Any:
+        """A model of ``character`` from its training ``clips`` (ParticipantAnnotation records)."""
+
+    @abc.abstractmethod
+    def synthesize(self, model: Any, window: WindowInput, condition: str) -> WindowResult:
+        """Motion for one window of held-out audio."""
+
+    def fit_seconds(self, model: Any) -> float:
+        """Construction / training time of ``model`` (for Table 3), NaN if unknown."""
+        return float(getattr(model, "seconds", float("nan")))
+
+
+def load_factory(spec: str):
+    """``"package.module:Attr"`` -> the attribute (a SynthesisSystem subclass or factory)."""
+    mod, _, attr = spec.partition(":")
+    if not mod or not attr:
+        raise ConfigError(f"system.factory must look like 'package.module:Class', got {spec!r}")
+    try:
+        return getattr(importlib.import_module(mod), attr)
+    except (ImportError, AttributeError) as e:
+        raise ConfigError(f"cannot load system factory {spec!r}: {e}") from None
+
+
+def make_system(params, system: SystemParams) -> SynthesisSystem:
+    """Build the system named by ``system`` (its ``factory``) with the typed ``params``."""
+    sys_obj = load_factory(system.factory)(params, system)
+    if not isinstance(sys_obj, SynthesisSystem):
+        raise ConfigError(f"system factory {system.factory!r} did not return a SynthesisSystem")
+    return sys_obj

@@ -3,7 +3,7 @@ versus the held-out ground truth (two-sample proportion tests), and motion-quali
 from _common import done, parse, read_csv
 
 from convsynth_jax.evaluation import summaries
-from convsynth_jax.plotting_experiments import ablation_figure
+from convsynth_jax.figures import ablation_figure
 
 if __name__ == "__main__":
     src, out, t0 = parse(__doc__, "all_cases.csv")

@@ -24,7 +24,7 @@ import jax
 import numpy as np
 from _bench import RESULTS, SHARED, peak_rss_mb, timed, write
 
-from convsynth_jax.config import compose
+from convsynth_jax.config import compose, to_params
 from convsynth_jax.graph import build_database, build_graph
 from convsynth_jax.graph.database import bvh_folder_clips
 from convsynth_jax.graph.reference import build_graph_reference
@@ -34,7 +34,8 @@ GOALS = {"construction_s": 3.0, "speedup": 15, "peak_mb": 2048}
 
 
 def construct(clips, cfg):
-    return build_graph(build_database(clips, cfg), cfg)
+    p = to_params(cfg)
+    return build_graph(build_database(clips, p.features), p.graph)
 
 
 def summary(g):
@@ -155,8 +156,8 @@ if __name__ == "__main__":
                               "pairs_evaluated": gg.meta["kernel"]["pairs_evaluated"]}
         res["scaling"] = scaling
     if not args.skip_reference:
-        db = build_database(clips, cfg)
-        r, t_ref = timed(build_graph_reference, db, cfg)
+        db = build_database(clips, to_params(cfg).features)
+        r, t_ref = timed(build_graph_reference, db, to_params(cfg).graph)
         res["reference_s"] = t_ref
         res["speedup_vs_reference"] = t_ref / res["warm_median_s"]
         fast = g.edges_frame()

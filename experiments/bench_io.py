@@ -9,7 +9,6 @@ import numpy as np
 
 from convsynth_jax.graph.database import batched_features
 from convsynth_jax.io import load_bvh
-from convsynth_jax.kinematics import fk_kernel
 
 if __name__ == "__main__":
     files = sorted((SHARED / "bandai2" / "bvh").glob("*.bvh"))

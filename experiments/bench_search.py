@@ -12,16 +12,18 @@ import pickle
 import time
 
 import numpy as np
-from _bench import REPO, timed, write
-from omegaconf import OmegaConf
+import dataclasses
 
-from convsynth_jax.config import compose
-from convsynth_jax.evaluation.loo import annotate_corpus_cached, build_fold_graphs
+from _bench import REPO, timed, write
+
+from convsynth_jax.config import default_params
+from convsynth_jax.evaluation.loo import fit_fold
 from convsynth_jax.evaluation.windows import sliding_windows, window_segments
 from convsynth_jax.search.beam import beam_search
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.dfs import stochastic_greedy_search
-from convsynth_jax.tasks.common import open_corpus
+from convsynth_jax.systems.base import make_system
+from convsynth_jax.tasks.common import annotated_corpus, cache_dir
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
@@ -33,16 +35,16 @@ if __name__ == "__main__":
                     "for bench_search_device.py on a machine without the corpus (e.g. a GPU box)")
     ap.add_argument("overrides", nargs="*", help="Hydra-style overrides, e.g. search.max_candidates=4096")
     args = ap.parse_args()
-    cfg = compose([f"cache_dir={args.cache}", "progress=false", *args.overrides])
-    first_only = OmegaConf.merge(cfg, {"search": {"retry_temperatures": []}})
-    corpus = open_corpus(cfg)
-    ann = annotate_corpus_cached(corpus, cfg, f"{args.cache}/loo_cache")
+    params = default_params([f"cache_dir={args.cache}", "progress=false", *args.overrides])
+    cfg = params.search
+    first_only = dataclasses.replace(cfg, retry_temperatures=[])
+    corpus, ann = annotated_corpus(params)
     held = corpus.sessions[0].name
-    fg = build_fold_graphs(ann, held, cfg, f"{args.cache}/loo_cache")
-    out = {"search_config": OmegaConf.to_container(cfg.search)}
+    models = fit_fold(make_system(params, params.system), ann, held, "all", cache_dir(params))
+    out = {"search_config": dataclasses.asdict(cfg)}
     export = {}
     for role, a in ann[held].items():
-        g = fg.graphs[a.character]
+        g = models[a.character].graph
         wins = sliding_windows(a.motion.num_frames / 30.0)[: args.windows]
         cons = [build_constraints(window_segments(a.segments, w), window_segments(a.partner_segments, w), 450, 30.0, cfg)
                 for w in wins]

@@ -15,6 +15,7 @@ import numpy as np
 from _bench import write
 
 from convsynth_jax.search.beam import beam_search
+from convsynth_jax.search.params import SearchParams
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
@@ -27,7 +28,7 @@ if __name__ == "__main__":
         cfg, data = pickle.load(f)
     out = {"device": str(jax.devices()[0]), "device_kind": jax.devices()[0].device_kind}
     for M in (int(x) for x in args.budgets.split(",")):
-        c2 = {"search": {**cfg["search"], "max_candidates": M}}
+        c2 = SearchParams(**{**cfg["search"], "max_candidates": M})
         for ch, (g, cons) in data.items():
             t = time.perf_counter()
             beam_search(g, cons[0], c2, seed=0)

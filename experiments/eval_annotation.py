@@ -22,8 +22,8 @@ import numpy as np
 import pandas as pd
 from _bench import REPO, RESULTS, SHARED, write
 
-from convsynth_jax.config import compose
-from convsynth_jax.evaluation.loo import annotate_corpus_cached
+from convsynth_jax.config import default_params
+from convsynth_jax.annotate.cache import annotate_corpus_cached
 from convsynth_jax.evaluation.summaries import to_markdown
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
 from convsynth_jax.tasks.common import open_corpus
@@ -83,6 +83,7 @@ def control(ann, how):
 
 def real_speech():
     from convsynth_jax.annotate.audio import annotate_audio
+    from convsynth_jax.annotate.params import AnnotateParams
     from convsynth_jax.io import load_audio, load_transcript
 
     d = SHARED / "speech"
@@ -91,7 +92,7 @@ def real_speech():
     out = {}
     for name in ("acoustic_corpus", "cold_corpus"):
         w = load_transcript(d / f"{name}.TextGrid")
-        seg = annotate_audio(w, load_audio(d / f"{name}.wav"), {})
+        seg = annotate_audio(w, load_audio(d / f"{name}.wav"), AnnotateParams())
         fillers = w[w["word"].str.lower().isin(["uh", "um", "yknow"])]
         hp = seg[seg.kind == "HP"]
         in_hp = sum(((hp.start <= f.start + 1e-9) & (hp.end >= f.end - 1e-9)).any() for f in fillers.itertuples())
@@ -109,15 +110,16 @@ if __name__ == "__main__":
     ap.add_argument("--cache", default=str(REPO / "data_cache"))
     args = ap.parse_args()
     t0 = time.perf_counter()
-    cfg = compose([f"cache_dir={args.cache}", "progress=false"])
-    corpus = open_corpus(cfg)
+    params = default_params([f"cache_dir={args.cache}", "progress=false"])
+    corpus = open_corpus(params)
     t1 = time.perf_counter()
-    ann = annotate_corpus_cached(corpus, cfg, Path(args.cache) / "annotation_cache")
+    ann = annotate_corpus_cached(corpus, params.annotate, params.fps, Path(args.cache) / "annotation_cache",
+                                 progress=False)
     t_ann = time.perf_counter() - t1
     ev = pd.read_csv(Path(corpus.root) / "events.csv")
     det = detection_scores(ann, ev)
     t1 = time.perf_counter()
-    table = cooccurrence_table(ann, cfg)
+    table = cooccurrence_table(ann, params.annotate, params.stats, params.seed)
     t_table = time.perf_counter() - t1
     gen = corpus.metadata.get("config") or {}
     chars = gen.get("characters") or {}
@@ -133,7 +135,7 @@ if __name__ == "__main__":
     comp["measured_minus_planted_pp"] = 100 * (comp["measured_rate"] - comp["planted_rate"])
     controls = {}
     for how in ("swap", "shift"):
-        c = cooccurrence_table(control(ann, how), cfg)
+        c = cooccurrence_table(control(ann, how), params.annotate, params.stats, params.seed)
         controls[how] = {
             "any_above_chance_p_lt_0.01": bool(((c.p_permutation < 0.01) | ((c.rate > c.chance_rate) & (c.p_chi2 < 0.01))).any()),
             "min_p_permutation": float(c.p_permutation.min()),

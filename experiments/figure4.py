@@ -2,13 +2,13 @@
 import pandas as pd
 from _common import done, parse
 
-from convsynth_jax.graph.figures import cost_histogram_figure
+from convsynth_jax.figures import figure4_figure
 
 if __name__ == "__main__":
     src, out, t0 = parse(__doc__, "figure4_histograms.csv")
     hist = pd.read_csv(src)
     fits = pd.read_csv(src.parent / "figure4_fits.csv")
-    fig = cost_histogram_figure(hist, fits)
+    fig = figure4_figure(hist, fits)
     fig.savefig(out / "figure4.png", dpi=120)
     fig.savefig(out / "figure4.pdf")
     done(out, ["figure4.png", "figure4.pdf"], t0)

@@ -3,7 +3,7 @@
 from _common import done, parse, read_csv
 
 from convsynth_jax.evaluation import summaries
-from convsynth_jax.plotting_experiments import success_rate_figure
+from convsynth_jax.figures import success_rate_figure
 
 if __name__ == "__main__":
     src, out, t0 = parse(__doc__, "all_cases.csv")

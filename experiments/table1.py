@@ -25,8 +25,8 @@ if __name__ == "__main__":
     (out / "table1.md").write_text(summaries.to_markdown(table))
     (out / "table1.tex").write_text(summaries.to_latex(table))
 
-    from convsynth_jax.plotting import cooccurrence_figure
+    from convsynth_jax.figures import table1_figure
 
-    fig = cooccurrence_figure(t if "chance_rate" in t else t.assign(chance_rate=float("nan")))
+    fig = table1_figure(t if "chance_rate" in t else t.assign(chance_rate=float("nan")))
     fig.savefig(out / "table1.png", dpi=120)
     done(out, ["table1.md", "table1.tex", "table1.png"], t0)

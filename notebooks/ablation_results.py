@@ -23,7 +23,7 @@ import pandas as pd
 from _paths import results_dir
 
 from convsynth_jax.evaluation import summaries
-from convsynth_jax.plotting_experiments import ablation_figure, success_rate_figure
+from convsynth_jax.figures import ablation_figure, success_rate_figure
 
 src = results_dir() / "cases.csv"
 if not src.exists():
@@ -33,7 +33,7 @@ rates = summaries.success_rates(cases)
 rates
 
 # %%
-success_rate_figure(rates);
+success_rate_figure(rates)
 
 # %%
 co = summaries.cooccurrence_by_condition(cases)

@@ -26,6 +26,7 @@ import numpy as np
 import pandas as pd
 from _paths import corpus_dir
 
+from convsynth_jax.kinematics import forward_kinematics
 from convsynth_jax.io import load_corpus
 
 corpus = load_corpus(corpus_dir())
@@ -49,8 +50,6 @@ if events_file.exists():
     print(events.groupby(["participant", "kind"]).size().unstack(fill_value=0))
 
 # %%
-from convsynth_jax.kinematics import forward_kinematics
-
 p = corpus.sessions[0].participants[0]
 m = p.load_motion()
 pos = np.asarray(forward_kinematics(m))

@@ -5,8 +5,9 @@ import pandas as pd
 import pytest
 from tolerances import F0_RELATIVE
 
-from convsynth_jax.annotate.audio import (add_peaks, annotate_audio, f0_contour, f0_from_config, load_word_corpus,
-                                          local_peaks, segment_words, word_corpus_from_config)
+from convsynth_jax.annotate.audio import (add_peaks, annotate_audio, f0_contour, f0_track, load_word_corpus,
+                                          local_peaks, segment_words, word_corpus_for)
+from convsynth_jax.annotate.params import AnnotateParams
 from convsynth_jax.errors import ConfigError, FormatError, TranscriptFormatError
 from convsynth_jax.io.audio import Audio
 
@@ -46,14 +47,14 @@ def test_word_corpus_overrides(tmp_path):
 
 
 def test_word_corpus_from_hydra_config():
-    from convsynth_jax.config import compose
+    from convsynth_jax.config import default_params
 
-    assert word_corpus_from_config(compose()) == load_word_corpus()
-    cfg = compose(["annotate.word_corpus={listener_response: [gotcha], hesitation: [hmm]}",
+    assert word_corpus_for(default_params().annotate) == load_word_corpus()
+    p = default_params(["annotate.word_corpus={listener_response: [gotcha], hesitation: [hmm]}",
                    "annotate.extra_words.hesitation=[so]"])
-    c = word_corpus_from_config(cfg)
+    c = word_corpus_for(p.annotate)
     assert c == {"listener_response": ["gotcha"], "hesitation": ["hmm", "so"]}
-    seg = annotate_audio(words([(0, 0.3, "Gotcha"), (0.4, 0.6, "so"), (0.7, 0.9, "yeah")]), None, cfg)
+    seg = annotate_audio(words([(0, 0.3, "Gotcha"), (0.4, 0.6, "so"), (0.7, 0.9, "yeah")]), None, p.annotate)
     assert seg["kind"].tolist() == ["LR", "HP", "PC"]  # "yeah" is no longer a listener response here
 
 
@@ -130,8 +131,8 @@ def test_f0_backends_track_a_known_contour(backend):
     if backend == "opensmile":
         pytest.importorskip("opensmile")
     audio, truth = _glide_voice()
-    cfg = {"f0_backend": "opensmile"} if backend == "opensmile" else {"f0_range": "fixed" if "fixed" in backend else "auto"}
-    t, f0 = f0_from_config(audio, cfg)
+    opts = {"f0_backend": "opensmile"} if backend == "opensmile" else {"f0_range": "fixed" if "fixed" in backend else "auto"}
+    t, f0 = f0_track(audio, AnnotateParams(**opts))
     v = np.isfinite(f0)
     assert v.sum() >= 80  # about 1 s voiced at a 10 ms step
     rel = np.abs(f0[v] / truth(t[v]) - 1)
@@ -139,7 +140,7 @@ def test_f0_backends_track_a_known_contour(backend):
     seg = add_peaks(pd.DataFrame({"kind": ["PC"], "start": [0.2], "end": [1.0], "text": ["x"]}), t, f0)
     assert seg.loc[0, "peak"] == pytest.approx(0.6, abs=0.025)
     with pytest.raises(ConfigError):
-        f0_from_config(audio, {"f0_backend": "crepe"})
+        f0_track(audio, AnnotateParams(f0_backend="crepe"))
 
 
 def test_f0_silence_is_unvoiced():
@@ -148,7 +149,7 @@ def test_f0_silence_is_unvoiced():
 
 
 def test_annotate_audio_without_audio_uses_midpoints():
-    seg = annotate_audio(words([(0.0, 0.4, "hello"), (0.5, 0.7, "um")]), None, {})
+    seg = annotate_audio(words([(0.0, 0.4, "hello"), (0.5, 0.7, "um")]), None, AnnotateParams())
     assert seg["peak"].tolist() == pytest.approx([0.2, 0.6])
 
 
@@ -159,7 +160,7 @@ def test_real_speech_segmentation(speech_dir, name):
 
     w = load_transcript(speech_dir / f"{name}.TextGrid")
     audio = load_audio(speech_dir / f"{name}.wav")
-    seg = annotate_audio(w, audio, {})
+    seg = annotate_audio(w, audio, AnnotateParams())
     assert set(seg["kind"]) <= {"PC", "LR", "HP"} and (seg["kind"] == "PC").sum() >= 3
     fillers = w[w["word"].str.lower().isin(["uh", "um", "yknow"])]
     assert len(fillers) > 0

@@ -8,8 +8,11 @@ from scipy.spatial.transform import Rotation
 from convsynth_jax.annotate.motion import (Window, candidate_windows, detect_in_window, find_joints, idle_threshold,
                                            joint_speeds, segment_motion, segment_windows)
 from convsynth_jax.data.skeleton_seated import INDEX, seated_skeleton
+from convsynth_jax.annotate.params import AnnotateParams
 from convsynth_jax.errors import ConfigError
 from convsynth_jax.skeleton import Motion
+
+AP = AnnotateParams()
 
 
 # ----------------------------------------------------------------------------------- Eq. 1 and Eq. 2
@@ -88,21 +91,21 @@ def test_segment_motion_events_and_alphas():
     speeds["Nod"][150:155] = [3, 6, 9, 6, 3]                 # around the partner's HP [15.0, 15.4]
     own = pd.DataFrame({"kind": ["PC", "LR"], "start": [5.0, 12.0], "end": [5.6, 12.4]})
     partner = pd.DataFrame({"kind": ["PC", "HP"], "start": [1.0, 15.0], "end": [2.0, 15.4]})
-    ev = segment_motion(speeds, own, fps, partner)
+    ev = segment_motion(speeds, own, fps, partner, AP)
     assert ev[["kind", "channel", "segment"]].values.tolist() == [["LH", "own", 0], ["Nod", "own", 1],
                                                                   ["Nod", "partner", 1]]
     # LH window [4.7, 5.9] -> frames 47..58; theta_W = 0.5 + 0.1 * 9.5 = 1.45 -> frames 48..55 above
     np.testing.assert_allclose(ev.loc[0, ["start", "peak", "end"]].astype(float), [4.8, 5.1, 5.6])
     assert list(ev.columns) == ["kind", "start", "peak", "end", "channel", "segment"]
     # with alpha_s = 1 the clip threshold is each curve's maximum, which nothing exceeds
-    assert segment_motion(speeds, own, fps, partner, alpha_s=1.0).empty
-    assert len(segment_motion(speeds, own, fps, partner, {"annotate": {"alpha_s": 1.0}})) == 0
+    assert segment_motion(speeds, own, fps, partner, AP, alpha_s=1.0).empty
+    assert len(segment_motion(speeds, own, fps, partner, AnnotateParams(alpha_s=1.0))) == 0
     # theta_S is per clip: a fast head movement elsewhere (speed 20 at frame 190) lifts the nod
     # threshold to 0.5 + 0.5 * 19.5 = 10.25 > 9, while LH keeps 0.5 + 0.5 * 9.5 = 5.25 < 10
     speeds["Nod"][190] = 20.0
-    assert segment_motion(speeds, own, fps, partner, alpha_s=0.5)["kind"].tolist() == ["LH"]
-    assert segment_motion(speeds, own, fps, partner, alpha_s=0.1)["kind"].tolist() == ["LH", "Nod", "Nod"]
-    assert segment_motion(speeds, own.iloc[:0], fps, None).empty
+    assert segment_motion(speeds, own, fps, partner, AP, alpha_s=0.5)["kind"].tolist() == ["LH"]
+    assert segment_motion(speeds, own, fps, partner, AP, alpha_s=0.1)["kind"].tolist() == ["LH", "Nod", "Nod"]
+    assert segment_motion(speeds, own.iloc[:0], fps, None, AP).empty
 
 
 # ---------------------------------------------------------------------------------- joint speeds
@@ -148,7 +151,7 @@ def _reference_speeds(motion, hand, shoulder, frame, head, neck, neck_frame, hea
 def test_joint_speeds_match_slow_numpy_reference():
     rng = np.random.default_rng(0)
     m = _random_motion(rng)
-    got = joint_speeds(m)
+    got = joint_speeds(m, AP)
     ref = _reference_speeds(m, (INDEX["LeftHand"], INDEX["RightHand"]), (INDEX["LeftArm"], INDEX["RightArm"]),
                             (INDEX["LeftShoulder"], INDEX["RightShoulder"]), INDEX["Head"], INDEX["Neck"],
                             INDEX["Spine2"], np.array([0.0, 9.0, 9.0]))
@@ -167,7 +170,7 @@ def test_joint_speeds_ignore_torso_and_root_motion():
     for j in range(base.skeleton.num_joints):  # same limb/head rotations, different torso and root
         if j not in (0, INDEX["Spine"], INDEX["Spine1"], INDEX["Spine2"]):
             moved.rotations[:, j] = base.rotations[:, j]
-    a, b = joint_speeds(base), joint_speeds(moved)
+    a, b = joint_speeds(base, AP), joint_speeds(moved, AP)
     for k in ("LH", "RH", "Nod"):
         np.testing.assert_allclose(a[k], b[k], atol=1e-3 * max(1.0, a[k].max()), err_msg=k)
     still = Motion(base.skeleton, np.broadcast_to(base.rotations[:1], base.rotations.shape).copy(),
@@ -175,7 +178,7 @@ def test_joint_speeds_ignore_torso_and_root_motion():
     elbow = still.rotations.copy()
     ang = np.linspace(0, 60, still.num_frames)
     elbow[:, INDEX["LeftForeArm"]] = Rotation.from_euler("X", ang[:, None], degrees=True).as_quat()[:, [3, 0, 1, 2]]
-    s = joint_speeds(Motion(still.skeleton, elbow, still.translations, still.fps))
+    s = joint_speeds(Motion(still.skeleton, elbow, still.translations, still.fps), AP)
     assert s["LH"].min() > 1.0 and s["RH"].max() < 1e-3 and s["Nod"].max() < 1e-3
 
 
@@ -189,8 +192,8 @@ def test_nod_is_vertical_head_motion_only():
     pitch, yaw = q.copy(), q.copy()
     pitch[:, INDEX["Head"]] = Rotation.from_euler("X", ang[:, None], degrees=True).as_quat()[:, [3, 0, 1, 2]]
     yaw[:, INDEX["Head"]] = Rotation.from_euler("Y", ang[:, None], degrees=True).as_quat()[:, [3, 0, 1, 2]]
-    nod = joint_speeds(Motion(skel, pitch, trans, 30.0))["Nod"]
-    shake = joint_speeds(Motion(skel, yaw, trans, 30.0))["Nod"]
+    nod = joint_speeds(Motion(skel, pitch, trans, 30.0), AP)["Nod"]
+    shake = joint_speeds(Motion(skel, yaw, trans, 30.0), AP)["Nod"]
     assert nod.max() > 5.0 and shake.max() < 1e-2 * nod.max()  # shaking the head is no nod
 
 
@@ -217,7 +220,7 @@ def test_real_bandai_waves_move_the_waving_hand(bandai_dir):
     j = find_joints(left.skeleton)
     assert [names[j[k]] for k in ("left_hand", "left_shoulder", "right_hand", "right_shoulder")] == \
         ["Hand_L", "UpperArm_L", "Hand_R", "UpperArm_R"]
-    sl, sr = joint_speeds(left), joint_speeds(right)
+    sl, sr = joint_speeds(left, AP), joint_speeds(right, AP)
     assert np.percentile(sl["LH"], 90) > 3 * np.percentile(sl["RH"], 90)
     assert np.percentile(sr["RH"], 90) > 3 * np.percentile(sr["LH"], 90)
 
@@ -226,10 +229,9 @@ def test_real_bandai_waves_move_the_waving_hand(bandai_dir):
 @pytest.fixture(scope="module")
 def tiny(tiny_corpus_dir):
     from convsynth_jax.annotate.pipeline import annotate_corpus
-    from convsynth_jax.config import compose
     from convsynth_jax.io import load_corpus
 
-    ann = annotate_corpus(load_corpus(tiny_corpus_dir), compose(["corpus=synthetic_tiny"]), progress=False)
+    ann = annotate_corpus(load_corpus(tiny_corpus_dir), AP, 30.0, progress=False)
     return ann, pd.read_csv(tiny_corpus_dir / "events.csv")
 
 
@@ -310,7 +312,7 @@ def test_annotate_session_on_shim_participants():
     b_words = pd.DataFrame({"start": [1.5], "end": [1.7], "word": ["um"]})
     session = _Session("s1", (_Participant("A", "female", Motion(skel, moving, trans, fps), a_words),
                               _Participant("B", "male", Motion(skel, q.copy(), trans, fps), b_words)))
-    ann = annotate_session(session, {"features": {"fps": fps}})
+    ann = annotate_session(session, AP, fps)
     a, b = ann["A"], ann["B"]
     assert a.segments["kind"].tolist() == ["PC", "LR"] and b.segments["kind"].tolist() == ["HP"]
     assert a.partner_segments.equals(b.segments) and b.partner_segments.equals(a.segments)
@@ -322,5 +324,5 @@ def test_annotate_session_on_shim_participants():
     assert len(lh) == 1 and lh["segment"].iat[0] == 0 and 0.6 <= lh["start"].iat[0] <= 0.9
     assert b.events.empty  # B never moves
     assert (a.character, b.character, a.session) == ("female", "male", "s1") and a.motion.num_frames == n
-    assert list(annotate_corpus(type("C", (), {"sessions": [session]})(), {"features": {"fps": fps}},
+    assert list(annotate_corpus(type("C", (), {"sessions": [session]})(), AP, fps,
                                 progress=False)) == ["s1"]

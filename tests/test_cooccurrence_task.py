@@ -9,9 +9,13 @@ import numpy as np
 import pandas as pd
 import pytest
 
+from convsynth_jax.annotate.params import AnnotateParams
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.errors import FormatError, MissingFileError
 from convsynth_jax.stats.cooccurrence import TABLE_COLUMNS, cooccurrence_by_session, cooccurrence_table
+from convsynth_jax.stats.params import StatsParams
+
+AP, SP = AnnotateParams(), StatsParams()
 
 HYPS = ["PC-LH", "PC-RH", "PC-LH/RH", "LR-Nod", "PH-Nod"]
 # hypothesis -> (audio kind, planted motion kinds, whose audio)
@@ -34,7 +38,7 @@ def annotations(tiny_corpus_dir):
     from convsynth_jax.annotate.pipeline import annotate_corpus
     from convsynth_jax.io import load_corpus
 
-    return annotate_corpus(load_corpus(tiny_corpus_dir), compose(["corpus=synthetic_tiny"]), progress=False)
+    return annotate_corpus(load_corpus(tiny_corpus_dir), AnnotateParams(), 30.0, progress=False)
 
 
 def planted_rates(events: pd.DataFrame) -> dict:
@@ -123,8 +127,8 @@ def _control(annotations, how: str) -> list:
 
 @pytest.mark.parametrize("how", ["swap", "shift"])
 def test_negative_controls_show_no_cooccurrence(annotations, how):
-    real = cooccurrence_table(annotations)
-    ctrl = cooccurrence_table(_control(annotations, how))
+    real = cooccurrence_table(annotations, AP, SP)
+    ctrl = cooccurrence_table(_control(annotations, how), AP, SP)
     assert (ctrl["total"] == real["total"]).all()
     # nothing ABOVE chance: the one-sided permutation test stays quiet, and the two-sided chi-square
     # may only flag a rate below chance (random windows can land where the unrelated motion moves)
@@ -135,15 +139,15 @@ def test_negative_controls_show_no_cooccurrence(annotations, how):
 
 
 def test_table_is_deterministic_and_seeded(annotations):
-    a = cooccurrence_table(annotations, compose(["seed=0"]))
-    b = cooccurrence_table(annotations, compose(["seed=0"]))
-    c = cooccurrence_table(annotations, compose(["seed=1"]))
+    a = cooccurrence_table(annotations, AP, SP, seed=0)
+    b = cooccurrence_table(annotations, AP, SP, seed=0)
+    c = cooccurrence_table(annotations, AP, SP, seed=1)
     pd.testing.assert_frame_equal(a, b)
     assert (a[["matched", "total"]] == c[["matched", "total"]]).all().all()  # the audio side has no randomness
     assert not a["chance_matched"].equals(c["chance_matched"]) or not a["p_permutation"].equals(c["p_permutation"])
-    by = cooccurrence_by_session(annotations)
+    by = cooccurrence_by_session(annotations, AP, SP)
     assert by["session"].nunique() == len(annotations)
-    more = cooccurrence_table(annotations, compose(["stats.chance_windows=3"]))
+    more = cooccurrence_table(annotations, AP, StatsParams(chance_windows=3))
     assert (more["chance_total"] >= 2 * a["chance_total"]).all()
 
 
@@ -176,15 +180,15 @@ def test_user_study_task_own_csv_and_bad_input(tmp_path):
 
 
 def test_plotting_helpers_draw_the_data():
-    from convsynth_jax.plotting import cooccurrence_figure, user_study_figure
+    from convsynth_jax.figures import figure6_figure, table1_figure
     from convsynth_jax.tasks.user_study import analyse
 
     t = analyse(pd.DataFrame({"comparison": ["A vs B", "C vs D"], "preferred_a": [70, 40], "total": [100, 100]}))
-    fig = user_study_figure(t)
+    fig = figure6_figure(t)
     assert isinstance(fig, matplotlib.figure.Figure)
     widths = sorted(round(p.get_width(), 6) for p in fig.axes[0].patches)
     assert widths == [30.0, 40.0, 60.0, 70.0]  # stacked: share of A and of B per comparison
     table = pd.DataFrame({"character": ["f", "f"], "hypothesis": ["PC-LH", "LR-Nod"], "rate": [0.5, 0.25],
                           "chance_rate": [0.1, 0.0]})
-    heights = sorted(round(p.get_height(), 6) for p in cooccurrence_figure(table).axes[0].patches)
+    heights = sorted(round(p.get_height(), 6) for p in table1_figure(table).axes[0].patches)
     assert heights == [0.0, 10.0, 25.0, 50.0]

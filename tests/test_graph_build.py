@@ -11,10 +11,14 @@ from convsynth_jax.annotate.types import FrameAudio
 from convsynth_jax.errors import GraphError, MissingFileError
 from convsynth_jax.graph import build_database, build_graph, load_graph
 from convsynth_jax.graph.build import _cap_degree, _local_minima, auto_w_v, k_step_costs
+from convsynth_jax.graph.params import GraphParams
 from convsynth_jax.graph.keystates import audio_change_states, key_states, keyframes, pose_change
 from convsynth_jax.graph.reference import build_graph_reference, reference_cost_matrix
 from convsynth_jax.skeleton import Motion, Skeleton
+
 from tolerances import COST_FLOAT32, THRESHOLD_TIE
+
+GP = GraphParams()
 
 EDGE = ["source_file", "source_frame", "target_file", "target_frame"]
 
@@ -57,7 +61,7 @@ def db():
 
 @pytest.fixture(scope="module")
 def graphs(db):
-    return build_graph(db), build_graph_reference(db)
+    return build_graph(db, GP), build_graph_reference(db, GP)
 
 
 def test_fast_builder_gives_the_reference_graph(graphs):
@@ -182,22 +186,18 @@ def test_local_minima_and_degree_cap_match_slow_definitions():
 
 
 def test_degree_cap_inside_the_kernel_equals_capping_afterwards(db):
-    from omegaconf import OmegaConf
-
-    cfg = OmegaConf.create({"graph": {"max_out_degree": 2}})
-    g = build_graph(db, cfg)
-    full = build_graph(db)
-    ef, ff = g.edges_frame(), full.edges_frame()
+    g = build_graph(db, GraphParams(max_out_degree=2))
+    full = build_graph(db, GP)
+    ef = g.edges_frame()
     syn = ef[ef["synthetic"]]
     assert syn.groupby(["source_file", "source_frame"]).size().max() <= 2
     assert g.meta["num_synthetic_before_scc"] < full.meta["num_synthetic_before_scc"]
 
 
 def test_bad_inputs(db, tmp_path):
-    from omegaconf import OmegaConf
 
     with pytest.raises(GraphError, match="max_edges"):
-        build_graph(db, OmegaConf.create({"graph": {"max_edges": 10}}))
+        build_graph(db, GraphParams(max_edges=10))
     clips = random_clips(0, 2, 30, audio=False)
     other = random_clips(0, 1, 30, joints=4, audio=False)[0]
     with pytest.raises(GraphError, match="another skeleton"):
@@ -216,7 +216,7 @@ def test_real_bandai_clips_fast_equals_reference(bandai_dir):
     from convsynth_jax.graph.database import bvh_folder_clips
 
     db = build_database(bvh_folder_clips(bandai_dir, "*wave-both-hands_normal_00[1-4].bvh"))
-    g, r = build_graph(db), build_graph_reference(db)
+    g, r = build_graph(db, GP), build_graph_reference(db, GP)
     thr = g.meta["threshold"]
     ef, er = g.edges_frame(), r.edges_frame()
     tie = {tuple(k) for k, c in zip(er[EDGE].values.tolist(), er["cost"]) if abs(c - thr) <= THRESHOLD_TIE * thr}

@@ -88,7 +88,7 @@ def test_table2_and_figure4_agree_with_build_graph(bvh_root, tmp_path):
 
 
 def test_figure4_plot_is_pure_data_to_figure():
-    from convsynth_jax.graph.figures import cost_histogram_figure
+    from convsynth_jax.figures import figure4_figure
 
     edges = np.linspace(0, 10, 11)
     hist = pd.DataFrame({"character": "all", "k": 3, "bin_left": edges[:-1], "bin_right": edges[1:],
@@ -96,7 +96,7 @@ def test_figure4_plot_is_pure_data_to_figure():
     fits = pd.DataFrame({"character": ["all", "all"], "k": [3, 3], "distribution": ["johnsonsb", "gamma"],
                          "params": [json.dumps([0.0, 1.0, -0.1, 10.2]), "[]"], "rss": [0.1, np.inf],
                          "chosen": [True, False], "threshold": [9.0, np.nan]})
-    fig = cost_histogram_figure(hist, fits)
+    fig = figure4_figure(hist, fits)
     ax = fig.axes[0]
     assert len(ax.patches) == 10 and len(ax.lines) == 2  # chosen curve + threshold line; failed fit skipped
     assert ax.lines[1].get_xdata()[0] == pytest.approx(9.0)

@@ -45,12 +45,13 @@ def test_sliding_windows_and_segments():
 def test_summaries_success_and_timing():
     cases = pd.DataFrame({"fold": [0, 0, 0, 0], "session": ["s"] * 4, "condition": ["all", "all", "none", "none"],
                           "window": [0, 0, 0, 0], "character": ["f", "m", "f", "m"], "success": [True, False, True, True],
-                          "construction_seconds": [10.0, 12.0, 10.0, 12.0], "search_seconds": [0.1, 0.2, 0.3, 0.4]})
+                          "system": "motion_graph", "fit_seconds": [10.0, 12.0, 10.0, 12.0],
+                          "synthesis_seconds": [0.1, 0.2, 0.3, 0.4]})
     r = summaries.success_rates(cases).set_index("condition")
     assert r.loc["all", "success_rate"] == 0.0 and r.loc["none", "success_rate"] == 1.0
     assert r.loc["all", "success_rate_f"] == 1.0
     t = summaries.timing_table(cases).set_index("procedure")
-    assert t.loc["graph construction", "mean_s"] == 11.0 and t.loc["search", "n"] == 4
+    assert t.loc["fit (graph construction)", "mean_s"] == 11.0 and t.loc["synthesis (search)", "n"] == 4
     md = summaries.to_markdown(t.reset_index())
-    assert md.count("\n") == 4 and "| search |" in md
+    assert md.count("\n") == 4 and "| synthesis (search) |" in md
     assert "\\bottomrule" in summaries.to_latex(t.reset_index())

@@ -22,7 +22,7 @@ def test_main_job_outputs(main_run):
     out, s = main_run
     assert s["success"] and s["num_cases"] > 0
     report = (out / "report.md").read_text()
-    for heading in ("Table 1", "Motion graphs", "success rate", "Timing"):
+    for heading in ("Table 1", "motion_graph models", "success rate", "Timing"):
         assert heading in report
     assert len(list((out / "bvh").glob("*.bvh"))) > 0
     assert json.loads((out / "summary.json").read_text())["corpus_root"]

@@ -1,3 +1,4 @@
+import dataclasses
 import numpy as np
 import pandas as pd
 import pytest
@@ -8,6 +9,7 @@ from convsynth_jax.search.beam import beam_search
 from convsynth_jax.search.check import check_path
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.dfs import stochastic_greedy_search
+from convsynth_jax.search.params import SearchParams
 from convsynth_jax.synth.blinks import blink_curve, blink_times
 
 FPS = 10.0
@@ -57,8 +59,8 @@ def _check(g, audio, res, own, cfg):
     return check_path(clips, frames, audio, own, None, FPS, 0.1)
 
 
-CFG = {"search": {"tolerance": 0.1, "beam_size": 64, "n_start": 40, "n_save": 100, "max_paths_per_start": 50,
-                  "max_expansions": 400000, "temperature": 0.05}}
+CFG = SearchParams(tolerance=0.1, beam_size=64, n_start=40, n_save=100, max_paths_per_start=50,
+                   max_expansions=400000, temperature=0.05)
 
 
 @pytest.mark.parametrize("seed", range(6))
@@ -84,7 +86,7 @@ def test_beam_and_dfs_satisfy_constraints_and_beam_is_no_worse(seed):
         rep = _check(g, audio, rd, own, CFG)
         assert rep["met"] == rep["total"]
         # deterministic mode (no sampling noise, wide beam): never worse than the depth-first search
-        greedy = {"search": {**CFG["search"], "temperature": 1e-9, "beam_size": 1024}}
+        greedy = dataclasses.replace(CFG, temperature=1e-9, beam_size=1024)
         rg = beam_search(g, cons, greedy, seed=seed)
         assert rg.success and rg.cost <= rd.cost + 1e-5
 
@@ -98,7 +100,7 @@ def test_impossible_constraint_is_reported_not_raised():
         r = fn(g, cons, CFG, seed=0)
         assert not r.success and r.path is None
         assert r.failed_segment["kind"] == "LR"
-    cfg_none = {"search": {**CFG["search"], "use_constraints": False}}
+    cfg_none = dataclasses.replace(CFG, use_constraints=False)
     assert beam_search(g, build_constraints(own, None, 30, FPS, cfg_none), cfg_none).success
 
 
@@ -107,11 +109,11 @@ def test_ablation_switches_change_the_constraints():
     par = seg([("HP", 3.0, 3.1, 3.6)])
     full = build_constraints(own, par, 50, FPS, CFG)
     assert {s["kind"] for s in full.segments} == {"PC", "LR", "PH", "idle"}
-    no_lr = build_constraints(own, par, 50, FPS, {"search": {"use_lr": False}})
+    no_lr = build_constraints(own, par, 50, FPS, SearchParams(use_lr=False))
     assert "LR" not in {s["kind"] for s in no_lr.segments} and (no_lr.own_req[20:24] == -1).all()
-    no_hp = build_constraints(own, par, 50, FPS, {"search": {"use_hp": False}})
+    no_hp = build_constraints(own, par, 50, FPS, SearchParams(use_hp=False))
     assert "PH" not in {s["kind"] for s in no_hp.segments} and (no_hp.partner_req == -1).all()
-    none = build_constraints(own, par, 50, FPS, {"search": {"use_constraints": False}})
+    none = build_constraints(own, par, 50, FPS, SearchParams(use_constraints=False))
     assert none.total == 0 and (none.own_req == -1).all()
     # PC core: [s + tol, e - tol); peak window [p - tol, p + tol]
     assert (full.own_req[6:14] == 1).all() and full.own_req[5] == -1 and full.peak_reset[7] and full.peak_check[9]

@@ -8,6 +8,7 @@ from convsynth_jax.graph.types import MotionGraph
 from convsynth_jax.search.beam import beam_search, padded_adjacency
 from convsynth_jax.search.check import check_path
 from convsynth_jax.search.constraints import build_constraints
+from convsynth_jax.search.params import SearchParams
 from convsynth_jax.search.reference import reference_beam_search
 
 FPS = 10.0
@@ -87,8 +88,8 @@ def test_kernel_equals_reference(seed, beam, max_candidates, temperature):
     rng = np.random.default_rng(seed)
     g, audio = hub_graph(rng)
     own, par = input_from_clip(audio, f"c{seed % 5}", 40)
-    cfg = {"search": {"tolerance": 0.1, "beam_size": beam, "max_candidates": max_candidates, "max_degree": 24,
-                      "temperature": temperature, "retry_temperatures": []}}
+    cfg = SearchParams(tolerance=0.1, beam_size=beam, max_candidates=max_candidates, max_degree=24,
+                      temperature=temperature, retry_temperatures=[])
     cons = build_constraints(own, par, 40, FPS, cfg)
     ref = reference_beam_search(g, cons, cfg, seed=seed, temperature=temperature)
     res = beam_search(g, cons, cfg, seed=seed)
@@ -110,7 +111,7 @@ def test_no_duplicate_states_in_the_beam_and_impossible_input_fails_at_the_same_
     rng = np.random.default_rng(7)
     g, audio = hub_graph(rng)
     own = pd.DataFrame([("LR", 1.0, np.nan, 1.6)], columns=["kind", "start", "peak", "end"])
-    cfg = {"search": {"beam_size": 16, "max_candidates": 64, "retry_temperatures": []}}
+    cfg = SearchParams(beam_size=16, max_candidates=64, retry_temperatures=[])
     # no state is an HP on its own channel, so requiring one is impossible
     cons = build_constraints(own, None, 30, FPS, cfg)
     cons.own_req[12:15] = HP
@@ -137,12 +138,12 @@ def test_bad_labels_and_settings_are_reported():
     from convsynth_jax.errors import ConfigError, LabelError
 
     g, _ = hub_graph(np.random.default_rng(5))
-    cons = build_constraints(pd.DataFrame(columns=["kind", "start", "peak", "end"]), None, 20, FPS, None)
+    cons = build_constraints(pd.DataFrame(columns=["kind", "start", "peak", "end"]), None, 20, FPS, SearchParams())
     with pytest.raises(ConfigError, match="max_candidates"):
-        beam_search(g, cons, {"search": {"max_candidates": 0}})
+        beam_search(g, cons, SearchParams(max_candidates=0))
     g.own_label[7] = 99
     with pytest.raises(LabelError, match="graph state 7 .*clip c0, frame 7"):
-        beam_search(g, cons, None)
+        beam_search(g, cons, SearchParams())
 
 
 def test_reported_synthetic_transitions_match_the_path():
@@ -153,7 +154,7 @@ def test_reported_synthetic_transitions_match_the_path():
     own, par = input_from_clip(audio, "c1", 40)
     own[["start", "peak", "end"]] += 0.7  # shifted, so playing clip c1 straight does not fit
     par[["start", "peak", "end"]] += 0.7
-    cfg = {"search": {"beam_size": 32, "retry_temperatures": [1.0]}}
+    cfg = SearchParams(beam_size=32, retry_temperatures=[1.0])
     cons = build_constraints(own, par, 40, FPS, cfg)
     for res in (beam_search(g, cons, cfg, seed=0), stochastic_greedy_search(g, cons, cfg, seed=0)):
         assert res.success

@@ -1,4 +1,3 @@
-import numpy as np
 
 from convsynth_jax.config import compose
 

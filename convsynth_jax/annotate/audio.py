@@ -23,6 +23,7 @@ import pandas as pd
 import yaml
 
 from ..errors import ConfigError, FormatError, TranscriptFormatError
+from .params import AnnotateParams
 
 log = logging.getLogger(__name__)
 
@@ -75,22 +76,9 @@ def load_word_corpus(path=None, extra: dict | None = None) -> dict:
     return out
 
 
-def word_corpus_from_config(cfg=None) -> dict:
-    """The word corpus an ``annotate`` config (or a full config) asks for."""
-    a = _annotate_cfg(cfg)
-    return load_word_corpus(a.get("word_corpus"), a.get("extra_words"))
-
-
-def _get(a, key, default):
-    v = a.get(key, default)
-    return default if v is None else v
-
-
-def _annotate_cfg(cfg) -> dict:
-    if cfg is None:
-        return {}
-    a = cfg.get("annotate", cfg) if hasattr(cfg, "get") else {}
-    return a if a is not None and hasattr(a, "get") else {}
+def word_corpus_for(params: AnnotateParams) -> dict:
+    """The word corpus the annotation parameters ask for."""
+    return load_word_corpus(params.word_corpus, params.extra_words)
 
 
 def check_words(words: pd.DataFrame) -> None:
@@ -242,34 +230,28 @@ def add_peaks(segments: pd.DataFrame, times: np.ndarray, f0: np.ndarray) -> pd.D
     return seg[SEGMENT_COLUMNS + ["f0_peak"]]
 
 
-def f0_from_config(audio, cfg=None):
-    """(times, f0) with the backend and range an ``annotate`` config asks for."""
-    a = _annotate_cfg(cfg)
-    backend = str(_get(a, "f0_backend", "praat"))
-    if backend == "opensmile":
+def f0_track(audio, params: AnnotateParams):
+    """(times, f0) with the backend and range the annotation parameters ask for."""
+    if params.f0_backend == "opensmile":
         return f0_contour_opensmile(audio)
-    if backend != "praat":
-        raise ConfigError(f"annotate.f0_backend must be 'praat' or 'opensmile', got {backend!r}")
-    step = float(_get(a, "f0_time_step", 0.01))
-    if str(_get(a, "f0_range", "auto")) == "auto":
-        return f0_contour_adaptive(audio, step)
-    if str(_get(a, "f0_range", "auto")) != "fixed":
-        raise ConfigError(f"annotate.f0_range must be 'auto' or 'fixed', got {a.get('f0_range')!r}")
-    return f0_contour(audio, step, float(_get(a, "f0_floor", 75.0)), float(_get(a, "f0_ceiling", 500.0)))
+    if params.f0_backend != "praat":
+        raise ConfigError(f"annotate.f0_backend must be 'praat' or 'opensmile', got {params.f0_backend!r}")
+    if params.f0_range == "auto":
+        return f0_contour_adaptive(audio, params.f0_time_step)
+    if params.f0_range != "fixed":
+        raise ConfigError(f"annotate.f0_range must be 'auto' or 'fixed', got {params.f0_range!r}")
+    return f0_contour(audio, params.f0_time_step, params.f0_floor, params.f0_ceiling)
 
 
-def annotate_audio(words: pd.DataFrame, audio, cfg=None, word_corpus: dict | None = None) -> pd.DataFrame:
+def annotate_audio(words: pd.DataFrame, audio, params: AnnotateParams, word_corpus: dict | None = None) -> pd.DataFrame:
     """Segments DataFrame[kind, start, peak, end, text, f0_peak] (seconds; f0_peak in Hz) of one
     participant's channel. ``audio`` None: peaks at segment midpoints."""
-    a = _annotate_cfg(cfg)
-    corpus = word_corpus or word_corpus_from_config(a)
-    mcs = a.get("max_clause_seconds")
-    seg = segment_words(words, corpus, max_gap=float(_get(a, "max_gap", 0.3)),
-                        max_clause_words=a.get("max_clause_words"),
-                        max_clause_seconds=float(mcs) if mcs else None)
+    corpus = word_corpus or word_corpus_for(params)
+    seg = segment_words(words, corpus, max_gap=params.max_gap, max_clause_words=params.max_clause_words,
+                        max_clause_seconds=params.max_clause_seconds or None)
     if audio is None:
         seg["peak"] = 0.5 * (seg["start"] + seg["end"])
         seg["f0_peak"] = np.nan
         return seg[SEGMENT_COLUMNS + ["f0_peak"]]
-    times, f0 = f0_from_config(audio, a)
+    times, f0 = f0_track(audio, params)
     return add_peaks(seg, times, f0)

@@ -22,6 +22,7 @@ from ..errors import ConfigError
 from ..kinematics import global_transforms
 from ..rotations import quat_rotate
 from ..skeleton import Motion
+from .params import AnnotateParams
 
 log = logging.getLogger(__name__)
 
@@ -33,14 +34,6 @@ DEFAULT_JOINTS = {
     "neck": [r"^Neck$", r"^neck", r"Neck"],
     "head": [r"^Head$", r"^head", r"Head"],
 }
-
-
-def _cfg(cfg, key, default):
-    if cfg is None:
-        return default
-    a = cfg.get("annotate", cfg) if hasattr(cfg, "get") else {}
-    v = a.get(key, default) if hasattr(a, "get") else default
-    return default if v is None else v
 
 
 def find_joints(skeleton, patterns: dict | None = None) -> dict:
@@ -61,7 +54,7 @@ def find_joints(skeleton, patterns: dict | None = None) -> dict:
     return out
 
 
-def joint_speeds(motion: Motion, cfg=None) -> dict:
+def joint_speeds(motion: Motion, params: AnnotateParams) -> dict:
     """{"LH", "RH", "Nod"}: (F,) float64 speeds in file units per second.
 
     LH/RH: speed of the hand position relative to the shoulder joint (upper-arm joint), expressed in
@@ -71,7 +64,7 @@ def joint_speeds(motion: Motion, cfg=None) -> dict:
     frame of the neck's parent. Global transforms come from the JAX forward kinematics.
     """
     skel = motion.skeleton
-    j = find_joints(skel, dict(_cfg(cfg, "joints", {}) or {}))
+    j = find_joints(skel, dict(params.joints or {}))
     pos, rot = global_transforms(motion)
     pos, rot = np.asarray(pos, np.float64), np.asarray(rot, np.float64)
     fps = motion.fps
@@ -89,7 +82,7 @@ def joint_speeds(motion: Motion, cfg=None) -> dict:
     frame_j = skel.parents[neck] if skel.parents[neck] >= 0 else neck
     inv = rot[:, frame_j] * np.array([1, -1, -1, -1])
     rel = np.asarray(quat_rotate(inv, point - pos[:, neck]))
-    up = int(_cfg(cfg, "up_axis", 1))
+    up = int(params.up_axis)
     out["Nod"] = _speed(rel[:, up:up + 1], fps)
     return out
 
@@ -206,17 +199,19 @@ HYPOTHESIS_SPEC = {  # hypothesis -> (audio channel, audio kind, motion kinds)
 
 
 def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner_segments: pd.DataFrame | None = None,
-                   cfg=None, *, alpha_s: float | None = None, alpha_w: float | None = None) -> pd.DataFrame:
+                   params: AnnotateParams | None = None, *, alpha_s: float | None = None,
+                   alpha_w: float | None = None) -> pd.DataFrame:
     """Motion events DataFrame[kind (LH|RH|Nod), start, peak, end (seconds), channel, segment] found in
     the candidate windows of the own PCs (hand gestures), own LRs and partner HPs (nods).
 
     speeds: ``joint_speeds`` output ((F,) per kind); own/partner segments: DataFrame[kind, start, end]
     (seconds); ``segment`` = index label of the audio segment (own or partner, see ``channel``) whose
-    window held the movement. alpha_s / alpha_w (Eq. 1 / Eq. 2) default to ``cfg.annotate`` or 0.1.
+    window held the movement. alpha_s / alpha_w (Eq. 1 / Eq. 2) default to ``params``.
     A movement found in both an own LR window and a partner HP window is listed once per channel."""
-    alpha_s = float(_cfg(cfg, "alpha_s", 0.1) if alpha_s is None else alpha_s)
-    alpha_w = float(_cfg(cfg, "alpha_w", 0.1) if alpha_w is None else alpha_w)
-    extend = bool(_cfg(cfg, "extend_trim", True))
+    params = params if params is not None else AnnotateParams()
+    alpha_s = float(params.alpha_s if alpha_s is None else alpha_s)
+    alpha_w = float(params.alpha_w if alpha_w is None else alpha_w)
+    extend = bool(params.extend_trim)
     rows = []
     n = len(next(iter(speeds.values())))
     plan = [("LH", "own", "PC"), ("RH", "own", "PC"), ("Nod", "own", "LR"), ("Nod", "partner", "HP")]

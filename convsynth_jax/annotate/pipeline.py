@@ -8,8 +8,9 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from ..skeleton import Motion
-from .audio import annotate_audio, word_corpus_from_config
+from .audio import annotate_audio, word_corpus_for
 from .motion import joint_speeds, segment_motion
+from .params import AnnotateParams
 from .types import FrameAudio
 
 log = logging.getLogger(__name__)
@@ -33,41 +34,37 @@ class ParticipantAnnotation:
     events: pd.DataFrame
     own: FrameAudio
     partner: FrameAudio
+    audio_path: str | None = None      # the participant's WAV (systems that need samples load it)
+    audio_channel: int | None = None
 
 
-def _fps(cfg) -> float:
-    try:
-        return float(cfg.features.fps)
-    except AttributeError:
-        return 30.0
-
-
-def annotate_session(session, cfg, word_corpus: dict | None = None) -> dict:
+def annotate_session(session, params: AnnotateParams, fps: float, word_corpus: dict | None = None) -> dict:
     """role -> ParticipantAnnotation for both participants of ``session`` (an object with ``name`` and
     two ``participants`` having role, character, load_motion(fps), load_audio(), load_transcript() and
-    audio_path, as ``convsynth_jax.io.corpus.Session``). Motion is loaded at ``cfg.features.fps``;
+    audio_path, as ``convsynth_jax.io.corpus.Session``). Motion is loaded at ``fps``;
     a participant without audio gets F0 peaks at segment midpoints."""
-    corpus = word_corpus or word_corpus_from_config(cfg)
-    fps = _fps(cfg)
+    corpus = word_corpus or word_corpus_for(params)
     segs = []
     for p in session.participants:
         audio = p.load_audio() if getattr(p, "audio_path", None) is not None else None
-        segs.append(annotate_audio(p.load_transcript(), audio, cfg, word_corpus=corpus))
+        segs.append(annotate_audio(p.load_transcript(), audio, params, word_corpus=corpus))
     out = {}
     for k, p in enumerate(session.participants):
         motion = p.load_motion(fps)
         own, partner = segs[k], segs[1 - k]
-        events = segment_motion(joint_speeds(motion, cfg), own, motion.fps, partner, cfg)
+        events = segment_motion(joint_speeds(motion, params), own, motion.fps, partner, params)
         out[p.role] = ParticipantAnnotation(
             session.name, p.role, p.character, motion, own, partner, events,
             FrameAudio.from_segments(own, motion.num_frames, motion.fps),
-            FrameAudio.from_segments(partner, motion.num_frames, motion.fps))
+            FrameAudio.from_segments(partner, motion.num_frames, motion.fps),
+            str(p.audio_path) if getattr(p, "audio_path", None) is not None else None,
+            getattr(p, "audio_channel", None))
     return out
 
 
-def annotate_corpus(corpus, cfg, progress: bool = True) -> dict:
+def annotate_corpus(corpus, params: AnnotateParams, fps: float, progress: bool = True) -> dict:
     """session name -> role -> ParticipantAnnotation, for every session of ``corpus`` (e.g.
     ``convsynth_jax.io.load_corpus(...)``), with a progress bar unless ``progress`` is false."""
-    words = word_corpus_from_config(cfg)
-    return {s.name: annotate_session(s, cfg, words)
+    words = word_corpus_for(params)
+    return {s.name: annotate_session(s, params, fps, words)
             for s in tqdm(corpus.sessions, desc="annotating sessions", disable=not progress)}

@@ -78,7 +78,7 @@ def write_collected(cases: pd.DataFrame, out_dir: str | Path) -> dict:
     tables = {
         "all_cases": cases,
         "success_rates": summaries.success_rates(cases[cases.get("status", "ok") != "error"]) if "character" in cases else pd.DataFrame(),
-        "table3": summaries.timing_table(cases) if "search_seconds" in cases else pd.DataFrame(),
+        "table3": summaries.timing_table(cases) if "synthesis_seconds" in cases else pd.DataFrame(),
         "cooccurrence_by_condition": summaries.cooccurrence_by_condition(cases) if "character" in cases else pd.DataFrame(),
         "quality_by_condition": summaries.quality_by_condition(cases) if "character" in cases else pd.DataFrame(),
     }

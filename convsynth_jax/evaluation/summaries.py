@@ -12,40 +12,54 @@ CONDITION_ORDER = ("all", "no_lr", "no_hp", "none")
 
 
 def _ordered(df: pd.DataFrame, col: str = "condition") -> pd.DataFrame:
+    """Rows sorted by system, then condition (the paper's order first), then character."""
     order = {c: i for i, c in enumerate(CONDITION_ORDER)}
-    return df.sort_values(col, key=lambda s: s.map(lambda c: order.get(c, len(order)))).reset_index(drop=True)
+    keys = [k for k in ("system", col, "character") if k in df]
+    return df.sort_values(keys, key=lambda s: s.map(lambda c: order.get(c, len(order))) if s.name == col else s,
+                          kind="stable").reset_index(drop=True)
+
+
+def _group_keys(cases: pd.DataFrame, *rest: str) -> list[str]:
+    return (["system"] if "system" in cases else []) + list(rest)
 
 
 def test_cases(cases: pd.DataFrame) -> pd.DataFrame:
     """One row per test case (fold x window x condition): a case succeeds when every character
     succeeded (the paper counts a window as solved when motion was found for it)."""
     ok = cases.assign(success=cases["success"].fillna(False).astype(bool))
-    keys = [k for k in ("fold", "session", "condition", "window") if k in ok]
+    keys = [k for k in ("system", "fold", "session", "condition", "window") if k in ok]
     return ok.groupby(keys, dropna=False)["success"].all().reset_index()
 
 
 def success_rates(cases: pd.DataFrame) -> pd.DataFrame:
     """Per condition: number of test cases, solved cases, success rate, and per-character rates."""
     tc = test_cases(cases)
-    out = tc.groupby("condition")["success"].agg(cases="count", solved="sum").reset_index()
+    keys = _group_keys(cases, "condition")
+    out = tc.groupby(keys)["success"].agg(cases="count", solved="sum").reset_index()
     out["success_rate"] = out["solved"] / out["cases"]
     per_char = cases.assign(success=cases["success"].fillna(False).astype(bool)).pivot_table(
-        index="condition", columns="character", values="success", aggfunc="mean")
+        index=keys, columns="character", values="success", aggfunc="mean")
     per_char.columns = [f"success_rate_{c}" for c in per_char.columns]
-    out = out.merge(per_char.reset_index(), on="condition", how="left")
+    out = out.merge(per_char.reset_index(), on=keys, how="left")
     return _ordered(out)
 
 
 def timing_table(cases: pd.DataFrame) -> pd.DataFrame:
-    """Table 3: mean and standard deviation of graph construction and search wall-clock time.
-    Construction is counted once per fold and character; search once per window and character."""
+    """Table 3: mean and standard deviation of the fitting (graph construction for the motion graph)
+    and synthesis (search + realization) wall-clock time, per system. Fitting is counted once per
+    fold and character; synthesis once per window and character."""
     rows = []
-    if "construction_seconds" in cases:
-        cons = cases.drop_duplicates(["fold", "character"])["construction_seconds"].dropna()
-        rows.append({"procedure": "graph construction", "mean_s": cons.mean(), "std_s": cons.std(ddof=1),
-                     "n": int(cons.count())})
-    srch = cases["search_seconds"].dropna()
-    rows.append({"procedure": "search", "mean_s": srch.mean(), "std_s": srch.std(ddof=1), "n": int(srch.count())})
+    groups = cases.groupby("system") if "system" in cases else [("", cases)]
+    for system, g in groups:
+        base = {"system": system} if system != "" else {}
+        if "fit_seconds" in g:
+            fit = g.drop_duplicates(["fold", "character"])["fit_seconds"].dropna()
+            rows.append({**base, "procedure": "fit (graph construction)" if system == "motion_graph" else "fit",
+                         "mean_s": fit.mean(), "std_s": fit.std(ddof=1), "n": int(fit.count())})
+        if "synthesis_seconds" in g:
+            syn = g["synthesis_seconds"].dropna()
+            rows.append({**base, "procedure": "synthesis (search)" if system == "motion_graph" else "synthesis",
+                         "mean_s": syn.mean(), "std_s": syn.std(ddof=1), "n": int(syn.count())})
     return pd.DataFrame(rows)
 
 
@@ -53,17 +67,20 @@ def cooccurrence_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
     """Co-occurrence rates on synthesized motion per condition and character next to the held-out
     ground truth, with a two-sample proportion test (continuity-corrected chi-square)."""
     rows = []
-    for (cond, char), g in cases.groupby(["condition", "character"]):
+    keys = _group_keys(cases, "condition", "character")
+    for key, g in cases.groupby(keys):
         for h in HYPOTHESES:
             cols = [f"synth_{h}_matched", f"synth_{h}_total", f"gt_{h}_matched", f"gt_{h}_total"]
             if not all(c in g for c in cols):
                 continue
             sg = g[g["success"].fillna(False).astype(bool)]
+            if len(sg) and sg[cols[1]].isna().all():  # the system makes no such motion: not applicable
+                continue
             sm, st = int(sg[cols[0]].sum()), int(sg[cols[1]].sum())
             gm, gt = int(g[cols[2]].sum()), int(g[cols[3]].sum())
             res = _two_sample_test(sm, st, gm, gt) if st > 0 and gt > 0 else None
             rows.append({
-                "condition": cond, "character": char, "hypothesis": h,
+                **dict(zip(keys, key)), "hypothesis": h,
                 "synth_matched": sm, "synth_total": st, "synth_rate": sm / st if st else np.nan,
                 "gt_matched": gm, "gt_total": gt, "gt_rate": gm / gt if gt else np.nan,
                 "chi2": res.chi2 if res else np.nan, "p_value": res.p_value if res else np.nan,
@@ -87,12 +104,12 @@ def _two_sample_test(x1: int, n1: int, x2: int, n2: int):
 def quality_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
     """Motion-quality metrics of successful cases per condition (means)."""
     metric_cols = [c for c in ("jerk", "gt_jerk", "acceleration", "gt_acceleration", "speed_hellinger",
-                               "mean_transition_cost", "num_synthetic_transitions", "max_jump", "gt_max_jump",
-                               "cost", "diversity") if c in cases]
+                               "diag_mean_transition_cost", "num_synthetic_transitions", "max_jump", "gt_max_jump",
+                               "diag_cost", "diversity") if c in cases]
     ok = cases[cases["success"].fillna(False).astype(bool)]
     if ok.empty:
         return pd.DataFrame({"condition": []})
-    out = ok.groupby("condition")[metric_cols].mean().reset_index()
+    out = ok.groupby(_group_keys(ok, "condition"))[metric_cols].mean().reset_index()
     return _ordered(out)
 
 

@@ -32,20 +32,14 @@ from ..stats.fits import fit_distributions
 from .cost import candidate_edges, scaled_features
 from .database import MotionDatabase, build_database
 from .keystates import key_states
+from .params import FeatureParams, GraphParams
 from .types import MotionGraph
 
 log = logging.getLogger(__name__)
 
-GRAPH_DEFAULTS = {"k": 3, "quantile": 0.95, "distribution": "johnsonsb", "key_fraction": 0.2225,
-                  "w_v": "auto", "min_gap_frames": 10, "tile": 128, "n_pivots": 8, "max_out_degree": None,
-                  "max_edges": 50_000_000, "workers": None, "local_minima": False, "use_audio_keys": True, "seed": 0, "fit_bins": 100}
-
-
-def graph_params(cfg) -> dict:
-    g = dict(GRAPH_DEFAULTS)
-    if cfg is not None and cfg.get("graph") is not None:
-        g.update({k: v for k, v in dict(cfg.graph).items() if v is not None or k in ("max_out_degree", "max_edges", "workers")})
-    return g
+def velocity_weight(db: MotionDatabase, params: GraphParams) -> float:
+    """w_v of Eq. 3: ``params.w_v`` or, for ``auto`` (ours), the k-step mean-term ratio (auto_w_v)."""
+    return auto_w_v(db, params.k, seed=params.seed) if str(params.w_v) == "auto" else float(params.w_v)
 
 
 def k_step_pairs(db: MotionDatabase, k: int) -> tuple[np.ndarray, np.ndarray]:
@@ -101,19 +95,19 @@ def select_edges(db, keys, threshold, w_v, params, edge_fn=None, stats=None, fea
     w = db.weights.astype(np.float32)
     if edge_fn is None:
         a, b, c = candidate_edges(db.positions, db.velocities, w, w_v, src, kj - 1, db.clip, threshold,
-                                  int(params["min_gap_frames"]), tile=int(params["tile"]),
-                                  n_pivots=int(params["n_pivots"]), seed=int(params["seed"]), stats=stats,
-                                  workers=params.get("workers"), features=features,
-                                  max_out_degree=None if params.get("local_minima") else params.get("max_out_degree"),
-                                  max_edges=params.get("max_edges"))
+                                  int(params.min_gap_frames), tile=int(params.tile),
+                                  n_pivots=int(params.n_pivots), seed=int(params.seed), stats=stats,
+                                  workers=params.workers, features=features,
+                                  max_out_degree=None if params.local_minima else params.max_out_degree,
+                                  max_edges=params.max_edges)
     else:
         a, b, c = edge_fn(db.positions, db.velocities, w, w_v, src, kj - 1, db.clip, threshold,
-                          int(params["min_gap_frames"]))
+                          int(params.min_gap_frames))
     j = b + 1
-    if params.get("local_minima"):
+    if params.local_minima:
         a, j, c = _local_minima(a, j, c)
-    if params.get("max_out_degree"):
-        a, j, c = _cap_degree(a, j, c, int(params["max_out_degree"]))
+    if params.max_out_degree:
+        a, j, c = _cap_degree(a, j, c, int(params.max_out_degree))
     return a, j, c
 
 
@@ -187,24 +181,24 @@ def assemble_graph(db: MotionDatabase, keys, a, j, c, meta: dict) -> MotionGraph
         indptr=indptr, indices=cc.astype(np.int64), cost=co.astype(np.float32), synthetic=sy, meta=meta)
 
 
-def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None = None) -> MotionGraph:
+def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: dict | None = None) -> MotionGraph:
     """The full construction on a database. ``edge_fn`` swaps the edge kernel (the reference
     builder passes the NumPy one). ``meta['seconds']`` is the construction wall time."""
-    p = graph_params(cfg)
+    p = params
     t0 = time.perf_counter()
     tm = timings if timings is not None else {}
-    w_v = auto_w_v(db, int(p["k"]), seed=int(p["seed"])) if str(p["w_v"]) == "auto" else float(p["w_v"])
+    w_v = auto_w_v(db, p.k, seed=p.seed) if str(p.w_v) == "auto" else p.w_v
     tm["w_v_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
-    keys, step = key_states(db, float(p["key_fraction"]), bool(p["use_audio_keys"]))
+    keys, step = key_states(db, p.key_fraction, p.use_audio_keys)
     tm["key_states_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     X = scaled_features(db.positions, db.velocities, db.weights, w_v)
-    kc = k_step_costs(db, int(p["k"]), w_v, features=X)
+    kc = k_step_costs(db, p.k, w_v, features=X)
     if kc.size < 10:
-        raise GraphError(f"too few frame pairs ({kc.size}) to fit the c(i, i+{p['k']}) distribution")
-    fit = fit_distributions(kc, choose=str(p["distribution"]), bins=int(p["fit_bins"]), seed=int(p["seed"]))
-    threshold = fit.quantile(float(p["quantile"]))
+        raise GraphError(f"too few frame pairs ({kc.size}) to fit the c(i, i+{p.k}) distribution")
+    fit = fit_distributions(kc, choose=str(p.distribution), bins=p.fit_bins, seed=p.seed)
+    threshold = fit.quantile(p.quantile)
     tm["threshold_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     kstats: dict = {}
@@ -212,14 +206,14 @@ def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None
     tm["edges_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     meta = {
-        "k": int(p["k"]), "quantile": float(p["quantile"]), "distribution": fit.chosen,
+        "k": p.k, "quantile": p.quantile, "distribution": fit.chosen,
         "distribution_params": list(fit.params), "threshold": float(threshold), "w_v": float(w_v),
-        "w_v_rule": "mean d(p_i,p_i+k-1) / mean d(v_i,v_i+k-1) over k-step pairs" if str(p["w_v"]) == "auto" else "config",
+        "w_v_rule": "mean d(p_i,p_i+k-1) / mean d(v_i,v_i+k-1) over k-step pairs" if str(p.w_v) == "auto" else "config",
         "fit_table": [{"distribution": r.distribution, "rss": float(r.rss), "params": list(r.params)}
                       for r in fit.table.itertuples()],
         "joint_names": list(db.joint_names), "joint_weights": [float(x) for x in db.weights],
         "key_fraction": float(keys.mean()), "num_key_states": int(keys.sum()), "keyframe_step": float(step),
-        "num_frames": int(db.num_frames), "min_gap_frames": int(p["min_gap_frames"]), "kernel": kstats,
+        "num_frames": int(db.num_frames), "min_gap_frames": p.min_gap_frames, "kernel": kstats,
         **db.meta,
     }
     g = assemble_graph(db, keys, a, j, c, meta)
@@ -233,5 +227,5 @@ def build_graph(db: MotionDatabase, cfg=None, edge_fn=None, timings: dict | None
     return g
 
 
-def build_graph_from_clips(clips, cfg=None) -> MotionGraph:
-    return build_graph(build_database(clips, cfg), cfg)
+def build_graph_from_clips(clips, graph: GraphParams, features: FeatureParams) -> MotionGraph:
+    return build_graph(build_database(clips, features), graph)

@@ -10,7 +10,7 @@ import numpy as np
 
 from ..annotate.types import FrameAudio
 from ..errors import GraphError, MissingFileError
-from ..kinematics import pose_features
+from .params import FeatureParams
 
 log = logging.getLogger(__name__)
 
@@ -48,7 +48,7 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     """Root-relative positions and velocities of many clips of one skeleton with one FK call (the
     frame count is padded to a power of two so the kernels compile for few shapes). Velocities are
     differenced within each clip. Returns float32 (N, J, 3) arrays."""
-    from ..kinematics import finite_difference, fk_kernel, root_relative_kernel
+    from ..kinematics import fk_kernel, root_relative_kernel
     import jax.numpy as jnp
 
     rot = np.concatenate([m.rotations for m in motions]).astype(np.float32)
@@ -74,12 +74,11 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     return rel.astype(np.float32), vel.astype(np.float32)
 
 
-def build_database(clips, cfg=None) -> MotionDatabase:
+def build_database(clips, features: FeatureParams | None = None) -> MotionDatabase:
     """clips: iterable of (name, Motion, own FrameAudio or None, partner FrameAudio or None), all of
-    one skeleton and frame rate."""
-    feats = cfg.features if cfg is not None else {}
-    up = int(feats.get("up_axis", 1)) if hasattr(feats, "get") else 1
-    remove_yaw = bool(feats.get("remove_yaw", True)) if hasattr(feats, "get") else True
+    one skeleton and frame rate. ``features`` None: the default FeatureParams."""
+    features = features if features is not None else FeatureParams()
+    up, remove_yaw = int(features.up_axis), bool(features.remove_yaw)
     names, motions, CL, FR, own, partner = [], [], [], [], [], []
     skel = fps = None
     for c, (name, motion, o, p) in enumerate(clips):
@@ -101,8 +100,8 @@ def build_database(clips, cfg=None) -> MotionDatabase:
             lst.append(fa)
     if not names:
         raise GraphError("no clips to build a motion database from")
-    overrides = dict(feats.get("joint_weight_overrides", {}) or {}) if hasattr(feats, "get") else {}
-    pattern = feats.get("finger_pattern") if hasattr(feats, "get") else None
+    overrides = dict(features.joint_weight_overrides or {})
+    pattern = features.finger_pattern
     from ..skeleton import DEFAULT_FINGER_PATTERN
 
     weights = skel.joint_weights(pattern or DEFAULT_FINGER_PATTERN, overrides)

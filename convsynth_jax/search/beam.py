@@ -41,8 +41,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError, GraphError, LabelError
-from .constraints import Constraints, _get, is_peak_state, label_ok, median_synthetic_cost, requirement_arrays
+from .constraints import Constraints, is_peak_state, label_ok, median_synthetic_cost, requirement_arrays
 from .result import SearchResult, failed_segment_at
+from .params import SearchParams
 
 FRAME_BUCKET = 16
 STATE_BUCKET = 4096  # graphs are padded to a multiple of this many states, so LOO folds share compiles
@@ -196,24 +197,24 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
     return path, rank, alive_any
 
 
-def beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> SearchResult:
+def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
     """Beam search at ``search.temperature``; if no path survives, retry at each of
     ``search.retry_temperatures`` (hotter sampling: more diverse, at the price of more synthetic
     transitions). The result reports the time of all attempts."""
     t0 = time.perf_counter()
-    temps = [float(_get(cfg, "temperature", 0.05))] + [float(t) for t in (_get(cfg, "retry_temperatures", []) or [])]
+    temps = [float(params.temperature)] + [float(t) for t in (params.retry_temperatures or [])]
     for k, temp in enumerate(temps):
-        res = _beam_search_once(graph, constraints, cfg, seed + 1000 * k, temp)
+        res = _beam_search_once(graph, constraints, params, seed + 1000 * k, temp)
         if res.success:
             break
     res.seconds = time.perf_counter() - t0
     return res
 
 
-def _beam_search_once(graph, constraints: Constraints, cfg, seed: int, temperature: float) -> SearchResult:
+def _beam_search_once(graph, constraints: Constraints, params: SearchParams, seed: int,
+                      temperature: float) -> SearchResult:
     t0 = time.perf_counter()
-    max_deg, beam, budget = (int(_get(cfg, k, d)) for k, d in
-                             (("max_degree", 64), ("beam_size", 256), ("max_candidates", 2048)))
+    max_deg, beam, budget = int(params.max_degree), int(params.beam_size), int(params.max_candidates)
     if min(max_deg, beam, budget) < 1:
         raise ConfigError(f"search.max_degree, search.beam_size and search.max_candidates must be >= 1 "
                           f"(got {max_deg}, {beam}, {budget})")

@@ -23,6 +23,7 @@ import numpy as np
 import pandas as pd
 
 from ..annotate.types import HP, IDLE, LR, PC
+from .params import SearchParams
 
 FREE = -1
 
@@ -50,19 +51,11 @@ class Constraints:
         return len(self.segments)
 
 
-def _get(cfg, key, default):
-    s = cfg.get("search", {}) if cfg is not None and hasattr(cfg, "get") else {}
-    v = s.get(key, default) if hasattr(s, "get") else default
-    return default if v is None else v
-
-
 def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame, num_frames: int, fps: float,
-                      cfg=None) -> Constraints:
+                      params: SearchParams) -> Constraints:
     T = int(num_frames)
-    tol = int(round(float(_get(cfg, "tolerance", 0.1)) * fps))
-    use_c = bool(_get(cfg, "use_constraints", True))
-    use_lr = bool(_get(cfg, "use_lr", True))
-    use_hp = bool(_get(cfg, "use_hp", True))
+    tol = int(round(float(params.tolerance) * fps))
+    use_c, use_lr, use_hp = bool(params.use_constraints), bool(params.use_lr), bool(params.use_hp)
     own = np.full(T, IDLE if use_c else FREE, np.int32)
     par = np.full(T, FREE, np.int32)
     pw = np.zeros(T, bool)

@@ -14,8 +14,9 @@ import time
 
 import numpy as np
 
-from .constraints import Constraints, _get, is_peak_state, median_synthetic_cost, state_ok_matrix
+from .constraints import Constraints, is_peak_state, median_synthetic_cost, state_ok_matrix
 from .result import SearchResult, failed_segment_at, path_stats
+from .params import SearchParams
 
 
 def _blocks(c: Constraints) -> list[tuple[int, int]]:
@@ -30,24 +31,22 @@ def _blocks(c: Constraints) -> list[tuple[int, int]]:
     return list(zip(cuts[:-1], cuts[1:]))
 
 
-def stochastic_greedy_search(graph, constraints: Constraints, cfg=None, seed: int = 0) -> SearchResult:
+def stochastic_greedy_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
     t_begin = time.perf_counter()
     rng = np.random.default_rng(seed)
-    n_start = int(_get(cfg, "n_start", 50))
-    n_save = int(_get(cfg, "n_save", 200))
-    max_paths = int(_get(cfg, "max_paths_per_start", 20))
-    max_exp = int(_get(cfg, "max_expansions", 200000))
-    budget = float(_get(cfg, "time_budget", 30.0))
-    temperature = float(_get(cfg, "temperature", 0.05))
+    n_start, n_save = int(params.n_start), int(params.n_save)
+    max_paths, max_exp = int(params.max_paths_per_start), int(params.max_expansions)
+    # wall-clock bound only when asked for: by default results do not depend on the machine's speed
+    budget = float(params.time_budget) if params.time_budget is not None else float("inf")
+    temperature = float(params.temperature)
     temp = max(temperature * median_synthetic_cost(graph), 1e-6)
     ok = state_ok_matrix(graph, constraints)
     peak = is_peak_state(graph)
     c = constraints
-    T = c.num_frames
     indptr, indices, costs = graph.indptr, graph.indices, graph.cost
     order = {}
 
-    max_deg = int(_get(cfg, "max_degree", 64))
+    max_deg = int(params.max_degree)
 
     def edges(s):
         if s not in order:

@@ -12,7 +12,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from .beam import FRAME_BUCKET, STATE_BUCKET, noise, sizes
-from .constraints import Constraints, _get, is_peak_state, median_synthetic_cost, requirement_arrays
+from .constraints import Constraints, is_peak_state, median_synthetic_cost, requirement_arrays
+from .params import SearchParams
 
 
 @dataclass
@@ -37,12 +38,12 @@ def _requirement_ok(own, par, req):
     return True
 
 
-def reference_beam_search(graph, constraints: Constraints, cfg=None, seed: int = 0,
+def reference_beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0,
                           temperature: float | None = None) -> ReferenceBeamResult:
     """One attempt at ``temperature`` (default ``search.temperature``), as ``beam._beam_search_once``."""
     if temperature is None:
-        temperature = float(_get(cfg, "temperature", 0.05))
-    max_deg = int(_get(cfg, "max_degree", 64))
+        temperature = float(params.temperature)
+    max_deg = int(params.max_degree)
     S = graph.num_states
     # each state's edges, cheapest first (ties: CSR order), at most D of them
     edges = []
@@ -52,7 +53,7 @@ def reference_beam_search(graph, constraints: Constraints, cfg=None, seed: int =
         edges.append([(int(t[k]), np.float32(c[k])) for k in o])
     D = max(1, min(max(len(e) for e in edges), max_deg))
     edges = [e[:D] for e in edges]
-    B, M, N, H = sizes(S, int(_get(cfg, "beam_size", 256)), D, int(_get(cfg, "max_candidates", 2048)))
+    B, M, N, H = sizes(S, int(params.beam_size), D, int(params.max_candidates))
     if 2 * S > H:
         raise ValueError(f"the reference deduplicates exactly; the kernel's table ({H} slots) is only exact "
                          f"for graphs of at most {H // 2} states, this one has {S}")

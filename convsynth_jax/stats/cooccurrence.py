@@ -7,7 +7,7 @@ window, default 1), placed elsewhere in the same clip (overlapping no audio segm
 hypothesis looks at, padded by half its length), get the same test with the same clip threshold θ_S;
 the matched rates are compared with a chi-square test of independence (2x2, Yates-corrected, scipy)
 and a one-sided permutation test (are audio windows matched more often than random ones?).
-Random placement is seeded by ``cfg.seed`` and the session/role names, so tables are reproducible.
+Random placement is seeded by the run's seed and the session and role (never display names), so tables are reproducible.
 """
 from __future__ import annotations
 
@@ -18,17 +18,10 @@ import pandas as pd
 
 from ..annotate.motion import (HYPOTHESIS_SPEC, Window, candidate_windows, detect_in_window, idle_threshold,
                                joint_speeds, segment_windows)
+from ..annotate.params import AnnotateParams
 from ..annotate.types import HYPOTHESES
+from .params import StatsParams
 from .tests import chi2_independence, permutation_test
-
-
-def _cfgget(cfg, group, key, default):
-    try:
-        g = cfg.get(group) if cfg is not None else None
-        v = g.get(key, default) if g is not None else default
-        return default if v is None else v
-    except AttributeError:
-        return default
 
 
 def hypothesis_matches(speeds: dict, own: pd.DataFrame, partner: pd.DataFrame, fps: float, hypothesis: str,
@@ -76,15 +69,13 @@ def random_window_matches(speeds: dict, windows: list[Window], blocked: pd.DataF
     return np.array(out, bool)
 
 
-def clip_counts(ann, cfg=None, seed: int = 0) -> pd.DataFrame:
+def clip_counts(ann, annotate: AnnotateParams, stats: StatsParams, seed: int = 0) -> pd.DataFrame:
     """Per hypothesis: matched/total in audio windows and in random windows, for one participant
     (a ParticipantAnnotation: its motion, own segments and partner segments are used). The match
     flags themselves are in the private columns ``_hits`` and ``_chance``."""
-    alpha_s = float(_cfgget(cfg, "annotate", "alpha_s", 0.1))
-    alpha_w = float(_cfgget(cfg, "annotate", "alpha_w", 0.1))
-    per_window = int(_cfgget(cfg, "stats", "chance_windows", 1))
-    extend = bool(_cfgget(cfg, "annotate", "extend_trim", True))
-    speeds = joint_speeds(ann.motion, cfg)
+    alpha_s, alpha_w, extend = annotate.alpha_s, annotate.alpha_w, annotate.extend_trim
+    per_window = int(stats.chance_windows)
+    speeds = joint_speeds(ann.motion, annotate)
     fps = ann.motion.fps
     rng = np.random.default_rng([seed, zlib.crc32(f"{ann.session}/{ann.role}".encode())])
     rows = []
@@ -115,7 +106,8 @@ def _flatten(annotations) -> list:
     return out
 
 
-def cooccurrence_table(annotations, cfg=None, by_session: bool = False) -> pd.DataFrame:
+def cooccurrence_table(annotations, annotate: AnnotateParams, stats: StatsParams, seed: int = 0,
+                       by_session: bool = False) -> pd.DataFrame:
     """Table 1 over ParticipantAnnotations (a list, or ``annotate_corpus`` output): one row per
     character x hypothesis (or per session x character x hypothesis with ``by_session``) with the
     columns TABLE_COLUMNS: matched, total, rate (0-1), the chance counts and rate in random windows,
@@ -123,9 +115,8 @@ def cooccurrence_table(annotations, cfg=None, by_session: bool = False) -> pd.Da
     annotations = _flatten(annotations)
     if not annotations:
         return pd.DataFrame(columns=(["session"] if by_session else []) + TABLE_COLUMNS)
-    seed = int(cfg.get("seed", 0)) if cfg is not None and hasattr(cfg, "get") else 0
-    n_perm = int(_cfgget(cfg, "stats", "n_permutations", 5000))
-    per_clip = pd.concat([clip_counts(a, cfg, seed) for a in annotations], ignore_index=True)
+    n_perm = int(stats.n_permutations)
+    per_clip = pd.concat([clip_counts(a, annotate, stats, seed) for a in annotations], ignore_index=True)
     keys = ["session", "character", "hypothesis"] if by_session else ["character", "hypothesis"]
     rows = []
     for key, g in per_clip.groupby(keys, sort=False):
@@ -145,10 +136,10 @@ def cooccurrence_table(annotations, cfg=None, by_session: bool = False) -> pd.Da
                            kind="stable").reset_index(drop=True)
 
 
-def cooccurrence_by_session(annotations, cfg=None) -> pd.DataFrame:
+def cooccurrence_by_session(annotations, annotate: AnnotateParams, stats: StatsParams, seed: int = 0) -> pd.DataFrame:
     """Per-session breakdown of Table 1: one row per session x character x hypothesis, same columns
     as ``cooccurrence_table`` plus ``session`` (tests per session have little power; read the rates)."""
-    return cooccurrence_table(annotations, cfg, by_session=True)
+    return cooccurrence_table(annotations, annotate, stats, seed, by_session=True)
 
 
 def window_matches(events: pd.DataFrame, own: pd.DataFrame, partner: pd.DataFrame) -> dict:

@@ -23,7 +23,7 @@ from __future__ import annotations
 import abc
 import importlib
 from dataclasses import dataclass, field
-from typing import Any, Mapping, Sequence
+from typing import Any, Dict, Mapping, Sequence
 
 import numpy as np
 import pandas as pd
@@ -42,8 +42,8 @@ class SystemParams:
 
     name: str
     factory: str
-    conditions: dict
-    options: dict = field(default_factory=dict)
+    conditions: Dict[str, Any]
+    options: Dict[str, Any] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -101,6 +101,9 @@ class SynthesisSystem(abc.ABC):
 
     #: hand motion produced? (False: hand co-occurrence hypotheses are reported as not applicable)
     produces_hands: bool = True
+    #: does synthesize() read WindowInput.own_audio / partner_audio? (they are loaded only then);
+    #: training clips carry ``audio_path``/``audio_channel`` for systems that need samples in fit()
+    needs_audio: bool = False
 
     def __init__(self, params, system: SystemParams):
         self.params = params

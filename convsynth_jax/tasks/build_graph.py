@@ -16,9 +16,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
-import pandas as pd
 
-from ..utils import atomic_path
 
 KEYS = ("num_frames", "num_key_states", "key_fraction", "threshold", "num_states_before_scc",
         "num_edges_before_scc", "num_states", "num_edges", "num_synthetic_edges", "seconds", "w_v",
@@ -26,29 +24,34 @@ KEYS = ("num_frames", "num_key_states", "key_fraction", "threshold", "num_states
         "kernel")
 
 
-def character_clip_sets(cfg):
+def character_clip_sets(params):
     """{name: clips} for the configured corpus (one set for bvh_folder, one per character otherwise)."""
-    if cfg.corpus.kind == "bvh_folder":
+    if params.corpus.kind == "bvh_folder":
+        from ..errors import ConfigError
         from ..graph.database import bvh_folder_clips
 
-        return {"": bvh_folder_clips(cfg.corpus.root, cfg.corpus.get("pattern", "**/*.bvh"), cfg.features.fps)}
-    from ..evaluation.loo import annotate_corpus_cached, character_clips
-    from .common import open_corpus
+        if params.corpus.root is None:
+            raise ConfigError("corpus=bvh_folder needs corpus.root=DIR")
+        return {"": bvh_folder_clips(params.corpus.root, params.corpus.pattern, params.fps)}
+    from ..evaluation.loo import characters
+    from ..systems.motion_graph import clip_name
+    from .common import annotated_corpus
 
-    corpus = open_corpus(cfg)
-    ann = annotate_corpus_cached(corpus, cfg, Path(cfg.cache_dir) / "loo_cache")
-    chars = sorted({a.character for s in ann.values() for a in s.values()})
-    return {c: character_clips(ann, list(ann), c) for c in chars}
+    _, ann = annotated_corpus(params)
+    return {c: [(clip_name(a.session, a.role), a.motion, a.own, a.partner)
+                for d in ann.values() for a in d.values() if a.character == c] for c in characters(ann)}
 
 
 def run(cfg, out_dir: Path) -> dict:
     from ..graph import build_database, build_graph
+    from .common import params_of
 
-    sets = character_clip_sets(cfg)
+    params = params_of(cfg)
+    sets = character_clip_sets(params)
     graphs = {}
     for char, clips in sets.items():
         t0 = time.perf_counter()
-        g = build_graph(build_database(clips, cfg), cfg)
+        g = build_graph(build_database(clips, params.features), params.graph)
         g.meta["seconds"] = time.perf_counter() - t0
         g.save(out_dir / (f"graph_{char}.npz" if char else "graph.npz"))
         graphs[char] = {k: g.meta.get(k) for k in KEYS}

@@ -1,4 +1,5 @@
-"""Helpers shared by tasks: opening the configured corpus, seeding, progress bars."""
+"""Helpers shared by tasks: typed parameters, the configured corpus and its cached annotation, the
+configured synthesis system."""
 from __future__ import annotations
 
 import logging
@@ -9,18 +10,50 @@ from ..errors import ConfigError
 log = logging.getLogger(__name__)
 
 
-def open_corpus(cfg):
-    """Open the corpus named by ``cfg.corpus`` (generating the synthetic one on first use)."""
-    kind = cfg.corpus.kind
+def params_of(cfg):
+    """The typed parameters of a composed config (converted once per task)."""
+    from ..config import to_params
+
+    return to_params(cfg)
+
+
+def open_corpus(params):
+    """Open the dyadic corpus named by ``params.corpus`` (generating the synthetic one on first use)."""
     from ..io.corpus import load_corpus
 
-    if kind == "synthetic":
+    c = params.corpus
+    needed = {"genea": "root", "bvh_folder": "root", "manifest": "path"}.get(c.kind)
+    if needed and getattr(c, needed) is None:
+        raise ConfigError(f"corpus={c.kind} needs corpus.{needed}=" + ("FILE" if needed == "path" else "DIR"))
+    if c.kind == "synthetic":
         from ..data import ensure_synthetic_corpus
 
-        root = ensure_synthetic_corpus(cfg.corpus, cache_dir=cfg.cache_dir)
-        return load_corpus(root, layout="genea", tolerance=cfg.corpus.get("duration_tolerance", 1.0))
-    if kind == "genea":
-        return load_corpus(cfg.corpus.root, layout="genea", tolerance=cfg.corpus.get("duration_tolerance", 1.0))
-    if kind == "manifest":
-        return load_corpus(cfg.corpus.path, layout="manifest", tolerance=cfg.corpus.get("duration_tolerance", 1.0))
-    raise ConfigError(f"corpus kind {kind!r} is not a dyadic corpus (expected synthetic, genea or manifest)")
+        root = ensure_synthetic_corpus({"name": c.name or "synthetic_default", "root": c.root, "generator": c.generator},
+                                       cache_dir=params.cache_dir)
+        return load_corpus(root, layout="genea", tolerance=c.duration_tolerance)
+    if c.kind == "genea":
+        return load_corpus(c.root, layout="genea", tolerance=c.duration_tolerance)
+    if c.kind == "manifest":
+        return load_corpus(c.path, layout="manifest", tolerance=c.duration_tolerance)
+    raise ConfigError(f"corpus kind {c.kind!r} is not a dyadic corpus (expected synthetic, genea or manifest)")
+
+
+def cache_dir(params) -> Path:
+    """Where annotations and fitted models are cached (``<cache_dir>/loo_cache``)."""
+    return Path(params.cache_dir) / "loo_cache"
+
+
+def annotated_corpus(params):
+    """(corpus, annotations: session -> role -> ParticipantAnnotation), annotations cached on disk."""
+    from ..annotate.cache import annotate_corpus_cached
+
+    corpus = open_corpus(params)
+    ann = annotate_corpus_cached(corpus, params.annotate, params.fps, cache_dir(params), progress=params.progress)
+    return corpus, ann
+
+
+def make_configured_system(params):
+    """The synthesis system selected by ``system=...`` (conf/system/<name>.yaml)."""
+    from ..systems.base import make_system
+
+    return make_system(params, params.system)

@@ -24,16 +24,15 @@ def _csv(df, path):
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..annotate.pipeline import annotate_corpus
-    from ..plotting import cooccurrence_figure
+    from ..figures import table1_figure
     from ..stats.cooccurrence import TABLE_COLUMNS, cooccurrence_by_session, cooccurrence_table
-    from .common import open_corpus
+    from .common import annotated_corpus, params_of
 
-    corpus = open_corpus(cfg)
-    ann = annotate_corpus(corpus, cfg, progress=bool(cfg.get("progress", True)))
+    params = params_of(cfg)
+    corpus, ann = annotated_corpus(params)
     parts = [a for s in ann.values() for a in s.values()]
-    table = cooccurrence_table(parts, cfg)
-    by_session = cooccurrence_by_session(parts, cfg)
+    table = cooccurrence_table(parts, params.annotate, params.stats, params.seed)
+    by_session = cooccurrence_by_session(parts, params.annotate, params.stats, params.seed)
     _csv(table, out_dir / "cooccurrence.csv")
     _csv(by_session, out_dir / "cooccurrence_by_session.csv")
     write_text_atomic(out_dir / "cooccurrence.md", to_markdown(table))
@@ -44,7 +43,7 @@ def run(cfg, out_dir: Path) -> dict:
                     ignore_index=True)
     _csv(ev, out_dir / "events.csv")
     _csv(seg, out_dir / "segments.csv")
-    fig = cooccurrence_figure(table)
+    fig = table1_figure(table)
     with atomic_path(out_dir / "cooccurrence.png") as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     log.info("%s", "\n" + to_markdown(table))

@@ -29,9 +29,9 @@ def run(cfg, out_dir: Path) -> dict:
         log.info("%s: %d frames at %.3g fps, %d joints", cfg.path, motion.num_frames, motion.fps,
                  motion.skeleton.num_joints)
         return summary
-    from .common import open_corpus
+    from .common import open_corpus, params_of
 
-    corpus = open_corpus(cfg)
+    corpus = open_corpus(params_of(cfg))
     rows = []
     for s in corpus.sessions:
         for p in s.participants:

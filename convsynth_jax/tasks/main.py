@@ -2,8 +2,10 @@
 
 1. generate (or reuse) the synthetic default corpus and annotate it;
 2. Table 1: audio-motion co-occurrence with tests against chance (printed and written);
-3. build both characters' motion graphs without the held-out session (``task.fold``);
-4. leave-one-out on that session in all four conditions (all, no_lr, no_hp, none), exporting BVH;
+3. fit the configured system (``system=``, default the motion graphs) without the held-out session
+   (``task.fold``);
+4. leave-one-out on that session in every condition of the system (``task.conditions``, default all
+   of them), exporting BVH;
 5. a Markdown report (``report.md``) with the tables and figures.
 """
 from __future__ import annotations
@@ -27,25 +29,34 @@ def _csv(df: pd.DataFrame, path: Path) -> None:
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..evaluation.loo import annotate_corpus_cached, build_fold_graphs, run_fold
-    from ..plotting_experiments import ablation_figure, success_rate_figure
+    from ..errors import ConfigError
+    from ..evaluation.loo import fit_fold, run_fold
+    from ..figures import ablation_figure, success_rate_figure
     from ..stats.cooccurrence import cooccurrence_table
-    from .common import open_corpus
+    from .common import annotated_corpus, cache_dir, make_configured_system, open_corpus, params_of
 
     t_start = time.perf_counter()
     timings = {}
-    progress = bool(cfg.get("progress", True))
+    params = params_of(cfg)
+    system = make_configured_system(params)
+    conditions = list(cfg.task.get("conditions") or system.conditions)
+    for cond in conditions:  # unknown conditions fail before any work
+        system.condition_options(cond)
+    progress = params.progress
     steps = tqdm(total=5, desc="convsynth main", disable=not progress)
 
     t0 = time.perf_counter()
-    corpus = open_corpus(cfg)
-    cache = Path(cfg.cache_dir) / "loo_cache"
-    annotations = annotate_corpus_cached(corpus, cfg, cache)
+    corpus = open_corpus(params)
+    if len(corpus.sessions) < 2:
+        raise ConfigError(f"the main job runs leave-one-out, which needs at least two sessions; {corpus.root} has "
+                          f"{len(corpus.sessions)} (use task=cooccurrence for Table 1 alone)")
+    cache = cache_dir(params)
+    _, annotations = annotated_corpus(params)
     timings["corpus_and_annotation_s"] = time.perf_counter() - t0
     steps.update()
 
     t0 = time.perf_counter()
-    table1 = cooccurrence_table(list(_participants(annotations)), cfg)
+    table1 = cooccurrence_table(list(_participants(annotations)), params.annotate, params.stats, params.seed)
     _csv(table1, out_dir / "table1_cooccurrence.csv")
     md1 = summaries.to_markdown(table1)
     write_text_atomic(out_dir / "table1_cooccurrence.md", md1)
@@ -56,24 +67,28 @@ def run(cfg, out_dir: Path) -> dict:
     fold = int(cfg.task.get("fold", 0))
     held_out = corpus.sessions[fold].name
     t0 = time.perf_counter()
-    fg = build_fold_graphs(annotations, held_out, cfg, cache)
-    graph_rows = [{"character": c, "num_states": g.num_states, "num_edges": g.num_edges,
-                   "threshold": g.meta.get("threshold"), "construction_s": fg.seconds[c]}
-                  for c, g in fg.graphs.items()]
-    graphs = pd.DataFrame(graph_rows)
-    for c, g in fg.graphs.items():
-        g.save(out_dir / f"graph_{c}.npz")
+    models: dict = {}
+    fitted = fit_fold(system, annotations, held_out, conditions[0], cache, models)
+    model_rows = []
+    for c, m in fitted.items():
+        row = {"character": c, "fit_s": system.fit_seconds(m)}
+        g = getattr(m, "graph", None)
+        if g is not None:  # a motion graph: its size and threshold, and the graph file
+            row.update({"num_states": g.num_states, "num_edges": g.num_edges, "threshold": g.meta.get("threshold")})
+            g.save(out_dir / f"graph_{c}.npz")
+        model_rows.append(row)
+    graphs = pd.DataFrame(model_rows)
     _csv(graphs, out_dir / "graphs.csv")
-    print("Motion graphs (held-out session %s)\n%s" % (held_out, summaries.to_markdown(graphs)))
-    timings["graphs_s"] = time.perf_counter() - t0
+    print("Fitted %s models (held-out session %s)\n%s" % (system.name, held_out, summaries.to_markdown(graphs)))
+    timings["fit_s"] = time.perf_counter() - t0
     steps.update()
 
     t0 = time.perf_counter()
     frames = []
-    conditions = list(cfg.task.get("conditions", ["all", "no_lr", "no_hp", "none"]))
     for cond in tqdm(conditions, desc="leave-one-out conditions", disable=not progress, leave=False):
-        frames.append(run_fold(corpus, annotations, fold, cond, cfg, out_dir=out_dir, cache_dir=cache,
-                               export_bvh=bool(cfg.task.get("export_bvh", True))))
+        frames.append(run_fold(system, annotations, fold, cond, params, out_dir=out_dir, cache_dir=cache,
+                               export_bvh=bool(cfg.task.get("export_bvh", True)), models=models,
+                               with_audio=system.needs_audio))
     cases = pd.concat(frames, ignore_index=True)
     _csv(cases, out_dir / "cases.csv")
     timings["leave_one_out_s"] = time.perf_counter() - t0
@@ -94,7 +109,7 @@ def run(cfg, out_dir: Path) -> dict:
         "# convsynth main report", "",
         f"Corpus: `{corpus.root}` ({len(corpus.sessions)} sessions). Held-out session: `{held_out}` (fold {fold}).", "",
         "## Table 1: audio-motion co-occurrence (whole corpus)", "", md1,
-        "## Motion graphs (built without the held-out session)", "", summaries.to_markdown(graphs),
+        f"## {system.name} models (fitted without the held-out session)", "", summaries.to_markdown(graphs),
         "## Leave-one-out success rate per condition", "", summaries.to_markdown(rates),
         "![success rates](success_rates.png)", "",
         "## Co-occurrence in synthesized motion vs held-out ground truth", "", summaries.to_markdown(co),
@@ -109,7 +124,8 @@ def run(cfg, out_dir: Path) -> dict:
     steps.close()
     print("Success rates\n" + summaries.to_markdown(rates))
     log.info("report: %s", out_dir / "report.md")
-    return {"success": True, "corpus_root": str(corpus.root), "held_out_session": held_out, "num_cases": int(len(cases)),
+    return {"success": True, "system": system.name, "corpus_root": str(corpus.root), "held_out_session": held_out,
+            "num_cases": int(len(cases)),
             "success_rates": rates.to_dict(orient="records"), "timings": timings,
             "seconds": time.perf_counter() - t_start}
 

@@ -13,14 +13,19 @@ from ..errors import ConfigError
 
 
 def run(cfg, out_dir: Path) -> dict:
-    if cfg.corpus.kind != "synthetic":
-        raise ConfigError(f"make_corpus needs a synthetic corpus config, got kind={cfg.corpus.kind!r}")
+    from .common import params_of
+
+    params = params_of(cfg)
+    c = params.corpus
+    if c.kind != "synthetic":
+        raise ConfigError(f"make_corpus needs a synthetic corpus config, got kind={c.kind!r}")
     t0 = time.perf_counter()
+    name = c.name or "synthetic_default"
     if cfg.task.get("force", False):
-        root = Path(cfg.corpus.root) if cfg.corpus.get("root") else Path(cfg.cache_dir) / cfg.corpus.name
-        root = make_synthetic_corpus(root, cfg.corpus.generator)
+        root = Path(c.root) if c.root else Path(params.cache_dir) / name
+        root = make_synthetic_corpus(root, c.generator)
     else:
-        root = ensure_synthetic_corpus(cfg.corpus, cfg.cache_dir)
+        root = ensure_synthetic_corpus({"name": name, "root": c.root, "generator": c.generator}, params.cache_dir)
     seconds = time.perf_counter() - t0
     meta = json.loads((root / "corpus.json").read_text())
     events = pd.read_csv(root / "events.csv")

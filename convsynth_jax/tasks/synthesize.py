@@ -1,15 +1,19 @@
-"""Task ``synthesize``: motion for both characters of a conversation window.
+"""Task ``synthesize``: motion for both characters of a conversation window, by the configured system.
 
 Input: a session of the configured corpus (``task.session`` name or ``task.fold`` index, default 0)
 and a window (``task.start``, ``task.duration`` seconds, default 0 and 15); optionally new audio and
 transcripts per role (``task.inputs.<role>.audio`` / ``.transcript``) that replace the session's.
-Graphs: ``task.graphs.<character>`` files, else built from every other session (cached).
+Models: fitted on every other session (cached), or for the motion graph ``task.graphs.<character>``
+files. ``task.condition`` (default ``all``) is one of the system's conditions. The seed is derived
+as in ``task=loo`` (base seed, fold = session index, condition, session, window start frame, role
+index), so the same window gives the same motion in both tasks.
 
-Writes ``<character>.bvh``, ``<character>_blinks.csv``, ``<role>_input.wav`` (the input audio of the
-window), ``report.json`` (path, transitions used with costs, constraints hit and missed by the
-independent checker, timings) and a summary with success, search_seconds (per character),
-num_synthetic_transitions, constraints_total, constraints_met and, per output frame, the source
-graph state (file and frame).
+Writes ``<character>.bvh``, ``<character>_blinks.csv`` (when the system makes blinks),
+``<role>_input.wav`` (the input audio of the window), ``report.json`` (per character: success,
+constraints hit and missed by the independent checker where the system reports per-frame
+provenance, transitions used with costs, timings) and a summary with success, search_seconds (per
+character), num_synthetic_transitions, constraints_total, constraints_met and, per output frame,
+the source clip and frame.
 """
 from __future__ import annotations
 
@@ -26,34 +30,54 @@ from ..utils import atomic_path, write_json_atomic
 log = logging.getLogger(__name__)
 
 
+def _given_graphs(given, ann, system):
+    """Motion-graph models from graph files (``task.graphs.<character>=FILE``)."""
+    from ..graph import load_graph
+    from ..systems.motion_graph import GraphModel
+
+    out = {}
+    for char, path in given.items():
+        g = load_graph(path)
+        motions = {}
+        for cn in g.clip_names:
+            s_name, role = cn.rsplit("_", 1)
+            if s_name not in ann or role not in ann[s_name]:
+                raise ConfigError(f"graph {path}: clip {cn!r} is not a recording of the configured corpus")
+            motions[cn] = ann[s_name][role].motion
+        out[char] = GraphModel(g, motions, 0.0)
+    return out
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..annotate.audio import annotate_audio
-    from ..annotate.types import FrameAudio
-    from ..evaluation.loo import annotate_corpus_cached, build_fold_graphs, clip_name
-    from ..evaluation.windows import Window, window_segments
-    from ..graph import load_graph
+    from ..evaluation.loo import fit_fold, window_input
+    from ..evaluation.windows import Window
     from ..io import load_audio, load_transcript, save_bvh, save_wav
     from ..search.check import check_path
-    from ..synth.pipeline import synthesize_character
-    from .common import open_corpus
+    from ..seeding import derive_seed
+    from ..systems.motion_graph import clip_name
+    from .common import annotated_corpus, cache_dir, make_configured_system, params_of
 
     t0 = time.perf_counter()
     task = cfg.task
-    corpus = open_corpus(cfg)
-    cache = Path(cfg.cache_dir) / "loo_cache"
-    ann = annotate_corpus_cached(corpus, cfg, cache)
-    names = [s.name for s in corpus.sessions]
+    params = params_of(cfg)
+    system = make_configured_system(params)
+    condition = str(task.get("condition") or "all")
+    system.condition_options(condition)
+    corpus, ann = annotated_corpus(params)
+    names = list(ann)
     session = task.get("session") or names[int(task.get("fold", 0))]
     if session not in ann:
         raise ConfigError(f"no session {session!r}; sessions are {names}")
-    fps = float(cfg.features.fps)
+    fold = names.index(session)
+    fps = params.fps
     start, duration = float(task.get("start", 0.0)), float(task.get("duration", 15.0))
     held = ann[session]
     avail = min(a.motion.num_frames for a in held.values()) / fps
     if start < 0 or start + duration > avail + 1e-6:
         raise ConfigError(f"window {start}-{start + duration} s does not fit session {session!r} ({avail:.1f} s)")
     w = Window(0, start, start + duration)
-    n = int(round(duration * fps))
+    f0, n = int(round(start * fps)), int(round(duration * fps))
     # input audio annotation per role: the session's, or files given in task.inputs
     inputs = task.get("inputs") or {}
     segs, audio = {}, {}
@@ -61,44 +85,30 @@ def run(cfg, out_dir: Path) -> dict:
         spec = inputs.get(role) if inputs else None
         if spec:
             words, aud = load_transcript(spec.transcript), load_audio(spec.audio)
-            segs[role] = annotate_audio(words, aud, cfg)
+            segs[role] = annotate_audio(words, aud, params.annotate)
             audio[role] = aud
         else:
             segs[role] = a.segments
             p = [pp for pp in corpus.session(session).participants if pp.role == role][0]
             audio[role] = p.load_audio() if p.audio_path else None
     roles = list(held)
-    t_graph = time.perf_counter()
+    t_fit = time.perf_counter()
     given = task.get("graphs") or {}
-    if given:
-        from ..evaluation.loo import FoldGraphs
-
-        fg = FoldGraphs()
-        for char, path in given.items():
-            g = load_graph(path)
-            fg.graphs[char] = g
-            fg.motions[char] = {}
-            for cn in g.clip_names:
-                s_name, role = cn.rsplit("_", 1)
-                fg.motions[char][cn] = ann[s_name][role].motion
-            fg.seconds[char] = 0.0
-    else:
-        fg = build_fold_graphs(ann, session, cfg, cache)
-    graph_seconds = time.perf_counter() - t_graph
+    fitted = _given_graphs(given, ann, system) if given else fit_fold(system, ann, session, condition, cache_dir(params))
+    fit_seconds = time.perf_counter() - t_fit
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in ann.items() for r, a in d.items()}
-    method = str(task.get("method", "beam"))
-    summary = {"session": session, "window": [start, start + duration], "method": method, "success": True,
-               "search_seconds": {}, "num_synthetic_transitions": {}, "constraints_total": {}, "constraints_met": {},
-               "cost": {}, "source_frames": {}, "failure": {}, "graph_seconds": graph_seconds}
+    summary = {"system": system.name, "session": session, "window": [start, start + duration], "condition": condition,
+               "search_method": params.search.method, "success": True, "search_seconds": {},
+               "num_synthetic_transitions": {}, "constraints_total": {}, "constraints_met": {}, "cost": {},
+               "source_frames": {}, "failure": {}, "graph_seconds": fit_seconds}
     report = {"characters": {}}
     for k, role in enumerate(roles):
-        a = held[role]
-        char = a.character
-        own = window_segments(segs[role], w)
-        partner = window_segments(segs[roles[1 - k]], w)
-        res = synthesize_character(fg.graphs[char], fg.motions[char], own, partner, n, cfg,
-                                   seed=int(cfg.seed) + k, method=method, chair_index=k)
-        summary["search_seconds"][char] = res.search_seconds
+        char = held[role].character
+        seed = derive_seed(params.seed, fold=fold, condition=condition, session=session, window_frame=f0, role_index=k)
+        win = window_input(held, role, w, fps, seed, with_audio=system.needs_audio,
+                           own_segments=segs[role], partner_segments=segs[roles[1 - k]])
+        res = system.synthesize(fitted[char], win, condition)
+        summary["search_seconds"][char] = res.seconds
         summary["constraints_total"][char] = res.constraints_total
         if not res.success:
             summary["success"] = False
@@ -108,32 +118,39 @@ def run(cfg, out_dir: Path) -> dict:
             report["characters"][char] = {"success": False, "failure": res.failure}
             log.warning("%s: %s", char, res.failure)
             continue
-        chk = check_path(res.source_clip, res.source_frame, clip_audio, own, partner, fps,
-                         float(cfg.search.get("tolerance", 0.1)), bool(cfg.search.get("use_lr", True)),
-                         bool(cfg.search.get("use_hp", True)))
-        summary["constraints_total"][char] = chk["total"]
-        summary["constraints_met"][char] = chk["met"]
-        summary["num_synthetic_transitions"][char] = res.num_synthetic_transitions
-        summary["cost"][char] = res.cost
-        summary["source_frames"][char] = [[c, int(f)] for c, f in zip(res.source_clip, res.source_frame)]
+        entry = {"success": True, "role": role, "seed": seed, "search_seconds": res.seconds,
+                 **{k2: v for k2, v in res.diagnostics.items() if np.isscalar(v)}}
+        summary["constraints_met"][char] = res.constraints_met
+        summary["num_synthetic_transitions"][char] = len(res.synthetic_at or [])
+        summary["cost"][char] = res.diagnostics.get("cost")
+        if res.source_clip is not None:
+            summary["source_frames"][char] = [[c, int(f)] for c, f in zip(res.source_clip, res.source_frame)]
+            chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, win.own_segments,
+                             win.partner_segments, fps, params.search.tolerance, params.search.use_lr,
+                             params.search.use_hp)
+            summary["constraints_total"][char] = chk["total"]
+            summary["constraints_met"][char] = chk["met"]
+            sc, sf = res.source_clip, res.source_frame
+            entry["transitions"] = [{"frame": t, "from": [sc[t - 1], int(sf[t - 1])], "to": [sc[t], int(sf[t])]}
+                                    for t in (res.synthetic_at or [])]
+            entry["transition_costs"] = res.diagnostics.get("transition_costs")
+            entry["checker"] = chk
+        model = fitted[char]
+        g = getattr(model, "graph", None)
+        if g is not None:
+            entry["path"] = [int(x) for x in res.diagnostics.get("path", [])]
+            entry["graph"] = {"num_states": g.num_states, "num_edges": g.num_edges, "threshold": g.meta.get("threshold")}
+        report["characters"][char] = entry
         save_bvh(res.motion, out_dir / f"{char}.bvh")
-        with atomic_path(out_dir / f"{char}_blinks.csv") as tmp:
-            pd.DataFrame({"frame": np.arange(n), "time": np.arange(n) / fps, "blink": res.blinks}).to_csv(tmp, index=False)
-        g = fg.graphs[char]
-        trans = [{"frame": t + 1, "from": [res.source_clip[t], res.source_frame[t]],
-                  "to": [res.source_clip[t + 1], res.source_frame[t + 1]]}
-                 for t in range(n - 1) if res.source_clip[t] != res.source_clip[t + 1]
-                 or res.source_frame[t + 1] != res.source_frame[t] + 1]
-        report["characters"][char] = {"success": True, "role": role, "cost": res.cost, "path": [int(x) for x in res.path],
-                                      "transitions": trans, "transition_costs": res.transition_costs,
-                                      "checker": chk, "search_seconds": res.search_seconds,
-                                      "graph": {"num_states": g.num_states, "num_edges": g.num_edges,
-                                                "threshold": g.meta.get("threshold")}}
+        blinks = res.diagnostics.get("blinks")
+        if blinks is not None:
+            with atomic_path(out_dir / f"{char}_blinks.csv") as tmp:
+                pd.DataFrame({"frame": np.arange(n), "time": np.arange(n) / fps, "blink": blinks}).to_csv(tmp, index=False)
     for role in roles:
         if audio.get(role) is not None:
             aud = audio[role]
             a0, a1 = int(start * aud.sample_rate), int((start + duration) * aud.sample_rate)
             save_wav(out_dir / f"{role}_input.wav", aud.samples[a0:a1], aud.sample_rate)
-    report["timings"] = {"graphs_s": graph_seconds, "total_s": time.perf_counter() - t0}
+    report["timings"] = {"fit_s": fit_seconds, "total_s": time.perf_counter() - t0}
     write_json_atomic(out_dir / "report.json", report)
     return summary

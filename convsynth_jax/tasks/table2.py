@@ -3,11 +3,11 @@ component for k = 2, 3, 4, 5 (``task.ks``), per character (or one row set for bv
 Writes ``table2.csv`` and ``table2.md``."""
 from __future__ import annotations
 
+import dataclasses
 import logging
 from pathlib import Path
 
 import pandas as pd
-from omegaconf import OmegaConf
 
 from ..evaluation.summaries import to_markdown
 from ..utils import atomic_path, write_text_atomic
@@ -18,13 +18,14 @@ log = logging.getLogger(__name__)
 def run(cfg, out_dir: Path) -> dict:
     from ..graph import build_database, build_graph
     from .build_graph import character_clip_sets
+    from .common import params_of
 
+    params = params_of(cfg)
     rows = []
-    for char, clips in character_clip_sets(cfg).items():
-        db = build_database(clips, cfg)
+    for char, clips in character_clip_sets(params).items():
+        db = build_database(clips, params.features)
         for k in cfg.task.get("ks", [2, 3, 4, 5]):
-            c = OmegaConf.merge(cfg, {"graph": {"k": int(k)}})  # no resolution: works outside Hydra too
-            g = build_graph(db, c)
+            g = build_graph(db, dataclasses.replace(params.graph, k=int(k)))
             m = g.meta
             rows.append({"character": char or "all", "k": int(k), "threshold": m["threshold"],
                          "states_before_scc": m["num_states_before_scc"], "edges_before_scc": m["num_edges_before_scc"],

@@ -45,7 +45,7 @@ def analyse(df: pd.DataFrame, path=None, alpha: float = 0.03) -> pd.DataFrame:
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..plotting import user_study_figure
+    from ..figures import figure6_figure
 
     src = Path(cfg.task.get("csv") or PAPER_CSV)
     if not src.is_file():
@@ -56,12 +56,13 @@ def run(cfg, out_dir: Path) -> dict:
         raw = pd.read_csv(src)
     except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
         raise FormatError(f"not a readable CSV ({e})", src) from None
-    stats_cfg = cfg.get("stats") or {}
-    table = analyse(raw, src, alpha=float(stats_cfg.get("significance", 0.03) or 0.03))
+    from .common import params_of
+
+    table = analyse(raw, src, alpha=params_of(cfg).stats.significance)
     with atomic_path(out_dir / "user_study.csv") as tmp:
         table.to_csv(tmp, index=False)
     write_text_atomic(out_dir / "user_study.md", to_markdown(table))
-    fig = user_study_figure(table)
+    fig = figure6_figure(table)
     with atomic_path(out_dir / "figure6.png") as tmp:
         fig.savefig(tmp, dpi=120, format="png")
     log.info("%s", "\n" + to_markdown(table[["comparison", "preferred_a", "total", "chi2", "p_value"]]))

@@ -1,26 +1,23 @@
 """Figure 4 of the paper: histograms of the k-step costs c(i, i+k) with the fitted distributions.
 
 Pure data -> matplotlib Figure; the task ``figure4`` writes the data (two CSV tables) and calls
-:func:`cost_histogram_figure`, so the figure can be redrawn from the tables alone.
+:func:`figure4_figure`, so the figure can be redrawn from the tables alone.
 """
 from __future__ import annotations
 
 import json
 
-import matplotlib
-
-matplotlib.use("Agg", force=False)
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
-from scipy import stats  # noqa: E402
+from matplotlib.figure import Figure
+import numpy as np
+import pandas as pd
+from scipy import stats
 
 
 def _params(p):
     return tuple(json.loads(p)) if isinstance(p, str) else tuple(p)
 
 
-def cost_histogram_figure(hist: pd.DataFrame, fits: pd.DataFrame, show_all: bool = True):
+def figure4_figure(hist: pd.DataFrame, fits: pd.DataFrame, show_all: bool = True):
     """One panel per (character, k).
 
     hist: rows (character, k, bin_left, bin_right, density), the normalized histogram of c(i, i+k);
@@ -30,7 +27,8 @@ def cost_histogram_figure(hist: pd.DataFrame, fits: pd.DataFrame, show_all: bool
     """
     chars = list(dict.fromkeys(hist["character"]))
     ks = list(dict.fromkeys(hist["k"]))
-    fig, axes = plt.subplots(len(chars), len(ks), figsize=(3.2 * len(ks), 2.6 * len(chars)), squeeze=False)
+    fig = Figure(figsize=(3.2 * len(ks), 2.6 * len(chars)))
+    axes = fig.subplots(len(chars), len(ks), squeeze=False)
     for (char, k), h in hist.groupby(["character", "k"], sort=False):
         ax = axes[chars.index(char)][ks.index(k)]
         ax.bar(h["bin_left"], h["density"], width=h["bin_right"] - h["bin_left"], align="edge", color="#c9b8e0",

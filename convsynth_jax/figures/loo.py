@@ -1,17 +1,15 @@
 """Pure data -> matplotlib Figure helpers for the experiment tables (success rates, ablations)."""
 from __future__ import annotations
 
-import matplotlib
-
-matplotlib.use("Agg")
-import matplotlib.pyplot as plt  # noqa: E402
-import numpy as np  # noqa: E402
-import pandas as pd  # noqa: E402
+from matplotlib.figure import Figure
+import numpy as np
+import pandas as pd
 
 
 def success_rate_figure(table: pd.DataFrame):
     """Bar chart of the test-case success rate per condition."""
-    fig, ax = plt.subplots(figsize=(5, 3.2))
+    fig = Figure(figsize=(5, 3.2))
+    ax = fig.subplots()
     x = np.arange(len(table))
     ax.bar(x, 100 * table["success_rate"], color="#5b7fb5")
     for i, (r, n, k) in enumerate(zip(table["success_rate"], table["cases"], table["solved"])):
@@ -27,7 +25,8 @@ def success_rate_figure(table: pd.DataFrame):
 def ablation_figure(co: pd.DataFrame):
     """Grouped bars: co-occurrence rate per hypothesis, ground truth vs each condition (per character)."""
     chars = sorted(co["character"].unique()) if not co.empty else []
-    fig, axes = plt.subplots(1, max(1, len(chars)), figsize=(5.5 * max(1, len(chars)), 3.4), squeeze=False)
+    fig = Figure(figsize=(5.5 * max(1, len(chars)), 3.4))
+    axes = fig.subplots(1, max(1, len(chars)), squeeze=False)
     for ax, char in zip(axes[0], chars):
         g = co[co["character"] == char]
         hyps = list(dict.fromkeys(g["hypothesis"]))

@@ -1,0 +1,36 @@
+"""Parameters of the annotation stage (paper Section 4.2 and Section 5); ``conf/annotate``."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Dict, List, Optional
+
+JOINT_ROLES = ("left_hand", "left_shoulder", "right_hand", "right_shoulder", "neck", "head")
+
+
+@dataclass(frozen=True)
+class AnnotateParams:
+    # Word corpus for listener responses (LR) and hesitation pauses (HP): None = the shipped
+    # convsynth_jax/resources/word_corpus.yaml; a path to a YAML file with the keys listener_response
+    # and hesitation; or those two lists inline. extra_words adds words to the chosen corpus.
+    word_corpus: Any = None
+    extra_words: Dict[str, List[str]] = field(
+        default_factory=lambda: {"listener_response": [], "hesitation": []})
+    max_gap: float = 0.3                       # s; a longer pause between words ends a phonemic clause
+    max_clause_words: Optional[int] = None     # split longer clauses (None = no limit)
+    max_clause_seconds: Optional[float] = None  # split clauses longer than this (None = no limit)
+    # F0 for the peak indicator: praat (parselmouth) or opensmile (optional package, eGeMAPS F0)
+    f0_backend: str = "praat"
+    f0_range: str = "auto"                     # auto = speaker-adapted two-pass range; fixed = floor..ceiling
+    f0_floor: float = 75.0
+    f0_ceiling: float = 500.0
+    f0_time_step: float = 0.01
+    # Motion segmentation: Eq. 1 (clip idle threshold) and Eq. 2 (window threshold)
+    alpha_s: float = 0.1
+    alpha_w: float = 0.1
+    # Figure 3 trims a window against the movement found before it; True (ours) = where that
+    # movement's speed really falls back to its theta_W (also after its window), False = the
+    # paper's literal end inside its window
+    extend_trim: bool = True
+    up_axis: int = 1                           # vertical axis for nods (Y up)
+    # Regexes (tried in order) naming the joints for hand and head speeds; None = built-in defaults
+    joints: Dict[str, Any] = field(default_factory=lambda: {k: None for k in JOINT_ROLES})

@@ -1,0 +1,37 @@
+"""Parameters of motion-graph construction (paper Section 6); ``conf/graph`` and ``conf/features``."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any, Dict, Optional
+
+
+@dataclass(frozen=True)
+class FeatureParams:
+    """Pose features of the transition cost (Eq. 3-4)."""
+
+    fps: float = 30.0              # motion is resampled to this rate on load
+    up_axis: int = 1               # Y up
+    remove_yaw: bool = True        # root-relative positions also undo the root heading
+    finger_pattern: Optional[str] = None  # regex of zero-weight (finger) joints; None = built-in pattern
+    joint_weight_overrides: Dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class GraphParams:
+    k: int = 3                       # threshold from the distribution of c(i, i+k)
+    quantile: float = 0.95           # quantile of the fitted distribution used as the threshold
+    # johnsonsb, or auto (lowest residual sum of squares), gamma, lognorm, weibull_min, beta, johnsonsu, expon
+    distribution: str = "johnsonsb"
+    key_fraction: float = 0.2225     # fraction of frames that are key states (paper: 22.25%); 1.0 = every frame
+    use_audio_keys: bool = True      # audio-status changes are key states
+    # velocity weight; auto (ours) = mean d(p_i, p_i+k-1) / mean d(v_i, v_i+k-1) over k-step pairs
+    w_v: Any = "auto"
+    min_gap_frames: int = 10         # no synthetic transition between frames this close in the same clip
+    tile: int = 128                  # kernel tile size (frames per side; one compile per size)
+    n_pivots: int = 8                # pivot frames for the triangle-inequality tile skipping
+    local_minima: bool = False       # keep only local minima of the cost (Kovar et al.)
+    max_out_degree: Optional[int] = None  # cap synthetic out-degree per state
+    seed: int = 0
+    fit_bins: int = 100
+    max_edges: Optional[int] = 50_000_000  # host edge-buffer capacity; more raise a GraphError (None: unbounded)
+    workers: Optional[int] = None    # host threads dispatching kernel tiles (None: CPU count, at most 4)

@@ -1,0 +1,25 @@
+"""Parameters of the audio-constrained search (paper Section 7); ``conf/search``."""
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import List, Optional
+
+
+@dataclass(frozen=True)
+class SearchParams:
+    method: str = "beam"          # beam (JAX, ours) | dfs (the paper's depth-first stochastic greedy search)
+    tolerance: float = 0.1        # seconds, for start/peak/end matching
+    use_constraints: bool = True  # False: no audio constraint at all (graph quality only)
+    use_lr: bool = True           # listener-response constraints
+    use_hp: bool = True           # partner-hesitation constraints
+    beam_size: int = 256          # beam: paths kept per frame
+    max_degree: int = 64          # out-edges per state considered (cheapest first)
+    max_candidates: int = 2048    # beam: candidate slots per frame (overflow drops the most expensive ranks)
+    temperature: float = 0.05     # sampling temperature, relative to the median synthetic edge cost
+    # beam: retry hotter (more diverse, more synthetic transitions) when no path survives
+    retry_temperatures: List[float] = field(default_factory=lambda: [1.0])
+    n_start: int = 50             # DFS: random start states (our bound; the paper gives none)
+    n_save: int = 200             # DFS: candidates kept per segment (paper: 200)
+    max_paths_per_start: int = 20  # DFS: our bound
+    max_expansions: int = 200000  # DFS: our bound per segment, shared among start states
+    time_budget: Optional[float] = None  # DFS: optional wall-clock bound in seconds (None: expansions only)

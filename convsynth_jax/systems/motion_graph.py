@@ -1,0 +1,78 @@
+"""The paper's system (Yang et al. 2020) behind the synthesis-system interface: a motion graph per
+character built from the training sessions (Section 6), searched under the window's audio
+constraints and realized (Section 7). Conditions switch the search's constraint flags
+(``conf/system/motion_graph.yaml``)."""
+from __future__ import annotations
+
+import dataclasses
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..annotate.cache import params_hash
+from ..graph import load_graph
+from ..graph.build import build_graph_from_clips
+from ..graph.types import MotionGraph
+from ..synth.pipeline import synthesize_character
+from .base import SynthesisSystem, WindowInput, WindowResult
+
+log = logging.getLogger(__name__)
+
+
+def clip_name(session: str, role: str) -> str:
+    """Name of one participant's recording inside a motion graph."""
+    return f"{session}_{role}"
+
+
+@dataclass
+class GraphModel:
+    """A character's motion graph, the clip motions its states index, and its construction time."""
+
+    graph: MotionGraph
+    motions: dict
+    seconds: float
+
+
+class MotionGraphSystem(SynthesisSystem):
+    produces_hands = True
+
+    def fit(self, clips, character: str, condition: str, cache_dir=None) -> GraphModel:
+        """Build (or load from ``cache_dir``) the graph of ``character`` from its training clips."""
+        p = self.params
+        items = [(clip_name(c.session, c.role), c.motion, c.own, c.partner) for c in clips]
+        motions = {name: m for name, m, _, _ in items}
+        # the graph stores the clips' audio labels, so the annotation parameters are part of the key
+        key = params_hash(sorted(motions), p.graph, p.features, p.annotate)
+        cached = Path(cache_dir) / f"graph_{character}_{key}.npz" if cache_dir else None
+        if cached is not None and cached.is_file():
+            g = load_graph(cached)
+            return GraphModel(g, motions, float(g.meta.get("seconds", np.nan)))
+        t0 = time.perf_counter()
+        g = build_graph_from_clips(items, p.graph, p.features)
+        seconds = time.perf_counter() - t0
+        g.meta["seconds"] = seconds
+        if cached is not None:
+            g.save(cached)
+        return GraphModel(g, motions, seconds)
+
+    def search_params(self, condition: str):
+        return dataclasses.replace(self.params.search, **self.condition_options(condition))
+
+    def synthesize(self, model: GraphModel, window: WindowInput, condition: str) -> WindowResult:
+        res = synthesize_character(model.graph, model.motions, window.own_segments, window.partner_segments,
+                                   window.num_frames, self.search_params(condition), self.params.synth,
+                                   seed=window.seed, chair_index=window.chair_index)
+        diag = {"search_method": res.method, "cost": res.cost, "num_synthetic_transitions": res.num_synthetic_transitions}
+        if res.success:
+            used = np.asarray(res.transition_costs or [], dtype=np.float64)
+            diag["mean_transition_cost"] = float(used.mean()) if used.size else 0.0
+        return WindowResult(
+            success=bool(res.success), motion=res.motion, seconds=res.search_seconds,
+            constraints_total=res.constraints_total, constraints_met=res.constraints_met, failure=res.failure,
+            source_clip=res.source_clip if res.success else None,
+            source_frame=np.asarray(res.source_frame) if res.success else None,
+            diagnostics={**diag, "blinks": res.blinks, "path": res.path, "transition_costs": res.transition_costs},
+            synthetic_at=res.synthetic_at if res.success else None)

@@ -1,0 +1,63 @@
+"""A floor for every ablation table (ours, not in any paper): random playback of the character's
+training motion, ignoring the audio.
+
+The window is filled with excerpts of ``min_excerpt_seconds``-``max_excerpt_seconds`` from random
+training clips and positions, concatenated and realized like a motion-graph path (cosine blends at
+each jump, root integrated from the chair), so it differs from the motion graph only in how source
+frames are chosen. It reports no constraints (0 of 0).
+"""
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import ConfigError
+from ..synth.pipeline import CHAIRS
+from ..synth.realize import realize
+from .base import SynthesisSystem, WindowInput, WindowResult
+from .motion_graph import clip_name
+
+
+@dataclass
+class PlaybackModel:
+    motions: dict     # clip name -> Motion
+    seconds: float = 0.0
+
+
+class RandomPlaybackSystem(SynthesisSystem):
+    produces_hands = True
+
+    def fit(self, clips, character: str, condition: str, cache_dir=None) -> PlaybackModel:
+        motions = {clip_name(c.session, c.role): c.motion for c in clips}
+        if not motions:
+            raise ConfigError(f"random_playback: no training clips of character {character!r}")
+        return PlaybackModel(motions)
+
+    def synthesize(self, model: PlaybackModel, window: WindowInput, condition: str) -> WindowResult:
+        self.condition_options(condition)
+        t0 = time.perf_counter()
+        opts = self.system.options
+        lo, hi = float(opts.get("min_excerpt_seconds", 2.0)), float(opts.get("max_excerpt_seconds", 6.0))
+        if not 0 < lo <= hi:
+            raise ConfigError(f"random_playback: need 0 < min_excerpt_seconds <= max_excerpt_seconds, got {lo}, {hi}")
+        rng = np.random.default_rng(window.seed)
+        names = sorted(model.motions)
+        n, fps = window.num_frames, window.fps
+        clips, frames, jumps = [], [], []
+        while len(frames) < n:
+            length = int(round(rng.uniform(lo, hi) * fps))
+            name = names[rng.integers(len(names))]
+            avail = model.motions[name].num_frames
+            length = max(1, min(length, avail, n - len(frames)))
+            start = int(rng.integers(0, avail - length + 1))
+            if frames:
+                jumps.append(len(frames))
+            clips += [name] * length
+            frames += list(range(start, start + length))
+        chair, yaw = CHAIRS.get(window.chair_index, CHAIRS[0])
+        motion = realize(clips, frames, model.motions, jumps, chair=chair, chair_yaw_deg=yaw,
+                         blend_frames=int(self.params.synth.blend_frames))
+        return WindowResult(True, motion, time.perf_counter() - t0, 0, 0, None, clips, np.asarray(frames),
+                            {"num_synthetic_transitions": len(jumps)}, jumps)

@@ -151,3 +151,63 @@ def yaw_quat(q, up_axis: int = 1):
     norm = jnp.linalg.norm(tw, axis=-1, keepdims=True)
     identity = jnp.zeros(4, dtype=q.dtype).at[0].set(1.0)
     return jnp.where(norm < 1e-9, identity, tw / jnp.where(norm < 1e-9, 1.0, norm))
+
+
+# --------------------------------------------------------------------------------------------------
+# Host-side (NumPy, float64) versions for file I/O, data generation and realization, which work on
+# whole recordings outside jit. Same conventions as above: (w, x, y, z) quaternions, BVH Euler
+# orders (intrinsic, first channel outermost), Y up. Euler conversions go through SciPy (whose
+# upper-case orders are intrinsic); the (w, x, y, z) <-> SciPy (x, y, z, w) shuffles live here only.
+import numpy as np  # noqa: E402
+from scipy.spatial.transform import Rotation as _Rotation  # noqa: E402
+
+
+def _to_scipy(q: np.ndarray) -> np.ndarray:
+    return np.asarray(q, dtype=np.float64)[..., [1, 2, 3, 0]]
+
+
+def _from_scipy(q: np.ndarray) -> np.ndarray:
+    return q[..., [3, 0, 1, 2]]
+
+
+def euler_deg_to_quat_np(angles_deg, order: str) -> np.ndarray:
+    """(..., 3) BVH Euler angles in degrees (channel order ``order``) -> (..., 4) quaternions."""
+    a = np.asarray(angles_deg, dtype=np.float64)
+    q = _Rotation.from_euler(order.upper(), a.reshape(-1, 3), degrees=True).as_quat()
+    return _from_scipy(q).reshape(a.shape[:-1] + (4,))
+
+
+def quat_to_euler_deg_np(q, order: str) -> np.ndarray:
+    """(..., 4) quaternions -> (..., 3) BVH Euler angles in degrees for channel order ``order``."""
+    q = np.asarray(q, dtype=np.float64)
+    e = _Rotation.from_quat(_to_scipy(q).reshape(-1, 4)).as_euler(order.upper(), degrees=True)
+    return e.reshape(q.shape[:-1] + (3,))
+
+
+def quat_multiply_np(a, b) -> np.ndarray:
+    """Hamilton product a * b of (..., 4) quaternions (NumPy, broadcasting)."""
+    a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
+
+
+def yaw_angle_np(q) -> np.ndarray:
+    """Heading about +Y (radians) of (..., 4) quaternions: the angle of their swing-twist yaw."""
+    q = np.asarray(q, dtype=np.float64)
+    return 2.0 * np.arctan2(q[..., 2], q[..., 0])
+
+
+def yaw_to_quat_np(angle) -> np.ndarray:
+    """(...) radians about +Y -> (..., 4) quaternions."""
+    a = 0.5 * np.asarray(angle, dtype=np.float64)
+    z = np.zeros_like(a)
+    return np.stack([np.cos(a), z, np.sin(a), z], axis=-1)
+
+
+def rotate_about_y_np(v, angle) -> np.ndarray:
+    """Rotate (..., 3) vectors by (...) radians about +Y (right-handed)."""
+    v = np.asarray(v, dtype=np.float64)
+    c, s = np.cos(angle), np.sin(angle)
+    return np.stack([c * v[..., 0] + s * v[..., 2], v[..., 1], -s * v[..., 0] + c * v[..., 2]], axis=-1)

@@ -67,3 +67,26 @@ def test_yaw_extracts_heading():
 def test_bad_order_rejected():
     with pytest.raises(ValueError):
         R.euler_to_quat(np.zeros(3), "XQZ")
+
+
+# ------------------------------------------------------------------ host-side (NumPy) helpers
+def test_numpy_helpers_agree_with_the_jax_primitives():
+    rng = np.random.default_rng(3)
+    ang = rng.uniform(-170, 170, (50, 3))
+    for order in ("ZXY", "XYZ", "YXZ", "ZYX"):
+        q = R.euler_deg_to_quat_np(ang, order)
+        ref = np.asarray(R.euler_to_quat(np.deg2rad(ang), order), dtype=np.float64)
+        np.testing.assert_allclose(np.abs(np.sum(q * ref, -1)), 1.0, atol=1e-6)  # same rotation (sign-free)
+        back = R.euler_deg_to_quat_np(R.quat_to_euler_deg_np(q, order), order)
+        np.testing.assert_allclose(np.abs(np.sum(q * back, -1)), 1.0, atol=1e-9)
+    a, b = R.euler_deg_to_quat_np(ang, "ZXY"), R.euler_deg_to_quat_np(ang[::-1], "XYZ")
+    np.testing.assert_allclose(R.quat_multiply_np(a, b), np.asarray(R.quat_multiply(a, b)), atol=1e-6)
+    yaw = rng.uniform(-3, 3, 50)
+    q = R.yaw_to_quat_np(yaw)
+    np.testing.assert_allclose(R.yaw_angle_np(q), yaw, atol=1e-12)
+    v = rng.normal(size=(50, 3))
+    np.testing.assert_allclose(R.rotate_about_y_np(v, yaw), np.asarray(R.quat_rotate(q, v)), atol=1e-5)
+    # the yaw of a tilted rotation is its swing-twist heading, as yaw_quat computes it
+    tilted = R.quat_multiply_np(q, R.euler_deg_to_quat_np(np.c_[np.zeros(50), rng.uniform(-30, 30, 50), np.zeros(50)], "YXZ"))
+    np.testing.assert_allclose(R.yaw_to_quat_np(R.yaw_angle_np(tilted)) * np.sign(tilted[:, :1]),
+                               np.asarray(R.yaw_quat(tilted)) * np.sign(tilted[:, :1]), atol=1e-6)

@@ -30,12 +30,12 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 from scipy import signal
-from scipy.spatial.transform import Rotation
 
 from ..errors import ConfigError
 from ..io.audio import save_wav
 from ..io.bvh import save_bvh
 from ..io.transcripts import save_transcript_tsv
+from ..rotations import euler_deg_to_quat_np, quat_multiply_np, yaw_to_quat_np
 from ..skeleton import Motion
 from ..utils import _umask
 from .skeleton_seated import INDEX, NAMES, SEAT_HEIGHT, base_pose_degrees, seated_skeleton
@@ -285,10 +285,7 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
             osc = np.sin(2 * np.pi * cyc * x) * np.sin(np.pi * x) * ((t >= s) & (t <= e))
             euler[:, INDEX["Head"], 1] += amp * 11.0 * osc
             euler[:, INDEX["Neck"], 1] += amp * 3.0 * osc
-    quats = np.zeros((n, len(NAMES), 4))
-    for j in range(len(NAMES)):
-        q = Rotation.from_euler("ZXY", euler[:, j], degrees=True).as_quat()
-        quats[:, j] = q[:, [3, 0, 1, 2]]
+    quats = euler_deg_to_quat_np(euler, "ZXY")
     trans = np.broadcast_to(skel.offsets, (n, len(NAMES), 3)).copy()
     z0 = -60.0 if role == ROLES[0] else 60.0
     trans[:, 0] = (0.0, SEAT_HEIGHT, z0)
@@ -296,9 +293,7 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
     trans[:, 0, 2] += _smooth_noise(rng, n, fps, 6.0, 0.8)
     trans[:, 0, 1] += 0.3 * breath
     if role == ROLES[1]:  # the interlocutor faces the other way (-Z)
-        yaw = Rotation.from_euler("Y", 180, degrees=True)
-        root = Rotation.from_quat(quats[:, 0][:, [1, 2, 3, 0]])
-        quats[:, 0] = (yaw * root).as_quat()[:, [3, 0, 1, 2]]
+        quats[:, 0] = quat_multiply_np(yaw_to_quat_np(np.pi), quats[:, 0])
     return Motion(skel, quats, trans, float(fps), role)
 
 

@@ -12,9 +12,9 @@ import math
 from pathlib import Path
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from ..errors import BVHFormatError, MissingFileError
+from ..rotations import euler_deg_to_quat_np, quat_to_euler_deg_np
 from ..skeleton import Motion, Skeleton
 from ..utils import atomic_path
 
@@ -226,8 +226,7 @@ def _channels_to_motion(skel: Skeleton, data: np.ndarray, fps: float, name: str)
         joints = [j for j, _ in items]
         cols = np.array([c for _, c in items])  # (n, 3)
         angles = data[:, cols]  # (F, n, 3)
-        q = Rotation.from_euler(order, angles.reshape(-1, 3), degrees=True).as_quat()  # xyzw
-        rotations[:, joints] = q[:, [3, 0, 1, 2]].reshape(F, len(joints), 4)
+        rotations[:, joints] = euler_deg_to_quat_np(angles, order)
     return Motion(skel, rotations, translations, float(fps), name)
 
 
@@ -249,8 +248,7 @@ def motion_to_channels(motion: Motion) -> np.ndarray:
         euler = None
         order = skel.rotation_order(j)
         if order:
-            q = rot[:, j][:, [1, 2, 3, 0]]
-            euler = Rotation.from_quat(q).as_euler(order, degrees=True)
+            euler = quat_to_euler_deg_np(rot[:, j], order)
         k = 0
         for c in chans:
             if c.endswith("position"):

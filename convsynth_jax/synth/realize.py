@@ -10,24 +10,9 @@
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from ..rotations import quat_slerp
+from ..rotations import quat_multiply_np, quat_slerp, rotate_about_y_np, yaw_angle_np, yaw_to_quat_np
 from ..skeleton import Motion
-
-
-def _yaw_angle(q_wxyz: np.ndarray) -> np.ndarray:
-    """Heading about +Y of quaternions (…, 4) in radians (swing-twist)."""
-    w, y = q_wxyz[..., 0], q_wxyz[..., 2]
-    return 2.0 * np.arctan2(y, w)
-
-
-def _yaw_quat(angle):
-    return np.stack([np.cos(angle / 2), np.zeros_like(angle), np.sin(angle / 2), np.zeros_like(angle)], -1)
-
-
-def _qmul(a, b):
-    return Rotation.from_quat(a[..., [1, 2, 3, 0]]) * Rotation.from_quat(b[..., [1, 2, 3, 0]])
 
 
 def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0, 0.0, 0.0), chair_yaw_deg=0.0,
@@ -53,24 +38,20 @@ def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0
             alpha = 0.5 - 0.5 * np.cos(np.pi * (k + 1) / (blend_frames + 1))  # 0 -> 1
             rot[u, 1:] = np.asarray(quat_slerp(pm.rotations[f, 1:], rot[u, 1:], alpha))
     # root: per-source-frame local velocity and yaw rate
-    vel_local = np.zeros((T, 3))
-    yaw_rate = np.zeros(T)
+    q0, q1, d = np.zeros((T, 4)), np.zeros((T, 4)), np.zeros((T, 3))
     for t, (c, f) in enumerate(zip(source_clips, source_frames)):
         m = motions[c]
         f0, f1 = (f, f + 1) if f + 1 < m.num_frames else (max(f - 1, 0), f)
-        y0, y1 = _yaw_angle(m.rotations[f0, 0]), _yaw_angle(m.rotations[f1, 0])
-        d = m.translations[f1, 0] - m.translations[f0, 0]
-        vel_local[t] = Rotation.from_rotvec([0, -y0, 0]).apply(d)
-        yaw_rate[t] = (y1 - y0 + np.pi) % (2 * np.pi) - np.pi
+        q0[t], q1[t] = m.rotations[f0, 0], m.rotations[f1, 0]
+        d[t] = m.translations[f1, 0] - m.translations[f0, 0]
+    y0 = yaw_angle_np(q0)
+    vel_local = rotate_about_y_np(d, -y0)  # the source frame's step in its own heading frame
+    yaw_rate = (yaw_angle_np(q1) - y0 + np.pi) % (2 * np.pi) - np.pi
     heading = np.deg2rad(chair_yaw_deg) + np.concatenate([[0.0], np.cumsum(yaw_rate[:-1])])
-    pos = np.zeros((T, 3))
-    pos[0] = chair
-    for t in range(1, T):
-        pos[t] = pos[t - 1] + Rotation.from_rotvec([0, heading[t - 1], 0]).apply(vel_local[t - 1])
+    steps = rotate_about_y_np(vel_local[:-1], heading[:-1])
+    pos = np.asarray(chair, dtype=np.float64) + np.concatenate([np.zeros((1, 3)), np.cumsum(steps, axis=0)])
     pos[:, 1] = trans[:, 0, 1]  # height from the source frames
-    src_yaw = _yaw_angle(rot[:, 0])
-    tilt = _qmul(_yaw_quat(-src_yaw), rot[:, 0])
-    root = Rotation.from_quat(_yaw_quat(heading)[:, [1, 2, 3, 0]]) * tilt
-    rot[:, 0] = root.as_quat()[:, [3, 0, 1, 2]]
+    tilt = quat_multiply_np(yaw_to_quat_np(-yaw_angle_np(rot[:, 0])), rot[:, 0])
+    rot[:, 0] = quat_multiply_np(yaw_to_quat_np(heading), tilt)
     trans[:, 0] = pos
     return Motion(skel, rot, trans, float(fps), "synthesized")

@@ -17,9 +17,6 @@ import sys
 from pathlib import Path
 
 sys.path.insert(0, str(Path.cwd()))
-import matplotlib
-
-matplotlib.use("Agg")
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd

@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import CDBNError
-from .hmm import batch_posterior
+from .hmm import batch_statistics
 from .params import DBNModel, TrainParams
 
 log = logging.getLogger(__name__)
@@ -25,8 +25,9 @@ log = logging.getLogger(__name__)
 
 class Batch(NamedTuple):
     """Padded sequences. x: (B, T, D) float32; constraints: (B, T) int32; lengths: (B,) int32.
-    T is rounded up to a multiple of ``bucket`` frames so that datasets of similar size share one
-    compiled E-step."""
+    T is rounded up to a power of two (at least ``bucket``) and B to a power of two (a multiple of 16
+    above 16) so that datasets of similar size share one compiled E-step; padding sequences have
+    length 0."""
 
     x: np.ndarray
     constraints: np.ndarray
@@ -47,7 +48,7 @@ class Batch(NamedTuple):
 
 
 def make_batch(sequences: Sequence[np.ndarray], constraints: Sequence[np.ndarray] | None = None,
-               max_length: int | None = 2048, bucket: int = 128, dtype=np.float32) -> Batch:
+               max_length: int | None = 2048, bucket: int = 64, dtype=np.float32) -> Batch:
     """Pad a list of (T_i, D) sequences (and (T_i,) constraint codes; zeros if None) into a Batch.
     Sequences longer than ``max_length`` are cut into consecutive chunks (the chain restarts from the
     initial distribution at each cut: a negligible approximation for long recordings that keeps the
@@ -67,11 +68,13 @@ def make_batch(sequences: Sequence[np.ndarray], constraints: Sequence[np.ndarray
     if not xs:
         raise CDBNError("no frames to train on")
     T = max(len(s) for s in xs)
-    T = int(np.ceil(T / bucket) * bucket)
+    T = max(bucket, int(2 ** np.ceil(np.log2(T))))           # bucketed shapes: few compilations
+    B = len(xs)
+    B = int(2 ** np.ceil(np.log2(B))) if B <= 16 else int(np.ceil(B / 16) * 16)
     D = xs[0].shape[1]
-    x = np.zeros((len(xs), T, D), dtype)
-    cc = np.zeros((len(xs), T), np.int32)
-    lengths = np.zeros(len(xs), np.int32)
+    x = np.zeros((B, T, D), dtype)
+    cc = np.zeros((B, T), np.int32)
+    lengths = np.zeros(B, np.int32)      # padding sequences have length 0
     for i, (s, c) in enumerate(zip(xs, cs)):
         x[i, :len(s)] = s
         cc[i, :len(s)] = c
@@ -94,26 +97,22 @@ class Stats(NamedTuple):
 
 
 def e_step(model: DBNModel, batch: Batch, dims: tuple | None = None) -> Stats:
-    """Smoother over the batch and the expected sufficient statistics."""
+    """Smoother over the batch and the expected sufficient statistics (reduced on the device, about
+    the batch mean, converted to float64 raw moments here)."""
     D = batch.x.shape[-1]
     dims = tuple(range(D)) if dims is None else tuple(dims)
-    post = batch_posterior(jnp.asarray(batch.x), jnp.asarray(batch.constraints), jnp.asarray(batch.lengths),
-                           jnp.asarray(model.means, batch.x.dtype), jnp.asarray(model.covariances, batch.x.dtype),
-                           jnp.asarray(model.initial, batch.x.dtype), jnp.asarray(model.transitions, batch.x.dtype),
-                           dims)
-    g = np.asarray(post.smoothed)                                       # (B, T, K)
-    valid = batch.valid()
-    gv = g[valid].astype(np.float64)                                    # (N, K)
-    xv = batch.x[valid].astype(np.float64)                              # (N, D)
-    counts = gv.sum(0)
-    first = gv.T @ xv
-    outer = (xv[:, :, None] * xv[:, None, :]).reshape(len(xv), -1)
-    second = (gv.T @ outer).reshape(-1, D, D)
-    C, K = model.initial.shape
-    init = np.zeros((C, K))
-    np.add.at(init, batch.constraints[:, 0], g[:, 0].astype(np.float64))
-    return Stats(float(np.asarray(post.log_likelihood, np.float64).sum()), counts, first, second, init,
-                 np.asarray(post.xi_sum, np.float64).sum(0))
+    dt = batch.x.dtype
+    shift = batch.x[batch.valid()].mean(0) if batch.num_frames else np.zeros(D, dt)
+    out = batch_statistics(jnp.asarray(batch.x), jnp.asarray(batch.constraints), jnp.asarray(batch.lengths),
+                           jnp.asarray(shift, dt), jnp.asarray(model.means, dt), jnp.asarray(model.covariances, dt),
+                           jnp.asarray(model.initial, dt), jnp.asarray(model.transitions, dt), dims)
+    ll, counts, first, second, init, xi = (np.asarray(o, np.float64) for o in out)
+    shift = shift.astype(np.float64)
+    # raw moments: sum g x = first + n shift; sum g x x^T = second + first shift^T + shift first^T + n shift shift^T
+    raw1 = first + counts[:, None] * shift
+    raw2 = (second + first[:, :, None] * shift[None, None, :] + shift[None, :, None] * first[:, None, :]
+            + counts[:, None, None] * np.outer(shift, shift)[None])
+    return Stats(float(ll), counts, raw1, raw2, init, xi)
 
 
 def floor_covariance(cov: np.ndarray, floor: float, where: str = "") -> tuple[np.ndarray, bool]:

@@ -102,7 +102,7 @@ def hmm_posterior(initial, transitions, log_lik, constraints, length) -> Posteri
                                   reverse=True)
     beta = jnp.concatenate([betas, jnp.ones((1, K), log_lik.dtype)], axis=0)
     g = alpha * beta
-    g = g / jnp.sum(g, axis=-1, keepdims=True)
+    g = g / jnp.maximum(jnp.sum(g, axis=-1, keepdims=True), jnp.finfo(g.dtype).tiny)  # empty sequence -> 0
     return Posterior(ll, alpha, g, xi_sum)
 
 
@@ -161,3 +161,23 @@ def batch_filter(x, constraints, lengths, means, covariances, initial, transitio
     ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
     out = jax.vmap(hmm_filter, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
     return out[0], out[1]
+
+
+@partial(jax.jit, static_argnames=("dims",))
+def batch_statistics(x, constraints, lengths, shift, means, covariances, initial, transitions, dims: tuple):
+    """E-step of EM over a padded batch, reduced on the device: (total log-likelihood, counts (K,),
+    first (K, D) = sum_t gamma_t (x_t - shift), second (K, D, D) = sum_t gamma_t (x_t - shift)(x_t - shift)^T,
+    initial counts (C, K) by first constraint, xi_sum (C, K, K)). ``shift`` (D,) centres the data
+    (a global mean) so that float32 sums keep their precision."""
+    post = batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims)
+    B, T, D = x.shape
+    K = means.shape[0]
+    C = initial.shape[0]
+    valid = (jnp.arange(T)[None, :] < lengths[:, None]).astype(x.dtype)
+    g = (post.smoothed * valid[..., None]).reshape(B * T, K)
+    xc = (x - shift).reshape(B * T, D)
+    counts = jnp.sum(g, axis=0)
+    first = g.T @ xc
+    second = (g.T @ (xc[:, :, None] * xc[:, None, :]).reshape(B * T, D * D)).reshape(K, D, D)
+    init = jnp.zeros((C, K), x.dtype).at[constraints[:, 0]].add(post.smoothed[:, 0] * (lengths > 0)[:, None])
+    return jnp.sum(post.log_likelihood), counts, first, second, init, jnp.sum(post.xi_sum, axis=0)

@@ -2,8 +2,11 @@
 
 LBG [22]: start from the global centroid; split codewords c -> c(1 + eps), c(1 - eps) (perturbation
 along each codeword's spread, ours: eps times the data SD, so a zero codeword splits too) and refine
-with Lloyd iterations. A number of states that is not a power of two is reached by splitting only the
-codewords with the largest distortion in the last round (ours; the paper does not say).
+with Lloyd iterations. With ``lbg_split='all'`` every codeword splits each round (the classic doubling) and a number of
+states that is not a power of two is reached by splitting only the codewords with the largest
+distortion in the last round; with ``'greedy'`` (our default) only the codeword with the largest
+distortion splits each round, which avoids the classic local optimum where one round's split
+divides a compact cluster while two others share a codeword (the paper does not say which).
 *Random* initialization (our reading of [23]): every state starts at the global mean plus a small
 random offset (0.1 SD) with the global covariance — the flat start whose states converge towards the
 average pose (the paper's Fig. 6a).
@@ -56,7 +59,7 @@ def lbg(x: np.ndarray, num_codewords: int, params: TrainParams | None = None,
     while len(cb) < num_codewords:
         _, dist = _assign(x, cb)
         distortion = np.bincount(lab, weights=dist, minlength=len(cb))
-        m = min(len(cb), num_codewords - len(cb))
+        m = min(len(cb), num_codewords - len(cb)) if params.lbg_split == "all" else 1
         split = np.argsort(-distortion)[:m]
         delta = params.lbg_epsilon * sd * (1.0 + 0.1 * rng.standard_normal((m, x.shape[1])))
         keep = np.delete(cb, split, axis=0)

@@ -71,6 +71,7 @@ class TrainParams:
     covariance_floor: float = 1e-3    # minimum eigenvalue of each stream's covariance (z-units^2)
     lloyd_iter: int = 15              # Lloyd refinements after each LBG split
     lbg_epsilon: float = 0.1          # LBG split perturbation (data SDs)
+    lbg_split: str = "greedy"         # greedy (split the worst codeword) | all (classic doubling)
     min_frames_per_state: int = 5     # fewer training frames than this per state -> CDBNError
     self_transition: float = 0.9      # initial self-transition probability
     seed: int = 0

@@ -126,7 +126,7 @@ def floor_covariance(cov: np.ndarray, floor: float, where: str = "") -> tuple[np
     return (v * w) @ v.T, True
 
 
-def m_step(model: DBNModel, st: Stats, params: TrainParams, warn: bool = True) -> DBNModel:
+def m_step(model: DBNModel, st: Stats, params: TrainParams, warn: bool = True, floored_out: list | None = None) -> DBNModel:
     """Maximization (float64). States without responsibility keep their Gaussians; transition rows
     and initial vectors without counts keep their previous values; zeros stay zeros."""
     K, D = model.means.shape
@@ -148,6 +148,8 @@ def m_step(model: DBNModel, st: Stats, params: TrainParams, warn: bool = True) -
             if clipped:
                 floored.append(f"state {k} {name}")
         covs[k] = new
+    if floored_out is not None:
+        floored_out.extend(floored)
     if floored and warn:
         warnings.warn(f"singular or near-singular covariances floored at eigenvalue {params.covariance_floor}: "
                       f"{', '.join(floored[:8])}{' ...' if len(floored) > 8 else ''}", RuntimeWarning, stacklevel=2)
@@ -181,7 +183,7 @@ def fit_em(model: DBNModel, batch: Batch, params: TrainParams, max_iter: int | N
                         f"(need at least {params.min_frames_per_state} per state, "
                         f"i.e. {params.min_frames_per_state * K}); use fewer states or more data")
     iters = params.max_iter if max_iter is None else max_iter
-    lls, converged = [], False
+    lls, converged, floored = [], False, []
     for it in range(iters):
         st = e_step(model, batch)
         lls.append(st.log_likelihood / n)
@@ -190,7 +192,11 @@ def fit_em(model: DBNModel, batch: Batch, params: TrainParams, max_iter: int | N
         if len(lls) > 1 and lls[-1] - lls[-2] < params.tol:
             converged = True
             break
-        model = m_step(model, st, params)
+        model = m_step(model, st, params, warn=False, floored_out=floored)
         if progress:
             log.info("EM iteration %d: log-likelihood per frame %.5f", it, lls[-1])
+    if floored:
+        uniq = sorted(set(floored))
+        warnings.warn(f"singular or near-singular covariances floored at eigenvalue {params.covariance_floor} "
+                      f"during EM: {', '.join(uniq[:6])}{' ...' if len(uniq) > 6 else ''}", RuntimeWarning, stacklevel=2)
     return FitResult(model, lls, converged, len(lls))

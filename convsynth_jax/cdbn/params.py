@@ -55,7 +55,7 @@ class FeatureParams:
     hop: float = 1.0 / 60.0
     f0_floor: float | str = "auto"        # Hz, or "auto": speaker-adaptive (two-pass, De Looze & Hirst)
     f0_ceiling: float = 600.0
-    min_voiced_fraction: float = 0.05     # fewer voiced frames than this -> CDBNError (suggest a floor)
+    min_voiced_fraction: float = 0.10     # fewer voiced frames than this -> CDBNError (suggest a floor)
     head_joints: tuple = ("Neck", "Head")  # joints whose rotations compose the head rotation
     fps: float = 30.0                     # model frame rate (motion and upsampled/downsampled speech)
 
@@ -65,8 +65,8 @@ class TrainParams:
     """Sec. VI-C: LBG or random initialization, EM with a covariance floor and restarts."""
 
     init: str = "lbg"                 # lbg | random
-    max_iter: int = 30
-    tol: float = 1e-4                 # stop when the per-frame log-likelihood gains less than this
+    max_iter: int = 20
+    tol: float = 1e-3                 # stop when the per-frame log-likelihood gains less than this
     restarts: int = 1                 # EM runs from different initializations; best log-likelihood kept
     covariance_floor: float = 1e-3    # minimum eigenvalue of each stream's covariance (z-units^2)
     lloyd_iter: int = 15              # Lloyd refinements after each LBG split

@@ -180,28 +180,31 @@ def sparse_structure(owners: np.ndarray, shared: int | None):
     return tmask, owners.T.copy()
 
 
-def train_cdbn(sequences, constraints, states_per_constraint: int, speech_dims, motion_dims, params: TrainParams,
+def train_cdbn(sequences, constraints, states_per_constraint: int | tuple, speech_dims, motion_dims, params: TrainParams,
                constraint_names: tuple, merge_threshold: float = 1.0, shared_state: bool = True,
                feature_layout: tuple = (), max_length: int | None = 2048) -> TrainedModel:
     """The proposed CDBN (Sec. VII). sequences: [(T_i, D)]; constraints: [(T_i,)] codes into
-    ``constraint_names``."""
+    ``constraint_names``; ``states_per_constraint``: N, or one N per constraint (ours: lets a system
+    give a rare constraint fewer states)."""
     C = len(constraint_names)
+    Ns = (tuple(int(v) for v in states_per_constraint) if isinstance(states_per_constraint, (tuple, list))
+          else (int(states_per_constraint),) * C)
     rng = np.random.default_rng(params.seed)
     per, occ = [], []
     for k in range(C):
         runs = constraint_runs(sequences, constraints, k)
         n = sum(len(r) for r in runs)
-        if n < params.min_frames_per_state * states_per_constraint:
+        if n < params.min_frames_per_state * Ns[k]:
             raise CDBNError(f"too few frames per state for constraint {constraint_names[k]!r}: {n} frames for "
-                            f"{states_per_constraint} states (need {params.min_frames_per_state} per state)")
+                            f"{Ns[k]} states (need {params.min_frames_per_state} per state)")
         sub = TrainParams(**{**params.__dict__, "seed": int(rng.integers(2 ** 31))})
-        tm = train_jdbn(runs, states_per_constraint, speech_dims, motion_dims, sub, feature_layout,
+        tm = train_jdbn(runs, Ns[k], speech_dims, motion_dims, sub, feature_layout,
                         max_length=max_length)
         b = make_batch(runs, None, max_length=max_length)
         occ.append(e_step(tm.model, b).counts)
         per.append(tm.model)
     means, covs, owners, origin, merges = merge_states(per, occ, merge_threshold)
-    log.info("CDBN: %d x %d states -> %d after %d merges", C, states_per_constraint, len(means), len(merges))
+    log.info("CDBN: %s states per constraint -> %d after %d merges", Ns, len(means), len(merges))
     batch = make_batch(sequences, constraints, max_length=max_length)
     x, _ = batch.frames()
     shared = None

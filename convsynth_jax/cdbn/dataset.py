@@ -75,3 +75,10 @@ def check_turns(turns: list[Turn], min_frames: int = 3) -> None:
         check_finite(t.observations(), t.name, "features")
     if not turns:
         raise CDBNError("no turns")
+
+
+def load_semisynthetic_turns(root, names: tuple, params: FeatureParams) -> list[Turn]:
+    from .semisynthetic import load_semisynthetic_corpus
+
+    return [load_turn(t["wav"], t["bvh"], t["constraints"], names, params, t["subject"], t["turn"])
+            for t in load_semisynthetic_corpus(root)]

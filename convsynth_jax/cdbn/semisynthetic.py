@@ -170,3 +170,26 @@ def load_semisynthetic_corpus(root: str | Path) -> list[dict]:
     meta = json.loads(meta_path.read_text())
     return [{**t, "wav": root / "turns" / f"{t['turn']}.wav", "bvh": root / "turns" / f"{t['turn']}.bvh",
              "constraints": root / "turns" / f"{t['turn']}_constraints.tsv"} for t in meta["turns"]]
+
+
+def params_from_dict(d: dict | None) -> SemiSyntheticParams:
+    d = dict(d or {})
+    for k, v in list(d.items()):
+        if isinstance(v, list):
+            d[k] = tuple(tuple(x) if isinstance(x, list) else x for x in v)
+    return SemiSyntheticParams(**d)
+
+
+def ensure_corpus(root: str | Path, p: SemiSyntheticParams) -> Path:
+    """The corpus at ``root``: reused when its corpus.json has the same parameters, else (re)written."""
+    root = Path(root)
+    meta = root / "corpus.json"
+    if meta.is_file():
+        try:
+            old = json.loads(meta.read_text()).get("params")
+            if json.loads(json.dumps(old)) == json.loads(json.dumps(p.__dict__)):
+                return root
+        except json.JSONDecodeError:
+            pass
+    make_semisynthetic_corpus(root, p)
+    return root

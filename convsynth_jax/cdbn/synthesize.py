@@ -86,3 +86,29 @@ def synthesize_head(model: DBNModel, speech_z: np.ndarray, constraints: np.ndarr
     """(angles (T, 3) degrees, unsmoothed; gamma (T, K)) for z-normalized speech."""
     g = state_posteriors(model, speech_z, constraints, posterior)
     return expected_motion(model, g) * motion_sd + motion_mean, g
+
+
+def head_into_motion(template, composite: np.ndarray, head_joints: tuple = ("Neck", "Head"), name: str = ""):
+    """A full-skeleton Motion of len(composite) frames: every joint keeps the template's mean pose
+    (first frame's translations, per-joint mean rotation), and the composed head rotation
+    ``composite`` (F, 4) (w, x, y, z) is put on the last of ``head_joints`` after the fixed rotations of
+    the others (so the composition Neck * Head equals ``composite``)."""
+    from scipy.spatial.transform import Rotation
+
+    from ..skeleton import Motion
+
+    skel = template.skeleton
+    F = len(composite)
+    rot = np.asarray(template.rotations, np.float64)
+    mean_rot = np.zeros((skel.num_joints, 4))
+    for j in range(skel.num_joints):
+        mean_rot[j] = Rotation.from_quat(rot[:, j][:, [1, 2, 3, 0]]).mean().as_quat()[[3, 0, 1, 2]]
+    rots = np.broadcast_to(mean_rot, (F, skel.num_joints, 4)).copy()
+    idx = [skel.names.index(n) for n in head_joints]
+    pre = Rotation.identity()
+    for j in idx[:-1]:
+        pre = pre * Rotation.from_quat(mean_rot[j][[1, 2, 3, 0]])
+    head = pre.inv() * Rotation.from_quat(np.asarray(composite)[:, [1, 2, 3, 0]])
+    rots[:, idx[-1]] = head.as_quat()[:, [3, 0, 1, 2]]
+    trans = np.broadcast_to(np.asarray(template.translations[0]), (F,) + template.translations.shape[1:]).copy()
+    return Motion(skel, rots, trans, float(template.fps), name or template.name)

@@ -45,6 +45,8 @@ GROUPS = {
 }
 # groups that are not part of Params' fixed fields go to Params.extra
 CORE_GROUPS = ("corpus", "features", "annotate", "stats", "graph", "search", "synth", "system")
+# groups of other systems that convert their own parameters (Params.extra[group] is a plain dict)
+SYSTEM_GROUPS = ("cdbn", "walktalk")
 
 
 def _load(spec: str):
@@ -100,6 +102,8 @@ def to_params(cfg: DictConfig):
 
     core = {g: group_params(cfg, g) for g in CORE_GROUPS}
     extra = {g: group_params(cfg, g) for g in GROUPS if g not in CORE_GROUPS and cfg.get(g) is not None}
+    extra.update({g: OmegaConf.to_container(cfg[g], resolve=True) for g in SYSTEM_GROUPS
+                  if g not in GROUPS and cfg.get(g) is not None})
     loo = OmegaConf.to_container(cfg.get("loo") or {}, resolve=True)
     try:
         loo = LooParams(**loo)

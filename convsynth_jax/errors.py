@@ -62,3 +62,7 @@ class GraphError(ConvSynthError):
 
 class SearchFailure(ConvSynthError):
     """A search found no path; raised only when the caller asks for an exception."""
+
+
+class CDBNError(ConvSynthError):
+    """The constrained DBN cannot be trained or applied: bad features, constraints or model files."""

@@ -1,0 +1,1 @@
+"""Constrained DBN (Sadoughi & Busso): features, HMM inference and EM in JAX, state merging, synthesis."""

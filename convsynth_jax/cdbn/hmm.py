@@ -1,0 +1,183 @@
+"""HMM inference for the (constrained) DBN in JAX: forward filter, backward pass, smoother, expected
+transition counts and Viterbi, each a ``lax.scan`` over a named ``_step`` (dynamax style).
+
+The constraint sequence c_t selects the transition matrix at every frame (Eq. 5:
+a^k_ij = P(q_t = j | q_{t-1} = i, C_t = k)) and the initial distribution at the first frame.
+Emissions are computed in log space; the recursions are *scaled* (each frame's emissions are shifted
+by their maximum and the forward message renormalized, the normalizers accumulated as the
+log-likelihood), which keeps exact zeros of the transition matrices exact (structural zeros) and is
+as stable as a log-space recursion. Viterbi runs fully in log space.
+
+Primitives work on one sequence of ``T`` frames of which the first ``length`` are valid (the rest
+is padding, so that batches of sequences share one compiled shape); batch them with ``jax.vmap``.
+"""
+from __future__ import annotations
+
+from functools import partial
+from typing import NamedTuple
+
+import jax
+import jax.numpy as jnp
+from jax import lax
+
+
+class Posterior(NamedTuple):
+    """log_likelihood: () log p(x_{1:length} | c, model); filtered / smoothed: (T, K) (padding rows
+    are copies of the last valid one / undefined); xi_sum: (C, K, K) expected transition counts per
+    constraint, sum_t P(q_{t-1}=i, q_t=j | x) over frames t with c_t = k."""
+
+    log_likelihood: jnp.ndarray
+    filtered: jnp.ndarray
+    smoothed: jnp.ndarray
+    xi_sum: jnp.ndarray
+
+
+def gaussian_log_density(x, means, covariances):
+    """log N(x_t; mu_k, Sigma_k). x: (T, d); means: (K, d); covariances: (K, d, d) -> (T, K)."""
+    d = x.shape[-1]
+    chol = jnp.linalg.cholesky(covariances)                                   # (K, d, d)
+    diff = x[None, :, :] - means[:, None, :]                                  # (K, T, d)
+    sol = jax.scipy.linalg.solve_triangular(chol, jnp.swapaxes(diff, 1, 2), lower=True)  # (K, d, T)
+    maha = jnp.sum(sol ** 2, axis=1)                                          # (K, T)
+    logdet = 2.0 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=1, axis2=2)), axis=-1)  # (K,)
+    return (-0.5 * (maha + logdet[:, None] + d * jnp.log(2.0 * jnp.pi))).T
+
+
+def stream_log_likelihoods(x, means, covariances, dims: tuple):
+    """Log emissions of the columns ``dims`` only (e.g. speech-only synthesis). x: (T, D) -> (T, K).
+    The covariance is block-diagonal over streams, so a sub-block is the stream's own Gaussian."""
+    idx = jnp.asarray(dims)
+    return gaussian_log_density(x[:, idx], means[:, idx], covariances[:, idx][:, :, idx])
+
+
+def _forward_step(carry, inp, initial, transitions):
+    alpha_prev, ll = carry
+    loglik_t, c_t, valid_t, first_t = inp
+    pred = jnp.where(first_t, initial[c_t], alpha_prev @ transitions[c_t])
+    m = jnp.max(loglik_t)
+    b = jnp.exp(loglik_t - m)
+    u = pred * b
+    s = jnp.sum(u)
+    alpha = u / s
+    alpha = jnp.where(valid_t, alpha, alpha_prev)
+    ll = jnp.where(valid_t, ll + jnp.log(s) + m, ll)
+    return (alpha, ll), (alpha, b, jnp.where(valid_t, s, 1.0))
+
+
+def hmm_filter(initial, transitions, log_lik, constraints, length):
+    """Forward pass. initial: (C, K); transitions: (C, K, K); log_lik: (T, K); constraints: (T,) int;
+    length: () valid frames. Returns (log_likelihood, filtered (T, K), scaled emissions (T, K),
+    normalizers (T,))."""
+    T, K = log_lik.shape
+    t = jnp.arange(T)
+    step = partial(_forward_step, initial=initial, transitions=transitions)
+    (_, ll), (alpha, b, s) = lax.scan(step, (jnp.zeros(K, log_lik.dtype), jnp.zeros((), log_lik.dtype)),
+                                      (log_lik, constraints, t < length, t == 0))
+    return ll, alpha, b, s
+
+
+def _backward_step(carry, inp, transitions):
+    beta, xi_sum = carry
+    b_t, s_t, c_t, valid_t, alpha_prev = inp
+    A = transitions[c_t]
+    w = b_t * beta / s_t                                   # (K,)
+    beta_prev = A @ w
+    xi = alpha_prev[:, None] * A * w[None, :]              # (K, K)
+    xi = jnp.where(valid_t, xi, 0.0)
+    beta_prev = jnp.where(valid_t, beta_prev, jnp.ones_like(beta_prev))
+    xi_sum = xi_sum.at[c_t].add(xi)
+    return (beta_prev, xi_sum), beta_prev
+
+
+def hmm_posterior(initial, transitions, log_lik, constraints, length) -> Posterior:
+    """Forward-backward (smoother) with expected transition counts per constraint. Shapes as
+    :func:`hmm_filter`."""
+    T, K = log_lik.shape
+    C = transitions.shape[0]
+    ll, alpha, b, s = hmm_filter(initial, transitions, log_lik, constraints, length)
+    t = jnp.arange(1, T)
+    step = partial(_backward_step, transitions=transitions)
+    init = (jnp.ones(K, log_lik.dtype), jnp.zeros((C, K, K), log_lik.dtype))
+    (_, xi_sum), betas = lax.scan(step, init, (b[1:], s[1:], constraints[1:], t < length, alpha[:-1]),
+                                  reverse=True)
+    beta = jnp.concatenate([betas, jnp.ones((1, K), log_lik.dtype)], axis=0)
+    g = alpha * beta
+    g = g / jnp.maximum(jnp.sum(g, axis=-1, keepdims=True), jnp.finfo(g.dtype).tiny)  # empty sequence -> 0
+    return Posterior(ll, alpha, g, xi_sum)
+
+
+def _viterbi_step(delta, inp, log_transitions):
+    loglik_t, c_t, valid_t, first_t, log_init_t = inp
+    scores = delta[:, None] + log_transitions[c_t]         # (K, K)
+    best = jnp.argmax(scores, axis=0)
+    new = jnp.where(first_t, log_init_t, jnp.max(scores, axis=0)) + loglik_t
+    K = delta.shape[0]
+    new = jnp.where(valid_t, new, delta)
+    ptr = jnp.where(valid_t & ~first_t, best, jnp.arange(K))
+    return new, ptr
+
+
+def hmm_viterbi(initial, transitions, log_lik, constraints, length):
+    """Most likely state path (T,) int32 (padding frames repeat the last valid state) and its log
+    joint probability."""
+    T, K = log_lik.shape
+    t = jnp.arange(T)
+    log_a = jnp.log(transitions)            # structural zeros -> -inf
+    log_pi = jnp.log(initial)[constraints]
+    step = partial(_viterbi_step, log_transitions=log_a)
+    delta, ptrs = lax.scan(step, jnp.full(K, -jnp.inf, log_lik.dtype),
+                           (log_lik, constraints, t < length, t == 0, log_pi))
+    last = jnp.argmax(delta).astype(jnp.int32)
+
+    def back(state, ptr):
+        prev = ptr[state].astype(jnp.int32)
+        return prev, state
+
+    _, path = lax.scan(back, last, ptrs, reverse=True)
+    return path, jnp.max(delta)
+
+
+@partial(jax.jit, static_argnames=("dims",))
+def batch_log_likelihoods(x, means, covariances, dims: tuple):
+    """(B, T, D) -> (B, T, K) log emissions of the columns ``dims``."""
+    return jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+
+
+@partial(jax.jit, static_argnames=("dims",))
+def batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple):
+    """Smoother over a padded batch. x: (B, T, D); constraints: (B, T); lengths: (B,)."""
+    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
+
+
+@partial(jax.jit, static_argnames=("dims",))
+def batch_viterbi(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple):
+    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    return jax.vmap(hmm_viterbi, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
+
+
+@partial(jax.jit, static_argnames=("dims",))
+def batch_filter(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple):
+    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    out = jax.vmap(hmm_filter, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
+    return out[0], out[1]
+
+
+@partial(jax.jit, static_argnames=("dims",))
+def batch_statistics(x, constraints, lengths, shift, means, covariances, initial, transitions, dims: tuple):
+    """E-step of EM over a padded batch, reduced on the device: (total log-likelihood, counts (K,),
+    first (K, D) = sum_t gamma_t (x_t - shift), second (K, D, D) = sum_t gamma_t (x_t - shift)(x_t - shift)^T,
+    initial counts (C, K) by first constraint, xi_sum (C, K, K)). ``shift`` (D,) centres the data
+    (a global mean) so that float32 sums keep their precision."""
+    post = batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims)
+    B, T, D = x.shape
+    K = means.shape[0]
+    C = initial.shape[0]
+    valid = (jnp.arange(T)[None, :] < lengths[:, None]).astype(x.dtype)
+    g = (post.smoothed * valid[..., None]).reshape(B * T, K)
+    xc = (x - shift).reshape(B * T, D)
+    counts = jnp.sum(g, axis=0)
+    first = g.T @ xc
+    second = (g.T @ (xc[:, :, None] * xc[:, None, :]).reshape(B * T, D * D)).reshape(K, D, D)
+    init = jnp.zeros((C, K), x.dtype).at[constraints[:, 0]].add(post.smoothed[:, 0] * (lengths > 0)[:, None])
+    return jnp.sum(post.log_likelihood), counts, first, second, init, jnp.sum(post.xi_sum, axis=0)

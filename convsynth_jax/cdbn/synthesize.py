@@ -1,0 +1,114 @@
+"""Synthesis (Sec. VI-B, VII-A): state posteriors from speech (and the constraint sequence) only,
+motion = sum_i gamma_t(i) mu_i^motion, then key-point smoothing.
+
+The paper's Eq. 3-4 are missing from the text; our reconstruction from the surrounding prose and
+Eq. 6: gamma_t(i) = P(q_t = i | Speech_{1:T}, C_{1:T}, lambda) computed with the speech block of each
+state's Gaussian (the motion node unobserved, i.e. marginalized), and E[Motion_t | Speech, C] =
+sum_i gamma_t(i) mu_i^motion (Eq. 4 / Eq. 6). ``posterior`` selects gamma: ``smoother``
+(forward-backward), ``filter`` (causal forward pass, Eq. 6's gamma_{c_{1:t}}), or ``viterbi`` (the
+paper's wording "using the Viterbi algorithm": gamma is the one-hot best path, motion the means along
+it). Smoothing (Busso et al. [5]): equidistant key points (15/s head, 12/s hands), converted to
+quaternions and slerp-interpolated.
+"""
+from __future__ import annotations
+
+import jax.numpy as jnp
+import numpy as np
+
+from ..errors import CDBNError
+from ..rotations import quat_slerp
+from .features import check_finite, head_euler_to_quat
+from .hmm import batch_filter, batch_posterior, batch_viterbi
+from .params import POSTERIORS, DBNModel
+
+
+def _pad(n: int) -> int:
+    return max(64, int(2 ** np.ceil(np.log2(max(n, 1)))))
+
+
+def state_posteriors(model: DBNModel, speech: np.ndarray, constraints: np.ndarray | None = None,
+                     posterior: str = "smoother") -> np.ndarray:
+    """gamma (T, K) from normalized speech (T, d_s) and constraint codes (T,) (zeros if None)."""
+    if posterior not in POSTERIORS:
+        raise CDBNError(f"unknown posterior {posterior!r}; expected one of {POSTERIORS}")
+    T = len(speech)
+    check_finite(speech, "speech", "speech features")
+    c = np.zeros(T, np.int32) if constraints is None else np.asarray(constraints, np.int32)
+    if len(c) != T:
+        raise CDBNError(f"{T} speech frames but {len(c)} constraint codes")
+    if c.size and (c.min() < 0 or c.max() >= model.num_constraints):
+        raise CDBNError(f"constraint codes must lie in 0..{model.num_constraints - 1} {list(model.constraint_names)}")
+    L = _pad(T)
+    D = model.means.shape[1]
+    x = np.zeros((1, L, D), np.float32)
+    x[0, :T, list(model.speech_dims)] = np.asarray(speech, np.float32).T
+    cc = np.zeros((1, L), np.int32)
+    cc[0, :T] = c
+    if T:
+        cc[0, T:] = c[-1]
+    args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray([T], jnp.int32),
+            jnp.asarray(model.means, jnp.float32), jnp.asarray(model.covariances, jnp.float32),
+            jnp.asarray(model.initial, jnp.float32), jnp.asarray(model.transitions, jnp.float32))
+    dims = tuple(model.speech_dims)
+    if posterior == "smoother":
+        g = np.asarray(batch_posterior(*args, dims).smoothed[0, :T], np.float64)
+    elif posterior == "filter":
+        g = np.asarray(batch_filter(*args, dims)[1][0, :T], np.float64)
+    else:
+        path = np.asarray(batch_viterbi(*args, dims)[0][0, :T])
+        g = np.eye(model.num_states)[path]
+    return g
+
+
+def expected_motion(model: DBNModel, gamma: np.ndarray) -> np.ndarray:
+    """Eq. 4 / 6: (T, d_m) = gamma (T, K) @ mu^motion (K, d_m)."""
+    return gamma @ np.asarray(model.means)[:, list(model.motion_dims)]
+
+
+def keypoint_smooth(angles: np.ndarray, fps: float, keypoints_per_second: float) -> np.ndarray:
+    """Key-point smoothing of head Euler angles (T, 3) degrees (pitch, yaw, roll): equidistant key points
+    every fps / rate frames (and the last frame), quaternion slerp between them -> (T, 4) (w, x, y, z)."""
+    T = len(angles)
+    q = head_euler_to_quat(np.asarray(angles, np.float64))
+    if T < 3 or keypoints_per_second <= 0:
+        return q
+    step = max(fps / keypoints_per_second, 1.0)
+    keys = np.unique(np.concatenate([np.round(np.arange(0, T - 1, step)).astype(int), [T - 1]]))
+    kq = q[keys]
+    seg = np.clip(np.searchsorted(keys, np.arange(T), side="right") - 1, 0, len(keys) - 2)
+    a, b = keys[seg], keys[seg + 1]
+    t = (np.arange(T) - a) / np.maximum(b - a, 1)
+    return np.asarray(quat_slerp(jnp.asarray(kq[seg]), jnp.asarray(kq[seg + 1]), jnp.asarray(t)), np.float64)
+
+
+def synthesize_head(model: DBNModel, speech_z: np.ndarray, constraints: np.ndarray | None, posterior: str,
+                    motion_mean: np.ndarray, motion_sd: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(angles (T, 3) degrees, unsmoothed; gamma (T, K)) for z-normalized speech."""
+    g = state_posteriors(model, speech_z, constraints, posterior)
+    return expected_motion(model, g) * motion_sd + motion_mean, g
+
+
+def head_into_motion(template, composite: np.ndarray, head_joints: tuple = ("Neck", "Head"), name: str = ""):
+    """A full-skeleton Motion of len(composite) frames: every joint keeps the template's mean pose
+    (first frame's translations, per-joint mean rotation), and the composed head rotation
+    ``composite`` (F, 4) (w, x, y, z) is put on the last of ``head_joints`` after the fixed rotations of
+    the others (so the composition Neck * Head equals ``composite``)."""
+    from scipy.spatial.transform import Rotation
+
+    from ..skeleton import Motion
+
+    skel = template.skeleton
+    F = len(composite)
+    rot = np.asarray(template.rotations, np.float64)
+    mean_rot = np.zeros((skel.num_joints, 4))
+    for j in range(skel.num_joints):
+        mean_rot[j] = Rotation.from_quat(rot[:, j][:, [1, 2, 3, 0]]).mean().as_quat()[[3, 0, 1, 2]]
+    rots = np.broadcast_to(mean_rot, (F, skel.num_joints, 4)).copy()
+    idx = [skel.names.index(n) for n in head_joints]
+    pre = Rotation.identity()
+    for j in idx[:-1]:
+        pre = pre * Rotation.from_quat(mean_rot[j][[1, 2, 3, 0]])
+    head = pre.inv() * Rotation.from_quat(np.asarray(composite)[:, [1, 2, 3, 0]])
+    rots[:, idx[-1]] = head.as_quat()[:, [3, 0, 1, 2]]
+    trans = np.broadcast_to(np.asarray(template.translations[0]), (F,) + template.translations.shape[1:]).copy()
+    return Motion(skel, rots, trans, float(template.fps), name or template.name)

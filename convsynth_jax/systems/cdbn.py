@@ -1,0 +1,173 @@
+"""The constrained DBN (Sadoughi & Busso) as a synthesis system of the framework (``system=cdbn``).
+
+fit: head rotation (composed Neck/Head rotations) of the character's training clips and prosody
+from each clip's own audio channel (``clip.audio_path``/``clip.audio_channel`` as the annotation
+records carry them, or an ``Audio`` in ``clip.audio``), both z-normalized over the character's
+training data; constraints = the own-channel audio label per frame (idle / PC / LR / HP, the
+framework's annotation; a coarser mapping can be set in ``options.constraint_map``). Condition
+``cdbn`` trains the constrained model (N states per constraint, fewer for a constraint with little
+data: at most frames / (4 * min_frames_per_state)), condition ``jdbn`` the baseline.
+synthesize: prosody of ``window.own_audio`` normalized with the character's training statistics,
+state posteriors under the window's own labels, motion = sum_i gamma_i mu_i (Eq. 4/6), key-point
+slerp smoothing; the rest of the body holds the training mean pose. Head only: produces_hands False.
+
+Parameters: ``params`` may be a :class:`~convsynth_jax.cdbn.params.CDBNParams`, an object or mapping
+with a ``cdbn`` entry, or None (defaults); ``system.options`` entries override ``cdbn`` keys.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..cdbn.cdbn import TrainedModel, train_cdbn, train_jdbn
+from ..cdbn.features import (
+    FEATURE_LAYOUT,
+    Normalization,
+    head_rotation,
+    speech_features,
+)
+from ..cdbn.params import CDBNParams, cdbn_params_from_config
+from ..cdbn.synthesize import head_into_motion, keypoint_smooth, synthesize_head
+from ..errors import CDBNError
+from .base import SynthesisSystem, WindowInput, WindowResult
+
+log = logging.getLogger(__name__)
+
+AUDIO_CONSTRAINTS = ("idle", "PC", "LR", "HP")   # codes 0..3 of annotate.types
+
+
+@dataclass
+class CDBNFit:
+    trained: TrainedModel
+    speech_norm: Normalization
+    motion_norm: Normalization
+    template: object            # a training Motion (skeleton and mean pose of the output)
+    constrained: bool
+    constraint_map: tuple       # audio label code -> constraint code
+    seconds: float
+
+
+def _params(params, options: dict) -> CDBNParams:
+    if isinstance(params, CDBNParams) and not options:
+        return params
+    base = None
+    if params is not None:
+        base = params.get("cdbn") if isinstance(params, dict) else getattr(params, "cdbn", None)
+        if base is None:  # convsynth_jax.params.Params: the cdbn group's dict is in Params.extra
+            base = (getattr(params, "extra", None) or {}).get("cdbn")
+    if isinstance(base, CDBNParams):
+        if not options:
+            return base
+        base = None
+    d = {}
+    if base is not None:
+        try:
+            from omegaconf import OmegaConf
+
+            d = OmegaConf.to_container(base, resolve=True) if not isinstance(base, dict) else dict(base)
+        except (ImportError, ValueError):
+            d = dict(base)
+    for k, v in (options or {}).items():
+        if k == "constraint_map":
+            continue
+        if isinstance(v, dict) and isinstance(d.get(k), dict):
+            d[k] = {**d[k], **v}
+        else:
+            d[k] = v
+    return cdbn_params_from_config(d)
+
+
+def _audio_of(clip):
+    from ..io.audio import Audio, load_audio
+
+    a = getattr(clip, "audio", None)
+    if isinstance(a, Audio):
+        return a
+    path = getattr(clip, "audio_path", None)
+    if path:
+        return load_audio(path, channel=getattr(clip, "audio_channel", None))
+    raise CDBNError(f"system cdbn needs the clip's audio (clip.audio_path or clip.audio) for "
+                    f"{getattr(clip, 'session', '?')}/{getattr(clip, 'role', '?')}")
+
+
+class CDBNSystem(SynthesisSystem):
+    produces_hands = False
+    needs_audio = True
+
+    def __init__(self, params, system):
+        super().__init__(params, system)
+        self.cdbn = _params(params, dict(system.options or {}))
+        cmap = (system.options or {}).get("constraint_map") or {}
+        self.constraint_names = tuple(dict.fromkeys(cmap.get(n, n) for n in AUDIO_CONSTRAINTS))
+        self.constraint_map = tuple(self.constraint_names.index(cmap.get(n, n)) for n in AUDIO_CONSTRAINTS)
+
+    def fit_key(self, condition: str):
+        return condition
+
+    def _constrained(self, condition: str) -> bool:
+        return bool(self.condition_options(condition).get("constrained", condition == "cdbn"))
+
+    def fit(self, clips, character, condition, cache_dir=None) -> CDBNFit:
+        t0 = time.perf_counter()
+        constrained = self._constrained(condition)
+        fp = self.cdbn.features
+        speech, motion, codes = [], [], []
+        mine = [c for c in clips if getattr(c, "character", character) == character]
+        if not mine:
+            raise CDBNError(f"no training clips of character {character!r}")
+        for clip in mine:
+            m = head_rotation(clip.motion, fp)
+            s = speech_features(_audio_of(clip), fp, len(m), clip.motion.fps,
+                                path=getattr(clip, "audio_path", None) or clip.session)
+            lab = np.asarray(getattr(clip.own, "label", clip.own), np.int64)[: len(m)]
+            speech.append(s)
+            motion.append(m)
+            codes.append(np.asarray(self.constraint_map, np.int32)[lab])
+        sn = Normalization.fit(np.concatenate(speech))
+        mn = Normalization.fit(np.concatenate(motion))
+        seqs = [np.concatenate([sn.apply(s), mn.apply(m)], axis=1) for s, m in zip(speech, motion)]
+        sd, md = tuple(range(6)), tuple(range(6, 9))
+        tp = self.cdbn.train
+        if constrained:
+            counts = np.bincount(np.concatenate(codes), minlength=len(self.constraint_names))
+            N = self.cdbn.constrain.states_per_constraint
+            Ns = tuple(int(max(1, min(N, c // (4 * tp.min_frames_per_state)))) for c in counts)
+            if min(counts) < tp.min_frames_per_state:
+                missing = [n for n, c in zip(self.constraint_names, counts) if c < tp.min_frames_per_state]
+                raise CDBNError(f"character {character!r}: too few training frames for constraints {missing} "
+                                f"(counts {dict(zip(self.constraint_names, counts.tolist()))}); map them onto "
+                                "others with system.options.constraint_map")
+            tm = train_cdbn(seqs, codes, Ns, sd, md, tp, self.constraint_names, self.cdbn.constrain.merge_threshold,
+                            self.cdbn.constrain.shared_state, FEATURE_LAYOUT)
+        else:
+            tm = train_jdbn(seqs, self.cdbn.jdbn_states, sd, md, tp, FEATURE_LAYOUT)
+        return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0)
+
+    def synthesize(self, model: CDBNFit, window: WindowInput, condition: str) -> WindowResult:
+        t0 = time.perf_counter()
+        n = int(window.num_frames)
+        audio = window.own_audio
+        if audio is None:
+            return WindowResult(False, failure="system cdbn needs the window's own audio (own_audio is None)")
+        try:
+            raw = speech_features(audio, self.cdbn.features, n, window.fps, path=f"{window.session}/{window.role}")
+        except CDBNError as e:
+            return WindowResult(False, failure=str(e), seconds=time.perf_counter() - t0)
+        cons = None
+        if model.constrained:
+            lab = np.asarray(getattr(window.own_frames, "label", window.own_frames), np.int64)
+            if lab.ndim != 1 or len(lab) != n:
+                lab = np.zeros(n, np.int64)
+            cons = np.asarray(model.constraint_map, np.int32)[lab]
+        angles, gamma = synthesize_head(model.trained.model, model.speech_norm.apply(raw), cons,
+                                        self.cdbn.synth.posterior, model.motion_norm.mean, model.motion_norm.sd)
+        q = keypoint_smooth(angles, window.fps, self.cdbn.synth.keypoints_per_second)
+        motion = head_into_motion(model.template, q, self.cdbn.features.head_joints,
+                                  f"cdbn:{window.session}:{window.role}")
+        ent = -np.sum(gamma * np.log(np.maximum(gamma, 1e-12)), axis=1)
+        return WindowResult(True, motion=motion, seconds=time.perf_counter() - t0,
+                            diagnostics={"states": model.trained.model.num_states,
+                                         "posterior_entropy": float(ent.mean())})

@@ -1,0 +1,154 @@
+"""HMM kernels of the CDBN (forward-backward, filter, Viterbi, EM) against float64 NumPy references."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from convsynth_jax.cdbn import reference as ref
+from convsynth_jax.cdbn.em import e_step, fit_em, m_step, make_batch
+from convsynth_jax.cdbn.params import DBNModel, TrainParams, num_parameters
+from tests.tolerances import enable_x64
+
+
+def random_model(rng, K=4, C=2, ds=2, dm=2, sparse=True):
+    D = ds + dm
+    means = rng.normal(0, 1.5, (K, D))
+    covs = np.zeros((K, D, D))
+    for k in range(K):
+        for dims in (range(ds), range(ds, D)):
+            a = rng.normal(0, 0.5, (len(dims), len(dims)))
+            covs[k][np.ix_(dims, dims)] = a @ a.T + 0.3 * np.eye(len(dims))
+    trans = rng.dirichlet(np.ones(K), size=(C, K))
+    init = rng.dirichlet(np.ones(K), size=C)
+    if sparse:  # structural zeros, every row keeps its self transition
+        mask = rng.random((C, K, K)) < 0.6
+        mask |= np.eye(K, dtype=bool)[None]
+        trans = trans * mask
+        trans /= trans.sum(-1, keepdims=True)
+        init[:, -1] = 0.0
+        init /= init.sum(-1, keepdims=True)
+    return DBNModel(means, covs, init, trans, tuple(range(ds)), tuple(range(ds, D)), tuple(f"c{i}" for i in range(C)))
+
+
+def sample(rng, model, T):
+    C, K = model.initial.shape
+    c = np.repeat(rng.integers(0, C, size=T // 10 + 1), 10)[:T]
+    q = np.zeros(T, int)
+    q[0] = rng.choice(K, p=model.initial[c[0]])
+    for t in range(1, T):
+        q[t] = rng.choice(K, p=model.transitions[c[t]][q[t - 1]])
+    x = np.stack([rng.multivariate_normal(model.means[k], model.covariances[k]) for k in q])
+    return x, c
+
+
+def test_parameter_counts_match_paper():
+    # Sec. VIII-A, Tables IV-V: 7-state head jDBN (6-D prosody, 3-D head) 300; 12-state hand (10-D) 1247
+    assert num_parameters(7, 6, 3) == 300
+    assert num_parameters(12, 6, 10) == 1247
+    # a masked (CDBN) count equals the dense one for a dense mask and is smaller for a sparse one
+    dense = np.ones((1, 7, 7), bool)
+    assert num_parameters(7, 6, 3, dense, np.ones((1, 7), bool)) == 300
+    sparse = dense.copy()
+    sparse[0, 0, 1:] = False
+    assert num_parameters(7, 6, 3, sparse, np.ones((1, 7), bool)) == 300 - 6
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_smoother_filter_viterbi_match_reference(seed):
+    from convsynth_jax.cdbn.hmm import batch_filter, batch_posterior, batch_viterbi
+
+    rng = np.random.default_rng(seed)
+    model = random_model(rng)
+    seqs, cons = zip(*[sample(rng, model, T) for T in (37, 60, 11)])
+    with enable_x64():
+        import jax.numpy as jnp
+
+        b = make_batch(seqs, cons, bucket=16, dtype=np.float64)
+        args = (jnp.asarray(b.x, jnp.float64), jnp.asarray(b.constraints), jnp.asarray(b.lengths),
+                jnp.asarray(model.means), jnp.asarray(model.covariances), jnp.asarray(model.initial),
+                jnp.asarray(model.transitions))
+        for dims in ((0, 1, 2, 3), (0, 1)):  # joint and speech-only emissions
+            post = batch_posterior(*args, dims)
+            filt_ll, filt = batch_filter(*args, dims)
+            paths, scores = batch_viterbi(*args, dims)
+            for i, (x, c) in enumerate(zip(seqs, cons)):
+                T = len(x)
+                le = ref.log_emissions(x, model.means, model.covariances, dims)
+                ll, f, s, xi = ref.forward_backward(model.initial, model.transitions, le, c)
+                assert np.isclose(float(post.log_likelihood[i]), ll, rtol=ref.LOGLIK_RTOL)
+                assert np.isclose(float(filt_ll[i]), ll, rtol=ref.LOGLIK_RTOL)
+                np.testing.assert_allclose(np.asarray(post.smoothed[i, :T]), s, atol=ref.POSTERIOR_ATOL)
+                np.testing.assert_allclose(np.asarray(post.filtered[i, :T]), f, atol=ref.POSTERIOR_ATOL)
+                np.testing.assert_allclose(np.asarray(filt[i, :T]), f, atol=ref.POSTERIOR_ATOL)
+                np.testing.assert_allclose(np.asarray(post.xi_sum[i]), xi, atol=ref.POSTERIOR_ATOL)
+                path, score = ref.viterbi(model.initial, model.transitions, le, c)
+                np.testing.assert_array_equal(np.asarray(paths[i, :T]), path)
+                assert np.isclose(float(scores[i]), score, rtol=ref.LOGLIK_RTOL)
+                # structural zeros get exactly zero expected counts
+                assert np.all(np.asarray(post.xi_sum[i])[model.transitions == 0] == 0.0)
+
+
+def reference_m_step(model, seqs, cons, floor):
+    """One EM update from the reference posteriors, by loops (floor not reached in this test)."""
+    K, D = model.means.shape
+    C = model.initial.shape[0]
+    g_all, x_all, xi_tot, init = [], [], np.zeros((C, K, K)), np.zeros((C, K))
+    for x, c in zip(seqs, cons):
+        le = ref.log_emissions(x, model.means, model.covariances, range(D))
+        _, _, s, xi = ref.forward_backward(model.initial, model.transitions, le, c)
+        g_all.append(s)
+        x_all.append(x)
+        xi_tot += xi
+        init[c[0]] += s[0]
+    g, x = np.concatenate(g_all), np.concatenate(x_all)
+    means = np.stack([(g[:, k:k + 1] * x).sum(0) / g[:, k].sum() for k in range(K)])
+    covs = np.zeros((K, D, D))
+    for k in range(K):
+        r = x - means[k]
+        full = (g[:, k, None, None] * r[:, :, None] * r[:, None, :]).sum(0) / g[:, k].sum()
+        for dims in (model.speech_dims, model.motion_dims):
+            ix = np.ix_(dims, dims)
+            covs[k][ix] = full[ix]
+    rows = xi_tot.sum(-1, keepdims=True)
+    trans = np.where(rows > 1e-10, xi_tot / np.where(rows > 0, rows, 1), model.transitions)  # no counts: keep
+    init = init / np.where(init.sum(-1, keepdims=True) > 0, init.sum(-1, keepdims=True), 1)
+    return means, covs, trans, init
+
+
+def test_em_step_matches_reference_and_likelihood_never_decreases():
+    rng = np.random.default_rng(3)
+    true = random_model(rng, K=3, C=2)
+    seqs, cons = zip(*[sample(rng, true, T) for T in (80, 50, 120)])
+    # start from a perturbed model that keeps the structural zeros
+    start = true._replace(means=true.means + rng.normal(0, 0.5, true.means.shape))
+    tp = TrainParams(covariance_floor=1e-6, tol=-np.inf)
+    with enable_x64():
+        b = make_batch(seqs, cons, bucket=16, dtype=np.float64)
+        st = e_step(start, b)
+        new = m_step(start, st, tp)
+        means, covs, trans, init = reference_m_step(start, seqs, cons, tp.covariance_floor)
+        np.testing.assert_allclose(new.means, means, atol=1e-6)
+        np.testing.assert_allclose(new.covariances, covs, atol=1e-6)
+        np.testing.assert_allclose(new.transitions, trans, atol=1e-6)
+        both = init.sum(-1) > 0
+        np.testing.assert_allclose(new.initial[both], init[both], atol=1e-6)
+        assert np.all(new.transitions[true.transitions == 0] == 0.0)
+        fit = fit_em(start, b, tp, max_iter=15)
+    lls = np.asarray(fit.log_likelihoods)
+    assert len(lls) == 15
+    assert np.all(np.diff(lls) >= -ref.MONOTONE_ATOL), np.diff(lls)
+    assert lls[-1] > lls[0] + 1e-3          # EM actually moved
+    assert np.all(fit.model.transitions[true.transitions == 0] == 0.0)
+
+
+def test_covariance_floor_warns_and_bounds_eigenvalues():
+    rng = np.random.default_rng(4)
+    model = random_model(rng, K=2, C=1, sparse=False)
+    x = rng.normal(size=(200, 4))
+    x[:, 3] = x[:, 2]  # motion stream singular
+    b = make_batch([x], None)
+    st = e_step(model, b)
+    with pytest.warns(RuntimeWarning, match="floored"):
+        new = m_step(model, st, TrainParams(covariance_floor=1e-3))
+    for k in range(2):
+        assert np.linalg.eigvalsh(new.covariances[k][2:, 2:]).min() >= 1e-3 - 1e-9

@@ -1,0 +1,102 @@
+"""CDBN training: LBG, Gaussian KL, merging, sparse structure, Eq. 8 and a planted recovery."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from convsynth_jax.cdbn.cdbn import (
+    gaussian_kl,
+    merge_states,
+    sparse_structure,
+    train_cdbn,
+    transition_distance,
+)
+from convsynth_jax.cdbn.em import e_step, make_batch
+from convsynth_jax.cdbn.lbg import lbg
+from convsynth_jax.cdbn.params import TrainParams
+from convsynth_jax.cdbn.sampler import planted_cdbn, recovery_report, sample
+from convsynth_jax.errors import CDBNError
+
+
+def test_gaussian_kl_matches_monte_carlo_and_has_logdet_term():
+    rng = np.random.default_rng(0)
+    m0, m1 = rng.normal(size=3), rng.normal(size=3)
+    a, b = rng.normal(size=(3, 3)), rng.normal(size=(3, 3))
+    s0, s1 = a @ a.T + np.eye(3), b @ b.T + 0.5 * np.eye(3)
+    x = rng.multivariate_normal(m0, s0, size=200_000)
+
+    def logpdf(x, m, s):
+        r = x - m
+        return -0.5 * (np.einsum("ni,ij,nj->n", r, np.linalg.inv(s), r) + np.linalg.slogdet(s)[1] + 3 * np.log(2 * np.pi))
+
+    mc = float(np.mean(logpdf(x, m0, s0) - logpdf(x, m1, s1)))
+    assert abs(gaussian_kl(m0, s0, m1, s1) - mc) < 0.05
+    # equal means, scaled covariance: only the trace and log-determinant terms differ from zero
+    assert np.isclose(gaussian_kl(m0, s0, m0, 2 * s0), 0.5 * (1.5 - 3 + 3 * np.log(2)))
+    assert gaussian_kl(m0, s0, m0, s0) == pytest.approx(0.0, abs=1e-12)
+
+
+@pytest.mark.parametrize("k", [3, 5, 6])
+def test_lbg_finds_separated_clusters_for_non_powers_of_two(k):
+    rng = np.random.default_rng(k)
+    centres = rng.normal(0, 10, (k, 2))
+    x = np.concatenate([c + rng.normal(0, 0.3, (200, 2)) for c in centres])
+    cb, lab = lbg(x, k, TrainParams(), rng)
+    assert cb.shape == (k, 2)
+    d = np.linalg.norm(centres[:, None] - cb[None], axis=-1)
+    assert np.all(d.min(axis=1) < 0.2)            # every true centre has a codeword next to it
+    assert len(np.unique(lab)) == k
+
+
+def test_merge_and_sparse_structure():
+    from convsynth_jax.cdbn.params import DBNModel
+
+    eye = np.eye(2)
+    def model(means):
+        K = len(means)
+        return DBNModel(np.asarray(means, float), np.broadcast_to(eye, (K, 2, 2)).copy(), np.full((1, K), 1 / K),
+                        np.full((1, K, K), 1 / K), (0,), (1,), ("a",))
+    a = model([[0, 0], [10, 0]])
+    b = model([[0.1, 0], [0, 10]])          # its first state is a's first state
+    means, _covs, owners, origin, merges = merge_states([a, b], [np.ones(2) * 10, np.ones(2) * 10], 1.0)
+    assert len(means) == 3 and len(merges) == 1
+    assert origin[(0, 0)] == origin[(1, 0)]
+    np.testing.assert_allclose(means[origin[(0, 0)]], [0.05, 0])
+    owners = np.concatenate([owners, np.ones((1, 2), bool)])
+    tmask, imask = sparse_structure(owners, 3)
+    # under constraint a, b's exclusive state can only move to the shared state
+    excl_b = origin[(1, 1)]
+    assert tmask[0, excl_b].sum() == 1 and tmask[0, excl_b, 3]
+    assert not imask[0, excl_b] and imask[1, excl_b]
+    assert transition_distance(np.eye(3), np.full((3, 3), 1 / 3)) == pytest.approx(2 / 3)
+
+
+def test_planted_cdbn_is_recovered():
+    """A small planted case (3 constraints, N = 3, one state shared by two constraints, ~12k frames).
+    The full acceptance run (60k frames, N = 4) is experiments/bench_cdbn.py."""
+    rng = np.random.default_rng(1)
+    true, _owners = planted_cdbn(rng, num_constraints=3, states_per_constraint=3, speech_dim=3, motion_dim=2)
+    tr = sample(true, rng, 24, 500)
+    te = sample(true, rng, 8, 500)
+    tm = train_cdbn(tr.observations, tr.constraints, 3, true.speech_dims, true.motion_dims,
+                    TrainParams(max_iter=30, tol=1e-4), true.constraint_names)
+    rep = recovery_report(true, tm.model)
+    assert tm.model.num_states == true.num_states
+    assert rep["states_recovered"] >= 0.9, rep
+    assert rep["transition_linf"] < 0.1, rep
+    # structural zeros of the trained model are exact and match the planted structure after matching
+    perm = np.asarray(rep["perm"])
+    np.testing.assert_array_equal(tm.model.transitions[:, perm][:, :, perm] > 0, true.transitions > 0)
+    b = make_batch(te.observations, te.constraints)
+    ll_true = e_step(true, b).log_likelihood / b.num_frames
+    ll_est = e_step(tm.model, b).log_likelihood / b.num_frames
+    assert abs(ll_est - ll_true) < 0.02 * abs(ll_true)
+    assert tm.log_likelihoods[-1] > tm.log_likelihoods[0]
+
+
+def test_too_few_frames_per_state():
+    rng = np.random.default_rng(2)
+    x = [rng.normal(size=(12, 3))]
+    c = [np.zeros(12, np.int32)]
+    with pytest.raises(CDBNError, match="too few frames per state"):
+        train_cdbn(x, c, 4, (0, 1), (2,), TrainParams(), ("other", "nod"))

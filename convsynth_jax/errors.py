@@ -62,3 +62,9 @@ class GraphError(ConvSynthError):
 
 class SearchFailure(ConvSynthError):
     """A search found no path; raised only when the caller asks for an exception."""
+
+
+class WalkTalkError(ConvSynthError):
+    """Walk-the-talk input problem: a gesture clip that travels, a locomotion clip with too few
+    gait cycles, mismatched skeletons, gesture phases out of order, utterance times outside the
+    timeline, invalid stylization/gaze parameters, a character addressing itself."""

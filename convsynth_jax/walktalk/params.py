@@ -29,7 +29,7 @@ class PhaseParams:
     """Automatic gesture-phase detection from root-relative wrist excursion and speed (ours)."""
 
     rest_frames: int = 3              # the rest pose is the mean of this many first frames
-    active_frac: float = 0.1          # active (preparation..retraction end) where excursion > frac * max
+    active_frac: float = 0.03         # active (preparation..retraction end) where excursion > frac * max
     stroke_frac: float = 0.85         # stroke/hold where excursion > frac * max
     peak_prominence_frac: float = 0.25  # a stroke peak is a wrist-speed minimum with this prominence (x max speed)
     hand_min_cm: float = 15.0         # a hand gestures when its excursion exceeds this ...
@@ -45,6 +45,7 @@ class SpliceParams:
     lead_s: float = 0.2               # nominal stroke-peak lead before the stress peak (paper window 0.2-0.6)
     max_shift_s: float = 0.6          # (paper) search this far earlier for a contact phase
     stylize_deictic: bool = False     # (paper) deictic gestures are not stylized
+    ease: str = "smootherstep"        # blend ramp: "linear" = Eq. 2 as printed; smootherstep is ours
 
     def __post_init__(self):
         if not self.c > 0:

@@ -122,7 +122,7 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
             e[:, a, lc.elbow_dof[s]] += np.radians(p.k_bounce * d_h)   # R' = R + k dH_root (Sec. 4.2)
     gest_q = place_gesture_arms(loco, g, e, gc.joints, offset)
     ph = g.phases.shifted(offset)
-    w = splice_weights(num_frames, ph)
+    w = splice_weights(num_frames, ph, p.ease)
     rot = splice_arrays(np.asarray(loco.rotations), gest_q, w, mask(loco.skeleton.num_joints, gc.joints))
     out = Motion(loco.skeleton, rot, loco.translations, fps, f"{g.name}+{lc.loop.source}")
     return SpliceResult(out, ph, offset, n0, peak, shift / fps, contact, e, styled)

@@ -98,7 +98,7 @@ def stylize_kernel(gesture_euler, b_l, std_l, b_g, c):
     return b_l + dev * scale
 
 
-def splice_weights(num_frames: int, ph: Phases) -> np.ndarray:
+def splice_weights(num_frames: int, ph: Phases, ease: str = "linear") -> np.ndarray:
     """Eq. 2 blend weight toward the gesture per timeline frame, (T,).
 
     0 outside [t_Pb, t_Re]; (t - t_Pb) / (t_Pe - t_Pb + 1) in preparation; 1 from t_Sb through
@@ -106,7 +106,13 @@ def splice_weights(num_frames: int, ph: Phases) -> np.ndarray:
     slerp(M_L, M_G, (t - t_Rb) / (t_Re - t_Rb + 1)) in retraction, which would blend *toward* the
     gesture; the text says retraction returns the arm to the locomotion swing, so we use the
     mirrored weight, which ends at the loop pose on t_Re.
+
+    ``ease="smootherstep"`` (ours, the configured default) maps each ramp weight w through
+    6w^5 - 15w^4 + 10w^3, which has zero first and second derivatives at both ends, so the blend
+    adds no velocity or acceleration kink at t_Pb, t_Sb, t_Rb, t_Re (the paper's linear ramp does).
     """
+    if ease not in EASES:
+        raise WalkTalkError(f"unknown ease {ease!r}; choose one of {sorted(EASES)}", where="walktalk.splice.ease")
     t = np.arange(num_frames, dtype=np.float64)
     w = np.zeros(num_frames)
     prep = (t >= ph.pb) & (t <= ph.pe)
@@ -114,7 +120,13 @@ def splice_weights(num_frames: int, ph: Phases) -> np.ndarray:
     w[(t > ph.pe) & (t < ph.rb)] = 1.0
     ret = (t >= ph.rb) & (t <= ph.re)
     w[ret] = (ph.re - t[ret]) / (ph.re - ph.rb + 1)
-    return w
+    return EASES[ease](w)
+
+
+EASES = {
+    "linear": lambda w: w,                                          # Eq. 2 as printed
+    "smootherstep": lambda w: w * w * w * (w * (6 * w - 15) + 10),  # ours
+}
 
 
 def _splice_frame(loco_q, gest_q, w, arm_mask):

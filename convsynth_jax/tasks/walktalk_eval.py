@@ -22,7 +22,8 @@ def eval_params(task_cfg) -> EvalParams:
     return EvalParams(loops_per_gait=int(t["loops_per_gait"]), methods=tuple(t["methods"]),
                       torso_radius_cm=float(t["torso_radius_cm"]),
                       max_gestures=None if t.get("max_gestures") is None else int(t["max_gestures"]),
-                      limit_percentiles=tuple(t["limit_percentiles"]))
+                      limit_percentiles=tuple(t["limit_percentiles"]),
+                      limit_tolerance_deg=float(t["limit_tolerance_deg"]))
 
 
 def run(cfg, out_dir: Path) -> dict:

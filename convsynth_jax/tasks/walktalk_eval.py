@@ -11,7 +11,13 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from ..utils import atomic_path
-from ..walktalk.evaluate import EvalParams, load_library, resolve_data_dir, run_evaluation, summarize
+from ..walktalk.evaluate import (
+    EvalParams,
+    load_library,
+    resolve_data_dir,
+    run_evaluation,
+    summarize,
+)
 from ..walktalk.params import params_from_dict
 
 REPO = Path(__file__).resolve().parents[2]
@@ -51,7 +57,12 @@ def run(cfg, out_dir: Path) -> dict:
 
 
 def _figures(df, lib, p, out_dir: Path) -> list[str]:
-    from ..walktalk.figures import contact_sheet, elbow_scatter, peak_phase_histogram, save_figure
+    from ..walktalk.figures import (
+        contact_sheet,
+        elbow_scatter,
+        peak_phase_histogram,
+        save_figure,
+    )
     from ..walktalk.locomotion import tile_contact, tile_loop
     from ..walktalk.pipeline import splice_gesture
 

@@ -22,7 +22,14 @@ from .body import Body, check_same_skeleton, find_body, joint_positions
 from .gestures import apply_phase_override, load_phase_table, make_gesture
 from .locomotion import extract_loop, seam_foot_slide, tile_contact, tile_loop
 from .params import WalkTalkParams
-from .pipeline import METHODS, GestureContext, LoopContext, gesture_context, loop_context, splice_gesture
+from .pipeline import (
+    METHODS,
+    GestureContext,
+    LoopContext,
+    gesture_context,
+    loop_context,
+    splice_gesture,
+)
 from .splice import joint_euler
 
 log = logging.getLogger(__name__)

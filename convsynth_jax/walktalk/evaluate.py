@@ -108,6 +108,8 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
             got.append(loop_context(lp, body))
         loops[gait] = got
     gfiles = sorted({f for g in p.gesture_globs for f in data_dir.glob(g)})
+    if max_gestures is not None and not single_peak_only:
+        gfiles = _spread(gfiles, max_gestures)   # a sample across gesture kinds
     table = load_phase_table(p.phases_csv) if p.phases_csv else None
     gestures = []
     for f in gfiles:

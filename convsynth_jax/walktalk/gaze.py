@@ -9,7 +9,8 @@ Yaw: theta_yaw is the horizontal angle from the addresser's heading to the addre
 yaw is r * theta_yaw * envelope, r uniform in [r_min, r_max] per event (paper: [0.6, 1]), split
 over spine, chest, neck and head by ``joint_shares`` (ours). Lean: when the addressee is more than
 ``lean_distance_m`` ahead or behind, the lean joint pitches toward them by up to ``lean_max_deg``
-(reached at ``lean_full_m``; ours). Rotations are layered on the locomotion torso as world-space
+(reached at ``lean_full_m``; ours). The yaw is clipped to +-``max_yaw_deg`` (ours: an addressee
+straight behind would otherwise ask for a 180 degree neck turn). Rotations are layered on the locomotion torso as world-space
 rotations at each joint: local' = G_parent^-1 R G_parent local, so joint j's global rotation
 becomes R_{cumulative} G_j.
 
@@ -172,7 +173,8 @@ def apply_gaze(motion: Motion, character: str, events: list[AAREvent], others: d
             continue
         r = float(rng.uniform(p.r_min, p.r_max))
         theta, fwd = gaze_angles(me, heading, others[e.addressee])
-        yaw += w * r * theta
+        lim = np.radians(p.max_yaw_deg)
+        yaw += w * np.clip(r * theta, -lim, lim)
         over = (np.abs(fwd) / units_per_m - p.lean_distance_m) / max(p.lean_full_m - p.lean_distance_m, 1e-9)
         lean += w * np.sign(fwd) * np.radians(p.lean_max_deg) * np.clip(over, 0, 1)
     # global rotations of the un-gazed motion

@@ -66,6 +66,7 @@ class GazeParams:
     lean_distance_m: float = 1.0      # (paper) lean only when the addressee is this far ahead / behind
     lean_full_m: float = 2.0          # lean reaches lean_max_deg at this distance (ours)
     lean_joint: str = "Spine"
+    max_yaw_deg: float = 90.0         # torso+neck yaw clipped to this (ours)
     # statistics-driven AAR: gaze-at / gaze-away durations in s (mean, sd) -- ours, the paper gives none
     gaze_at_s: tuple = (2.0, 0.5)
     gaze_away_s: tuple = (1.5, 0.5)

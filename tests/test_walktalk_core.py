@@ -356,3 +356,22 @@ def test_quat_to_euler_matches_scipy_and_joint_euler(jog):
     m = jog[0]
     je = joint_euler(m, (8,))[:, 0]
     np.testing.assert_allclose(je, np.asarray(quat_to_euler(jnp.asarray(m.rotations[:, 8]), "ZXY")), atol=1e-5)
+
+
+def test_smootherstep_ease_and_transition_pad():
+    from convsynth_jax.walktalk.pipeline import pad_gesture
+
+    ph = Phases(10, 13, 14, 20, 21, 24, (17,))
+    lin = splice_weights(30, ph, "linear")
+    sm = splice_weights(30, ph, "smootherstep")
+    np.testing.assert_allclose(sm, 6 * lin**5 - 15 * lin**4 + 10 * lin**3, atol=1e-12)
+    assert sm[9] == 0 and sm[14] == 1 and sm[20] == 1 and sm[24] == 0
+    with pytest.raises(WalkTalkError, match="unknown ease"):
+        splice_weights(30, ph, "cubic")
+    g = make_gesture(synthetic_gesture(n=70), GaitParams(), PhaseParams())
+    gp = pad_gesture(g, 5)
+    assert gp.motion.num_frames == 80
+    assert (gp.phases.pb, gp.phases.sb, gp.phases.se, gp.phases.re) == (g.phases.pb, g.phases.sb + 5, g.phases.se + 5, g.phases.re + 10)
+    assert gp.phases.peaks == (g.phases.peaks[0] + 5,)
+    np.testing.assert_array_equal(gp.motion.rotations[:5], np.repeat(g.motion.rotations[:1], 5, 0))
+    np.testing.assert_array_equal(gp.motion.rotations[5:75], g.motion.rotations)

@@ -172,7 +172,7 @@ def test_phase_csv_override_and_out_of_order(tmp_path):
     run_task(cfg, tmp_path / "ok")
     from convsynth_jax.walktalk.evaluate import load_library
 
-    lib = load_library(params_from_dict({"phases_csv": str(csv)}), FIXTURES, 1)
+    lib = load_library(params_from_dict({"phases_csv": str(csv), "splice": {"transition_pad_s": 0.0}}), FIXTURES, 1)
     g = next(gc.gesture for gc in lib.gestures if Path(gc.gesture.name).stem == stem)
     assert (g.phases.pb, g.phases.pe, g.phases.sb, g.phases.se, g.phases.rb, g.phases.re) == (3, 9, 12, 30, 33, 48)
     assert g.phases.peaks == (15,) and g.handedness == "r"

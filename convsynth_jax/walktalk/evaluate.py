@@ -121,7 +121,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
             g = apply_phase_override(g, table, p.phases_csv)
         if single_peak_only and not g.single_peak:
             continue
-        gestures.append(gesture_context(g, body))
+        gestures.append(gesture_context(g, body, round(p.splice.transition_pad_s * p.fps)))
         if max_gestures is not None and len(gestures) >= max_gestures:
             break
     return Library(body, loops, gestures, skipped, source)

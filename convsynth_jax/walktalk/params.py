@@ -46,6 +46,7 @@ class SpliceParams:
     max_shift_s: float = 0.6          # (paper) search this far earlier for a contact phase
     stylize_deictic: bool = False     # (paper) deictic gestures are not stylized
     ease: str = "smootherstep"        # blend ramp: "linear" = Eq. 2 as printed; smootherstep is ours
+    transition_pad_s: float = 0.25    # hold the gesture's rest pose this long before/after and blend over it (ours)
 
     def __post_init__(self):
         if not self.c > 0:

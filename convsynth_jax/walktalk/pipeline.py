@@ -4,6 +4,7 @@ compared in the evaluation: ``naive`` (raw gesture DOFs spliced with Eq. 2 at th
 """
 from __future__ import annotations
 
+import dataclasses
 from dataclasses import dataclass
 
 import numpy as np
@@ -71,7 +72,24 @@ def loop_context(loop: Loop, body: Body | None = None) -> LoopContext:
     return LoopContext(loop, body, joints, e, loop_stats(e), dofs)
 
 
-def gesture_context(g: Gesture, body: Body) -> GestureContext:
+def pad_gesture(g: Gesture, frames: int) -> Gesture:
+    """Hold the gesture's first and last pose for ``frames`` extra frames and widen t_Pb / t_Re
+    by as much (ours): the Eq. 2 blend toward the gesture then starts while the gesture is still
+    at rest instead of while its own preparation is already moving, which removes most of the
+    wrist-jerk excess at t_Pb (experiments/bench_walktalk.py reports the effect)."""
+    if frames <= 0:
+        return g
+    m = g.motion
+    rot = np.concatenate([np.repeat(m.rotations[:1], frames, 0), m.rotations, np.repeat(m.rotations[-1:], frames, 0)])
+    tr = np.concatenate([np.repeat(m.translations[:1], frames, 0), m.translations,
+                         np.repeat(m.translations[-1:], frames, 0)])
+    ph = g.phases.shifted(frames)
+    ph = dataclasses.replace(ph, pb=ph.pb - frames, re=ph.re + frames)
+    return dataclasses.replace(g, motion=dataclasses.replace(m, rotations=rot, translations=tr), phases=ph)
+
+
+def gesture_context(g: Gesture, body: Body, pad_frames: int = 0) -> GestureContext:
+    g = pad_gesture(g, pad_frames)
     joints = arm_joints(body, g.sides)
     e = joint_euler(g.motion, joints)
     return GestureContext(g, joints, e, rest_pose(e, g.phases))

@@ -66,8 +66,9 @@ def contact_sheet(motions: dict[str, Motion], frames: list[int], title: str = ""
             ax = fig.add_subplot(len(rows), len(frames), r * len(frames) + c + 1)
             p = pos[f]
             x = sign * (p[:, fwd] - p[1, fwd])
+            static_top = np.ptp(pos[:, 0], axis=0).max() < 1e-6  # bandai2's joint_Root stays at the origin
             for j, par in enumerate(parents):
-                if par >= 0:
+                if par >= 0 and not (par == 0 and static_top):
                     arm = any(k in m.skeleton.names[j] for k in ("Arm", "Hand"))
                     ax.plot([x[par], x[j]], [p[par, 1], p[j, 1]], color="C3" if arm else "0.3", lw=1.5)
             ax.set_xlim(-70, 70)

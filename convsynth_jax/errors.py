@@ -66,3 +66,9 @@ class SearchFailure(ConvSynthError):
 
 class CDBNError(ConvSynthError):
     """The constrained DBN cannot be trained or applied: bad features, constraints or model files."""
+
+
+class WalkTalkError(ConvSynthError):
+    """Walk-the-talk input problem: a gesture clip that travels, a locomotion clip with too few
+    gait cycles, mismatched skeletons, gesture phases out of order, utterance times outside the
+    timeline, invalid stylization/gaze parameters, a character addressing itself."""

@@ -211,3 +211,22 @@ def rotate_about_y_np(v, angle) -> np.ndarray:
     v = np.asarray(v, dtype=np.float64)
     c, s = np.cos(angle), np.sin(angle)
     return np.stack([c * v[..., 0] + s * v[..., 2], v[..., 1], -s * v[..., 0] + c * v[..., 2]], axis=-1)
+
+
+def quat_to_euler(q, order: str):
+    """(..., 4) unit quaternions -> (..., 3) Euler angles in radians, inverse of :func:`euler_to_quat`.
+
+    For R = R_i(a) R_j(b) R_k(c) with (i, j, k) = order and s = +1 for cyclic orders (XYZ, YZX,
+    ZXY), -1 otherwise: b = asin(s R[i,k]), a = atan2(-s R[j,k], R[k,k]), c = atan2(-s R[i,j], R[i,i]).
+    The middle angle lies in [-pi/2, pi/2]; the outer two in (-pi, pi].
+    """
+    order = order.upper()
+    if len(order) != 3 or sorted(order) != ["X", "Y", "Z"]:
+        raise ValueError(f"Euler order must be a permutation of XYZ, got {order!r}")
+    i, j, k = (_AXIS_INDEX[c] for c in order)
+    s = 1.0 if (i, j, k) in ((0, 1, 2), (1, 2, 0), (2, 0, 1)) else -1.0
+    m = quat_to_matrix(q)
+    b = jnp.arcsin(jnp.clip(s * m[..., i, k], -1.0, 1.0))
+    a = jnp.arctan2(-s * m[..., j, k], m[..., k, k])
+    c = jnp.arctan2(-s * m[..., i, j], m[..., i, i])
+    return jnp.stack([a, b, c], axis=-1)

@@ -1,0 +1,106 @@
+"""Task ``walktalk_demo``: two characters walking (and, as a variant, jogging) side by side while
+talking, driven by real speech. Writes one BVH per character and gait (``<name>_<gait>.bvh``),
+``walktalk_events.csv`` (one row per spliced gesture) and ``walktalk_aar.csv`` (gaze events)."""
+from __future__ import annotations
+
+import logging
+import time
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+from omegaconf import OmegaConf
+
+from ..errors import MissingFileError, WalkTalkError
+from ..io.bvh import save_bvh
+from ..utils import atomic_path
+from ..walktalk.demo import DemoParams, Speaker, run_demo
+from ..walktalk.evaluate import load_library, resolve_data_dir
+from ..walktalk.gaze import AAREvent
+from ..walktalk.params import params_from_dict
+
+REPO = Path(__file__).resolve().parents[2]
+log = logging.getLogger(__name__)
+EVENT_COLUMNS = ["character", "gesture", "gait", "t_prep_begin", "t_stroke_peak", "t_retraction_end",
+                 "utterance_peak_s", "shift_s", "contact_at_peak"]
+
+
+def _resolve(path: str) -> Path:
+    p = Path(path)
+    if not p.is_absolute() and not p.exists():
+        p = REPO / p
+    return p
+
+
+def speech_peaks(spec: dict, cfg) -> tuple[float, ...]:
+    """Stress peaks (s, on the shared timeline) of one speaker: F0 peaks of the phonemic clauses
+    found by ``convsynth_jax.annotate.audio`` in a WAV + transcript, or the ``peak`` column of a TSV;
+    shifted by ``offset_s``."""
+    off = float(spec.get("offset_s", 0.0))
+    if spec.get("peaks_tsv"):
+        path = _resolve(spec["peaks_tsv"])
+        if not path.is_file():
+            raise MissingFileError("peak TSV not found", path)
+        df = pd.read_csv(path, sep="\t")
+        if "peak" not in df.columns:
+            raise WalkTalkError("peak TSV needs a 'peak' column (seconds)", path, "line 1")
+        return tuple(float(x) + off for x in df["peak"])
+    from ..annotate.audio import annotate_audio
+    from ..io.audio import load_audio
+    from ..io.transcripts import load_transcript
+
+    wav, tr = _resolve(spec["wav"]), _resolve(spec["transcript"])
+    seg = annotate_audio(load_transcript(tr), load_audio(wav), cfg)
+    return tuple(float(x) + off for x in seg.loc[seg["kind"] == "PC", "peak"])
+
+
+def _pick_loops(lcs, n):
+    """The n loops (different clips) whose speeds are closest, so side-by-side walkers keep pace."""
+    speeds = np.array([np.linalg.norm(lc.loop.advance) / lc.loop.num_frames for lc in lcs])
+    order = np.argsort(speeds)
+    best = min(range(len(lcs) - n + 1), key=lambda i: speeds[order[i + n - 1]] - speeds[order[i]])
+    return [lcs[k] for k in order[best:best + n]]
+
+
+def run(cfg, out_dir: Path) -> dict:
+    t = OmegaConf.to_container(cfg.task, resolve=True)
+    p = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
+    dp = DemoParams(duration_s=float(t["duration_s"]), spacing_cm=float(t["spacing_cm"]),
+                    min_gap_s=float(t["min_gap_s"]), aar=str(t["aar"]), method=str(t["method"]),
+                    include_multi_peak=bool(t["include_multi_peak"]))
+    t0 = time.perf_counter()
+    speakers = [Speaker(s["name"], speech_peaks(s, cfg), str(s.get("wav") or s.get("peaks_tsv")))
+                for s in t["speakers"]]
+    t1 = time.perf_counter()
+    data_dir = resolve_data_dir(p, REPO)
+    lib = load_library(p, data_dir, int(t["loop_candidates"]), t.get("max_gestures"))
+    scripted = [AAREvent(**e) for e in (t.get("scripted_aar") or [])]
+    t2 = time.perf_counter()
+    rows, aar_rows, files = [], [], []
+    rng = np.random.default_rng(p.seed)
+    for gait in t["gaits"]:
+        lcs = lib.loops.get(gait) or []
+        if not lcs:
+            raise WalkTalkError(f"no {gait} loop found", data_dir)
+        if len(lcs) < len(speakers):  # e.g. the one-clip test fixtures: characters share a loop
+            log.warning("%d characters but %d %s loops: loops are reused", len(speakers), len(lcs), gait)
+            lcs = [lcs[i % len(lcs)] for i in range(len(speakers))]
+        motions, ev, aar = run_demo(_pick_loops(lcs, len(speakers)), lib.gestures, speakers, p, dp, rng, scripted)
+        for name, m in motions.items():
+            save_bvh(m, out_dir / f"{name}_{gait}.bvh")
+            files.append(f"{name}_{gait}.bvh")
+        rows += ev
+        aar_rows += [{"gait": gait, **e.__dict__} for e in aar]
+    t3 = time.perf_counter()
+    events = pd.DataFrame(rows, columns=EVENT_COLUMNS + ["single_peak"])
+    with atomic_path(out_dir / "walktalk_events.csv") as tmp:
+        events.to_csv(tmp, index=False)
+    with atomic_path(out_dir / "walktalk_aar.csv") as tmp:
+        pd.DataFrame(aar_rows).to_csv(tmp, index=False)
+    single = events[events["single_peak"]] if len(events) else events
+    return {"data_dir": str(data_dir), "files": files, "gestures_spliced": len(events),
+            "utterance_peaks": {s.name: len(s.peaks_s) for s in speakers},
+            "single_peak_contact_rate": float(single["contact_at_peak"].mean()) if len(single) else None,
+            "shift_range_s": [float(events["shift_s"].min()), float(events["shift_s"].max())] if len(events) else None,
+            "aar_events": len(aar_rows), "speech_seconds": t1 - t0, "load_seconds": t2 - t1,
+            "synthesis_seconds": t3 - t2}

@@ -1,0 +1,126 @@
+"""Body parts of the paper's splicing (Sec. 4.3): lower body, torso, left arm, right arm.
+
+Joints are found by name (bandai2 ``Hand_L``-style and Mixamo ``LeftHand``-style); an arm is the
+subtree under its shoulder, the lower body the root chain above the spine plus both leg subtrees,
+the torso everything else (spine, chest, neck, head).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import WalkTalkError
+from ..skeleton import Skeleton
+
+_PATTERNS = {
+    "hips": (r"^hips$", r"pelvis", r"hips"),
+    "spine": (r"^spine$", r"spine"),
+    "shoulder_l": (r"^shoulder_l$", r"leftshoulder", r"l_?clavicle", r"shoulder_?l"),
+    "shoulder_r": (r"^shoulder_r$", r"rightshoulder", r"r_?clavicle", r"shoulder_?r"),
+    "upperarm_l": (r"^upperarm_l$", r"leftarm$", r"upperarm_?l"),
+    "upperarm_r": (r"^upperarm_r$", r"rightarm$", r"upperarm_?r"),
+    "elbow_l": (r"^lowerarm_l$", r"leftforearm", r"lowerarm_?l"),
+    "elbow_r": (r"^lowerarm_r$", r"rightforearm", r"lowerarm_?r"),
+    "hand_l": (r"^hand_l$", r"lefthand$", r"hand_?l"),
+    "hand_r": (r"^hand_r$", r"righthand$", r"hand_?r"),
+    "upleg_l": (r"^upperleg_l$", r"leftupleg", r"upperleg_?l"),
+    "upleg_r": (r"^upperleg_r$", r"rightupleg", r"upperleg_?r"),
+    "foot_l": (r"^foot_l$", r"leftfoot$", r"foot_?l"),
+    "foot_r": (r"^foot_r$", r"rightfoot$", r"foot_?r"),
+    "toes_l": (r"^toes_l$", r"lefttoe", r"toes?_?l"),
+    "toes_r": (r"^toes_r$", r"righttoe", r"toes?_?r"),
+    "neck": (r"^neck$", r"neck"),
+    "head": (r"^head$", r"head"),
+}
+
+
+@dataclass(frozen=True)
+class Body:
+    """Joint indices of one skeleton. ``parts`` maps part name -> tuple of joint indices."""
+
+    joints: dict
+    lower: tuple[int, ...]
+    torso: tuple[int, ...]
+    arm_l: tuple[int, ...]
+    arm_r: tuple[int, ...]
+
+    def arm(self, side: str) -> tuple[int, ...]:
+        return self.arm_l if side == "l" else self.arm_r
+
+
+def _subtree(skel: Skeleton, j: int) -> list[int]:
+    out = [j]
+    for k in range(j + 1, skel.num_joints):
+        if skel.parents[k] in out:
+            out.append(k)
+    return out
+
+
+def find_body(skel: Skeleton, path: str | None = None) -> Body:
+    """Locate the parts of ``skel``; a :class:`WalkTalkError` lists every joint not found."""
+    joints, missing = {}, []
+    for key, pats in _PATTERNS.items():
+        j = skel.find(*pats)
+        if j is None:
+            missing.append(key)
+        joints[key] = j
+    if missing:
+        raise WalkTalkError(f"skeleton lacks joints {missing}; joints are {list(skel.names)}", path)
+    arm_l = tuple(_subtree(skel, joints["shoulder_l"]))
+    arm_r = tuple(_subtree(skel, joints["shoulder_r"]))
+    legs = set(_subtree(skel, joints["upleg_l"])) | set(_subtree(skel, joints["upleg_r"]))
+    spine_chain = set(_subtree(skel, joints["spine"]))
+    lower = tuple(sorted(legs | {j for j in range(skel.num_joints) if j not in spine_chain and j not in legs}))
+    torso = tuple(sorted(spine_chain - set(arm_l) - set(arm_r)))
+    return Body(joints, lower, torso, arm_l, arm_r)
+
+
+def check_same_skeleton(a: Skeleton, b: Skeleton, path_a: str, path_b: str) -> None:
+    """Raise a :class:`WalkTalkError` listing missing / extra / reparented joints of ``b`` vs ``a``."""
+    if a.names == b.names and a.parents == b.parents:
+        return
+    missing = [n for n in a.names if n not in b.names]
+    extra = [n for n in b.names if n not in a.names]
+    moved = [n for n in a.names if n in b.names and
+             (a.parents[a.index(n)] >= 0 and (b.parents[b.index(n)] < 0 or
+              a.names[a.parents[a.index(n)]] != b.names[b.parents[b.index(n)]]))]
+    order = [] if (missing or extra or moved) else ["joint order differs"]
+    raise WalkTalkError(f"skeleton does not match {path_a}: missing joints {missing}, extra joints {extra}, "
+                        f"different parents {moved} {' '.join(order)}".strip(), path_b)
+
+
+def mask(num_joints: int, idx) -> np.ndarray:
+    m = np.zeros(num_joints, dtype=bool)
+    m[list(idx)] = True
+    return m
+
+
+def quat_to_matrix_np(q: np.ndarray) -> np.ndarray:
+    """(..., 4) (w, x, y, z) -> (..., 3, 3), float64 NumPy."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
+def joint_positions(motion) -> np.ndarray:
+    """Global joint positions (F, J, 3), float64 NumPy forward kinematics.
+
+    The project's jitted ``kinematics.fk_kernel`` recompiles for every clip length (seconds on a
+    small CPU); the evaluation touches hundreds of clip lengths, so it uses this loop over joints
+    (vectorized over frames), which a test checks against ``kinematics.forward_kinematics``.
+    """
+    mats = quat_to_matrix_np(motion.rotations)
+    tr = np.asarray(motion.translations, dtype=np.float64)
+    parents = motion.skeleton.parents
+    gm = [None] * len(parents)
+    gp = [None] * len(parents)
+    for j, p in enumerate(parents):
+        if p < 0:
+            gm[j], gp[j] = mats[:, j], tr[:, j]
+        else:
+            gm[j] = gm[p] @ mats[:, j]
+            gp[j] = gp[p] + np.einsum("fab,fb->fa", gm[p], tr[:, j])
+    return np.stack(gp, axis=1)

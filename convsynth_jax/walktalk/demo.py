@@ -1,0 +1,134 @@
+"""Two (or more) characters walking or jogging side by side while talking (paper Sec. 5-6).
+
+Each character gets a locomotion loop (different clips, turned to walk along +Z, spaced
+``spacing_cm`` apart), tiled to the timeline. Each utterance stress peak of that character's speech
+gets a gesture from the library (seeded random choice) placed by the synchronization rule
+(Sec. 4.2) and spliced with stylization (Sec. 4.1, 4.3), unless it would overlap the previous
+gesture or leave the timeline (then the peak gets no gesture). Gaze (Sec. 5) is layered last.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from ..errors import WalkTalkError
+from ..skeleton import Motion
+from .gaze import (
+    AAREvent,
+    apply_gaze,
+    events_from_gestures,
+    statistics_events,
+    validate_events,
+)
+from .locomotion import tile_contact, tile_loop
+from .params import WalkTalkParams
+from .pipeline import METHODS, GestureContext, LoopContext, splice_gesture
+
+
+@dataclass(frozen=True)
+class Speaker:
+    name: str
+    peaks_s: tuple[float, ...]       # utterance stress peaks on the shared timeline (s)
+    source: str = ""                 # where they came from (WAV / TSV)
+
+
+@dataclass(frozen=True)
+class DemoParams:
+    duration_s: float = 60.0
+    spacing_cm: float = 100.0        # lateral distance between neighbours (ours)
+    min_gap_s: float = 0.2           # gap between one gesture's end and the next one's start (ours)
+    aar: str = "inferred"            # inferred | random | scripted | statistics
+    method: str = "stylized+synced"
+    include_multi_peak: bool = True  # also use multi-peak gestures (never realigned)
+
+
+def _yaw_quat(angle: float) -> np.ndarray:
+    return np.array([np.cos(angle / 2), 0.0, np.sin(angle / 2), 0.0])
+
+
+def place_character(m: Motion, advance: np.ndarray, lateral_cm: float) -> Motion:
+    """Turn the whole character about the origin so its loop advances along +Z, then shift it by
+    ``lateral_cm`` along X, through the static top joint (joint_Root in bandai2): the locomotion
+    itself is unchanged."""
+    ang = -np.arctan2(advance[0], advance[2])  # rotate the advance onto +Z
+    rot = np.array(m.rotations, dtype=np.float64)
+    tr = np.array(m.translations, dtype=np.float64)
+    if np.ptp(tr[:, 0], axis=0).max() > 1e-6 or np.abs(rot[:, 0] - rot[0, 0]).max() > 1e-9:
+        raise WalkTalkError("the top joint must be static to place a character", m.name, "frame 0")
+    q = _yaw_quat(ang)
+    from .locomotion import _qmul
+
+    rot[:, 0] = _qmul(np.broadcast_to(q, rot[:, 0].shape), rot[:, 0])
+    tr[:, 0] = tr[:, 0] + np.array([lateral_cm, 0.0, 0.0])
+    return dataclasses.replace(m, rotations=rot, translations=tr)
+
+
+def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers: list[Speaker], p: WalkTalkParams,
+             dp: DemoParams, rng: np.random.Generator, scripted: list[AAREvent] | None = None):
+    """Returns (motions: name -> Motion, events: list of dict rows, aar: list[AAREvent])."""
+    fps = p.fps
+    T = round(dp.duration_s * fps)
+    if len(loops) < len(speakers):
+        raise WalkTalkError(f"{len(speakers)} characters need as many loops, got {len(loops)}")
+    names = [s.name for s in speakers]
+    if len(set(names)) != len(names):
+        raise WalkTalkError(f"character names must be unique: {names}")
+    method = METHODS[dp.method]
+    pool = [g for g in gestures if dp.include_multi_peak or g.gesture.single_peak]
+    if not pool:
+        raise WalkTalkError("no gestures to use")
+    motions, rows, meta = {}, [], []
+    for i, (sp, lc) in enumerate(zip(speakers, loops)):
+        for u in sp.peaks_s:
+            if not 0 <= u <= dp.duration_s:
+                raise WalkTalkError(f"utterance peak at {u:.3f} s outside the timeline 0-{dp.duration_s} s",
+                                    sp.source or None, f"frame {round(u * fps)}")
+        loco = tile_loop(lc.loop, T)
+        contact = tile_contact(lc.loop, T)
+        cur = loco
+        busy_until = -1
+        for u in sorted(sp.peaks_s):
+            gc = pool[int(rng.integers(len(pool)))]
+            g = gc.gesture
+            n0 = int(np.floor((u - p.splice.lead_s) * fps + 1e-9))
+            earliest = n0 - int(np.floor(p.splice.max_shift_s * fps + 1e-9)) - g.phases.peaks[0] + g.phases.pb
+            start_ok = earliest > busy_until + dp.min_gap_s * fps
+            fits = n0 - int(p.splice.max_shift_s * fps) - g.phases.peaks[0] >= 0 and \
+                n0 - g.phases.peaks[0] + g.motion.num_frames <= T
+            if not (start_ok and fits) or n0 < 0:
+                continue
+            r = splice_gesture(lc, gc, u, T, p.splice, method, loco=cur, contact=contact)
+            cur = r.motion
+            busy_until = r.phases.re
+            rows.append({"character": sp.name, "gesture": Path(g.name).stem, "gait": lc.loop.gait,
+                         "t_prep_begin": r.phases.pb / fps, "t_stroke_peak": r.peak / fps,
+                         "t_retraction_end": r.phases.re / fps, "utterance_peak_s": u, "shift_s": r.shift_s,
+                         "contact_at_peak": bool(contact[r.peak]), "single_peak": g.single_peak})
+            meta.append({"character": sp.name, "t_prep_begin": r.phases.pb / fps, "t_stroke_begin": r.phases.sb / fps,
+                         "t_retraction_begin": r.phases.rb / fps, "t_retraction_end": r.phases.re / fps})
+        lateral = (i - (len(speakers) - 1) / 2) * dp.spacing_cm
+        motions[sp.name] = dataclasses.replace(place_character(cur, lc.loop.advance, lateral), name=sp.name)
+    from .body import joint_positions
+
+    roots = {}
+    for n, m in motions.items():
+        hips = m.skeleton.find(r"^hips$", r"hips")
+        roots[n] = joint_positions(m)[:, hips]
+    if dp.aar == "scripted":
+        aar = list(scripted or [])
+    elif dp.aar == "statistics":
+        aar = statistics_events(names, dp.duration_s, p.gaze, rng)
+    elif dp.aar in ("inferred", "random"):
+        aar = events_from_gestures(meta, roots, dp.aar, rng, fps)
+    else:
+        raise WalkTalkError(f"unknown AAR mode {dp.aar!r}: inferred, random, scripted or statistics",
+                            where="task.aar")
+    validate_events(aar, names)
+    out = {}
+    for n, m in motions.items():
+        others = {o: roots[o] for o in motions if o != n}
+        out[n], _ = apply_gaze(m, n, aar, others, p.gaze, rng)
+    return out, rows, aar

@@ -1,0 +1,327 @@
+"""Evaluation of stylized splicing: every single-peak gesture x several loops per gait x methods.
+
+Per splice (one row): stroke/utterance peak times, shift, whether the peak falls in a contact
+phase, the largest wrist jerk near a splice boundary relative to the source clips' largest, the
+fraction of gesture frames violating joint limits (per-DOF 0.5-99.5 percentile over all clips,
+or a hand inside the torso), the foot slide at loop seams and the elbow bend during the stroke.
+Utterance stress peaks are synthetic here (uniform over a span longer than the loop, one draw per
+gesture x loop, shared by the methods); the demo uses real speech.
+"""
+from __future__ import annotations
+
+import logging
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..errors import MissingFileError, WalkTalkError
+from ..io.bvh import load_bvh
+from .body import Body, check_same_skeleton, find_body, joint_positions
+from .gestures import apply_phase_override, load_phase_table, make_gesture
+from .locomotion import extract_loop, seam_foot_slide, tile_contact, tile_loop
+from .params import WalkTalkParams
+from .pipeline import (
+    METHODS,
+    GestureContext,
+    LoopContext,
+    gesture_context,
+    loop_context,
+    splice_gesture,
+)
+from .splice import joint_euler
+
+log = logging.getLogger(__name__)
+
+JERK_WINDOW = 3  # frames either side of a splice boundary
+
+
+@dataclass(frozen=True)
+class EvalParams:
+    loops_per_gait: int = 3
+    methods: tuple = ("naive", "stylized", "stylized+synced")
+    torso_radius_cm: float = 12.0     # a hand closer than this to the hips-neck segment is inside the torso (ours)
+    max_gestures: int | None = None   # None = every single-peak gesture clip
+    limit_percentiles: tuple = (0.5, 99.5)
+    # limits widened by this, so DOFs constant in the data (the bandai2 hand's X) are not violated by
+    # float noise (ours)
+    limit_tolerance_deg: float = 0.5
+
+
+@dataclass
+class Library:
+    body: Body
+    loops: dict                       # gait -> list[LoopContext]
+    gestures: list                    # list[GestureContext]
+    skipped: list = field(default_factory=list)
+    source_euler: list = field(default_factory=list)   # arm DOFs (F, A, 3) of every source clip, for limits
+
+
+def resolve_data_dir(p: WalkTalkParams, repo_root: Path) -> Path:
+    """``walktalk.data_dir``; empty = ../shared/data/bandai2/bvh beside the checkout, falling back to
+    the small fixtures in tests/data/walktalk (with a warning) when the shared folder is absent."""
+    if p.data_dir:
+        d = Path(p.data_dir)
+        if not d.is_dir():
+            raise MissingFileError("walktalk.data_dir is not a folder", d)
+        return d
+    shared = repo_root.parent / "shared" / "data" / "bandai2" / "bvh"
+    if shared.is_dir():
+        return shared
+    fixtures = repo_root / "tests" / "data" / "walktalk"
+    log.warning("shared data %s absent: using the small fixtures in %s", shared, fixtures)
+    return fixtures
+
+
+def _spread(files: list, k: int) -> list:
+    if len(files) <= k:
+        return files
+    idx = np.unique(np.linspace(0, len(files) - 1, k).round().astype(int))
+    return [files[i] for i in idx]
+
+
+def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_gestures: int | None = None,
+                 single_peak_only: bool = False) -> Library:
+    """Loops (``loops_per_gait`` per gait, files spread over the sorted list; clips with too few
+    cycles are skipped and reported) and gestures (all matching clips, phases detected, the CSV
+    override applied)."""
+    data_dir = Path(data_dir)
+    body, ref, loops, skipped, source = None, None, {}, [], []
+    for gait, pattern in (("walk", p.walk_glob), ("jog", p.jog_glob)):
+        files = sorted(data_dir.glob(pattern))
+        if not files:
+            raise MissingFileError(f"no {gait} clips matching {pattern!r}", data_dir)
+        got = []
+        chosen = set(_spread(files, loops_per_gait))
+        for f in files:
+            m = load_bvh(f, fps=p.fps)
+            if ref is None:
+                ref, body = m, find_body(m.skeleton, str(f))
+            check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
+            source.append(joint_euler(m, _arm_joints(body)))
+            if f not in chosen:
+                continue
+            try:
+                lp = extract_loop(m, p.gait, body)
+            except WalkTalkError as e:
+                skipped.append(str(e))
+                continue
+            got.append(loop_context(lp, body))
+        loops[gait] = got
+    gfiles = sorted({f for g in p.gesture_globs for f in data_dir.glob(g)})
+    if max_gestures is not None and not single_peak_only:
+        gfiles = _spread(gfiles, max_gestures)   # a sample across gesture kinds
+    table = load_phase_table(p.phases_csv) if p.phases_csv else None
+    gestures = []
+    for f in gfiles:
+        m = load_bvh(f, fps=p.fps)
+        check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
+        source.append(joint_euler(m, _arm_joints(body)))
+        g = make_gesture(m, p.gait, p.phases, body)
+        if table is not None:
+            g = apply_phase_override(g, table, p.phases_csv)
+        if single_peak_only and not g.single_peak:
+            continue
+        gestures.append(gesture_context(g, body, round(p.splice.transition_pad_s * p.fps)))
+        if max_gestures is not None and len(gestures) >= max_gestures:
+            break
+    return Library(body, loops, gestures, skipped, source)
+
+
+def _arm_joints(body: Body) -> tuple:
+    return tuple(j for s in ("l", "r") for j in body.arm(s))
+
+
+def _wrap(x):
+    return (x + np.pi) % (2 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class Limits:
+    """Per arm-DOF limits (A, 3) as wrapped offsets from a reference angle (circular mean)."""
+
+    joints: tuple
+    ref: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+
+def dof_limits(lib: Library, percentiles=(0.5, 99.5), tolerance_deg: float = 0.0) -> Limits:
+    """Limits over every source clip loaded (all locomotion and gesture clips found, not only the
+    loops and gestures chosen for the evaluation)."""
+    joints = _arm_joints(lib.body)
+    x = np.concatenate(lib.source_euler)
+    ref = np.angle(np.exp(1j * x).mean(axis=0))
+    d = _wrap(x - ref)
+    tol = np.radians(tolerance_deg)
+    return Limits(joints, ref, np.percentile(d, percentiles[0], axis=0) - tol,
+                  np.percentile(d, percentiles[1], axis=0) + tol)
+
+
+def _segment_distance(p, a, b):
+    ab = b - a
+    t = np.clip(np.sum((p - a) * ab, -1) / np.maximum(np.sum(ab * ab, -1), 1e-12), 0, 1)
+    return np.linalg.norm(p - (a + t[..., None] * ab), axis=-1)
+
+
+def elbow_bend(pos: np.ndarray, body: Body, side: str) -> np.ndarray:
+    """(F,) elbow bend in degrees: 0 = straight arm, 90 = forearm at right angles."""
+    s, e, w = (pos[:, body.joints[k]] for k in (f"upperarm_{side}", f"elbow_{side}", f"hand_{side}"))
+    u, v = e - s, w - e
+    c = np.sum(u * v, -1) / np.maximum(np.linalg.norm(u, axis=-1) * np.linalg.norm(v, axis=-1), 1e-12)
+    return np.degrees(np.arccos(np.clip(c, -1, 1)))
+
+
+def wrist_jerk(pos: np.ndarray, body: Body, sides, fps: float) -> np.ndarray:
+    """(F-3,) largest root-relative wrist jerk (cm/s^3) over ``sides``; entry i covers frames i..i+3."""
+    out = None
+    for s in sides:
+        x = pos[:, body.joints[f"hand_{s}"]] - pos[:, body.joints["hips"]]
+        j = np.linalg.norm(np.diff(x, n=3, axis=0), axis=-1) * fps ** 3
+        out = j if out is None else np.maximum(out, j)
+    return out
+
+
+def loop_source_jerk(lc: LoopContext, sides) -> float:
+    m = tile_loop(lc.loop, 3 * lc.loop.num_frames)
+    return float(wrist_jerk(joint_positions(m), lc.body, sides, m.fps).max())
+
+
+def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: Limits, ep: EvalParams,
+                   c: float, src_jerk: float) -> dict:
+    body, g, ph = lc.body, gc.gesture, res.phases
+    m = res.motion
+    fps = m.fps
+    pos = joint_positions(m)
+    jerk = wrist_jerk(pos, body, g.sides, fps)
+    near = []
+    for b in (ph.pb, ph.pe + 1, ph.rb, ph.re + 1):
+        lo, hi = max(0, b - 2 * JERK_WINDOW), min(len(jerk), b + JERK_WINDOW + 1)
+        if hi > lo:
+            near.append(jerk[lo:hi].max())
+    frames = np.arange(ph.pb, ph.re + 1)
+    idx = [limits.joints.index(j) for j in gc.joints]
+    e = joint_euler(m.slice(ph.pb, ph.re + 1), gc.joints)
+    d = _wrap(e - limits.ref[idx])
+    dof_bad = np.any((d < limits.lo[idx]) | (d > limits.hi[idx]), axis=(1, 2))
+    torso_bad = np.zeros(len(frames), bool)
+    for s in ("l", "r"):
+        dist = _segment_distance(pos[frames, body.joints[f"hand_{s}"]], pos[frames, body.joints["hips"]],
+                                 pos[frames, body.joints["neck"]])
+        torso_bad |= dist < ep.torso_radius_cm
+    stroke = slice(ph.sb, ph.se + 1)
+    bend = np.mean([elbow_bend(pos[stroke], body, s).mean() for s in g.sides])
+    loop_bend = np.mean([lc_bend(lc, s) for s in g.sides])
+    lidx = [lc.joints.index(j) for j in gc.joints]
+    within = bool(np.all(np.abs(res.styled_euler - lc.stats.mean[lidx]) <= c * lc.stats.std[lidx] + 1e-4))
+    return {
+        "stroke_peak_s": res.peak / fps,
+        "nominal_peak_s": res.nominal_peak / fps,
+        "shift_s": res.shift_s,
+        "peak_in_contact": bool(res.contact[res.peak]),
+        "nominal_in_contact": bool(res.contact[res.nominal_peak]),
+        "gait_phase": (res.peak % lc.loop.num_frames) / lc.loop.num_frames,
+        "max_jerk_ratio": float(max(near) / src_jerk) if near else 0.0,
+        "joint_limit_violation_frac": float(np.mean(dof_bad | torso_bad)),
+        "dof_violation_frac": float(np.mean(dof_bad)),
+        "hand_in_torso_frac": float(np.mean(torso_bad)),
+        "foot_slide_cm": seam_foot_slide(m, lc.loop.num_frames, _GAIT, body, pos),
+        "elbow_bend_deg": float(bend),
+        "loop_elbow_bend_deg": float(loop_bend),
+        "dof_within_csigma": within,
+    }
+
+
+_GAIT = None  # set by run_evaluation (GaitParams for the seam foot-slide test)
+_BEND_CACHE: dict = {}
+
+
+def lc_bend(lc: LoopContext, side: str) -> float:
+    key = (id(lc), side)
+    if key not in _BEND_CACHE:
+        _BEND_CACHE[key] = float(elbow_bend(joint_positions(lc.loop.motion), lc.body, side).mean())
+    return _BEND_CACHE[key]
+
+
+def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bool = False) -> pd.DataFrame:
+    """All splices of the evaluation as a DataFrame (one row per splice)."""
+    global _GAIT
+    _GAIT = p.gait
+    rng = np.random.default_rng(p.seed)
+    limits = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
+    fps = p.fps
+    s_frames = int(np.floor(p.splice.max_shift_s * fps + 1e-9))
+    rows = []
+    src_cache: dict = {}
+    gests = [gc for gc in lib.gestures if gc.gesture.single_peak]
+    for gc in gests:
+        g = gc.gesture
+        fg, pk = g.motion.num_frames, g.phases.peaks[0]
+        gjerk = float(wrist_jerk(joint_positions(g.motion), lib.body, g.sides, fps).max())
+        for gait, lcs in lib.loops.items():
+            for lc in lcs:
+                n = lc.loop.num_frames
+                T = fg + 2 * (n + s_frames + 10)
+                lo, hi = pk + s_frames + 1, T - (fg - pk) - 1
+                n0 = int(rng.integers(lo, hi))
+                u = (n0 + 0.5) / fps + p.splice.lead_s
+                key = (id(lc), g.sides)
+                if key not in src_cache:
+                    src_cache[key] = loop_source_jerk(lc, g.sides)
+                src = max(src_cache[key], gjerk)
+                loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
+                for name in ep.methods:
+                    res = splice_gesture(lc, gc, u, T, p.splice, METHODS[name], loco=loco, contact=contact)
+                    row = {"gesture": Path(g.name).stem, "loop": f"{Path(lc.loop.source).stem}[{lc.loop.start}]",
+                           "gait": gait, "method": name, "utterance_peak_s": u, "handedness": g.handedness}
+                    row.update(splice_metrics(res, lc, gc, limits, ep, p.splice.c, src))
+                    rows.append(row)
+    cols = ["gesture", "loop", "gait", "method", "stroke_peak_s", "utterance_peak_s", "shift_s", "peak_in_contact",
+            "max_jerk_ratio", "joint_limit_violation_frac", "foot_slide_cm", "elbow_bend_deg"]
+    df = pd.DataFrame(rows)
+    return df[cols + [c for c in df.columns if c not in cols]]
+
+
+def _per_gesture_corr(d: pd.DataFrame) -> list[float]:
+    out = []
+    for _, dg in d.groupby("gesture"):
+        if dg["elbow_bend_deg"].std() > 1e-9 and dg["loop_elbow_bend_deg"].std() > 1e-9:
+            out.append(float(np.corrcoef(dg["loop_elbow_bend_deg"], dg["elbow_bend_deg"])[0, 1]))
+    return out
+
+
+def _corr(d: pd.DataFrame) -> float:
+    if d["elbow_bend_deg"].std() > 1e-9 and d["loop_elbow_bend_deg"].std() > 1e-9:
+        return float(np.corrcoef(d["loop_elbow_bend_deg"], d["elbow_bend_deg"])[0, 1])
+    return float("nan")
+
+
+def summarize(df: pd.DataFrame) -> list[dict]:
+    """Per gait and method (and per method over all gaits, gait "all"): peak-in-contact rate,
+    shift range, peaks before utterance, violations, jerk, foot slide, and the correlation of the
+    stroke elbow bend with the loop's (pooled, and per gesture over its loops then averaged)."""
+    out = []
+    groups = [((g, m), d) for (g, m), d in df.groupby(["gait", "method"], sort=False)]
+    groups += [(("all", m), d) for m, d in df.groupby("method", sort=False)]
+    for (gait, method), d in groups:
+        per_g = _per_gesture_corr(d)
+        out.append({
+            "gait": gait, "method": method, "splices": len(d),
+            "peak_in_contact_rate": float(d["peak_in_contact"].mean()),
+            "shift_min_s": float(d["shift_s"].min()), "shift_max_s": float(d["shift_s"].max()),
+            "all_peaks_before_utterance": bool((d["stroke_peak_s"] <= d["utterance_peak_s"] + 1e-9).all()),
+            "violation_frac_mean": float(d["joint_limit_violation_frac"].mean()),
+            "violation_frac_max": float(d["joint_limit_violation_frac"].max()),
+            "dof_violation_frac_mean": float(d["dof_violation_frac"].mean()),
+            "hand_in_torso_frac_mean": float(d["hand_in_torso_frac"].mean()),
+            "max_jerk_ratio_max": float(d["max_jerk_ratio"].max()),
+            "max_jerk_ratio_median": float(d["max_jerk_ratio"].median()),
+            "jerk_ratio_le_2_rate": float((d["max_jerk_ratio"] <= 2.0).mean()),
+            "foot_slide_cm_max": float(d["foot_slide_cm"].max()),
+            "dof_within_csigma_rate": float(d["dof_within_csigma"].mean()),
+            "elbow_corr_pooled": _corr(d),
+            "elbow_corr_per_gesture_mean": float(np.mean(per_g)) if per_g else float("nan"),
+            "elbow_corr_per_gesture_n": len(per_g),
+        })
+    return out

@@ -1,0 +1,90 @@
+"""Figures of the walk-the-talk evaluation, drawn from the evaluation table (object-oriented
+matplotlib, no pyplot state): gesture peak vs gait phase, elbow bend loop vs stroke, and a contact
+sheet of one splice."""
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+from matplotlib.figure import Figure
+
+from ..skeleton import Motion
+from .body import joint_positions
+
+
+def peak_phase_histogram(df: pd.DataFrame) -> Figure:
+    """Histogram of the stroke peak's position in the gait cycle (0 = left contact), per gait and
+    method; the share of peaks in contact is in each legend."""
+    gaits = list(dict.fromkeys(df["gait"]))
+    methods = list(dict.fromkeys(df["method"]))
+    fig = Figure(figsize=(4.5 * len(gaits), 3.4))
+    bins = np.linspace(0, 1, 21)
+    for i, gait in enumerate(gaits):
+        ax = fig.add_subplot(1, len(gaits), i + 1)
+        for m in methods:
+            d = df[(df["gait"] == gait) & (df["method"] == m)]
+            ax.hist(d["gait_phase"], bins=bins, histtype="step", lw=1.5,
+                    label=f"{m} ({100 * d['peak_in_contact'].mean():.0f}% in contact)")
+        ax.set_title(f"{gait}: stroke peak vs gait phase")
+        ax.set_xlabel("phase in the two-cycle loop (0 = left contact)")
+        ax.set_ylabel("splices")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def elbow_scatter(df: pd.DataFrame) -> Figure:
+    methods = list(dict.fromkeys(df["method"]))
+    fig = Figure(figsize=(4 * len(methods), 3.6))
+    for i, m in enumerate(methods):
+        ax = fig.add_subplot(1, len(methods), i + 1)
+        d = df[df["method"] == m]
+        for gait, mk in (("walk", "o"), ("jog", "^")):
+            e = d[d["gait"] == gait]
+            ax.scatter(e["loop_elbow_bend_deg"], e["elbow_bend_deg"], s=6, marker=mk, alpha=0.5, label=gait)
+        r = np.corrcoef(d["loop_elbow_bend_deg"], d["elbow_bend_deg"])[0, 1] if d["elbow_bend_deg"].std() > 0 else np.nan
+        ax.set_title(f"{m}: r = {r:.2f}")
+        ax.set_xlabel("loop mean elbow bend (deg)")
+        ax.set_ylabel("stroke elbow bend (deg)")
+        ax.legend(fontsize=7)
+    fig.tight_layout()
+    return fig
+
+
+def contact_sheet(motions: dict[str, Motion], frames: list[int], title: str = "") -> Figure:
+    """Side views (forward axis vs height) of a few frames, one row per motion (e.g. naive vs
+    stylized+synced), each frame drawn around its own root."""
+    rows = list(motions)
+    fig = Figure(figsize=(1.6 * len(frames), 2.6 * len(rows)))
+    for r, name in enumerate(rows):
+        m = motions[name]
+        pos = joint_positions(m)
+        parents = m.skeleton.parents
+        travel = pos[-1, 1] - pos[0, 1]
+        fwd = 2 if abs(travel[2]) >= abs(travel[0]) else 0
+        sign = 1.0 if travel[fwd] >= 0 else -1.0
+        for c, f in enumerate(frames):
+            ax = fig.add_subplot(len(rows), len(frames), r * len(frames) + c + 1)
+            p = pos[f]
+            x = sign * (p[:, fwd] - p[1, fwd])
+            static_top = np.ptp(pos[:, 0], axis=0).max() < 1e-6  # bandai2's joint_Root stays at the origin
+            for j, par in enumerate(parents):
+                if par >= 0 and not (par == 0 and static_top):
+                    arm = any(k in m.skeleton.names[j] for k in ("Arm", "Hand"))
+                    ax.plot([x[par], x[j]], [p[par, 1], p[j, 1]], color="C3" if arm else "0.3", lw=1.5)
+            ax.set_xlim(-70, 70)
+            ax.set_ylim(-5, 200)
+            ax.set_aspect("equal")
+            ax.set_xticks([])
+            ax.set_yticks([])
+            ax.set_title(f"{name}\nframe {f}" if c == 0 else f"frame {f}", fontsize=7)
+    if title:
+        fig.suptitle(title, fontsize=9)
+    fig.tight_layout()
+    return fig
+
+
+def save_figure(fig: Figure, path, dpi: int = 110) -> None:
+    from ..utils import atomic_path
+
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=str(path).rsplit(".", 1)[-1])

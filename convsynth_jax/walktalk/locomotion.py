@@ -1,0 +1,231 @@
+"""Locomotion loops (paper Sec. 3.1 and 4): contacts, heel strikes, two-cycle loops.
+
+A foot is *down* when its ankle or toe is within ``height_tol_cm`` of that point's lowest height
+in the clip and moves slower than ``speed_tol_cms`` horizontally; a heel strike is the first frame
+of a down run. Contact phases follow the paper's annotation: walking contact = the front foot on or
+near the ground (flight = one leg passing the other); jogging contact = at least one foot down
+(flight = both feet in the air). The root altitude (rises in flight, falls in contact) is kept for
+diagnostics and for the elbow bounce of Sec. 4.2.
+
+A loop is two full gait cycles from a left heel strike to the left heel strike two cycles later
+(the paper's clips start at *left contact*). To loop seamlessly we spread the pose residual between
+the loop's first frame and the frame after its last over the loop (slerp from identity to the
+residual, Kovar-style drift correction, ours): the tiled loop is continuous at every seam, the
+root advances by the loop's horizontal displacement per copy.
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..errors import WalkTalkError
+from ..skeleton import Motion
+from .body import Body, find_body, joint_positions
+from .params import GaitParams
+
+
+@dataclass(frozen=True)
+class GaitInfo:
+    """Per-frame gait labels of one clip. Arrays are (F,)."""
+
+    down_l: np.ndarray
+    down_r: np.ndarray
+    contact: np.ndarray
+    strikes_l: tuple[int, ...]
+    strikes_r: tuple[int, ...]
+    gait: str                      # "walk" or "jog"
+    root_height: np.ndarray
+
+
+@dataclass(frozen=True)
+class Loop:
+    """A seamless two-cycle locomotion loop.
+
+    motion: N frames (frame N would equal frame 0 advanced by ``advance``); advance: (3,) root
+    displacement per loop copy (horizontal only); contact: (N,) contact labels; gait: walk | jog;
+    source: file it came from; start: first frame in the source clip; strikes: left/right heel
+    strikes relative to ``start``.
+    """
+
+    motion: Motion
+    advance: np.ndarray
+    contact: np.ndarray
+    gait: str
+    source: str
+    start: int
+    strikes_l: tuple[int, ...]
+    strikes_r: tuple[int, ...]
+    root_joint: int = 1
+    root_height: np.ndarray | None = None   # (N,) hips altitude, cm (for the elbow bounce)
+
+    @property
+    def num_frames(self) -> int:
+        return self.motion.num_frames
+
+
+def _runs(mask: np.ndarray, min_len: int) -> list[tuple[int, int]]:
+    """Half-open [a, b) runs of True of at least ``min_len`` frames."""
+    m = np.concatenate([[False], mask.astype(bool), [False]])
+    d = np.diff(m.astype(int))
+    starts, ends = np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+    return [(int(a), int(b)) for a, b in zip(starts, ends) if b - a >= min_len]
+
+
+def foot_down(height: np.ndarray, speed: np.ndarray, p: GaitParams) -> np.ndarray:
+    """height, speed: (F,) of one foot point -> (F,) bool down."""
+    return (height - height.min() < p.height_tol_cm) & (speed < p.speed_tol_cms)
+
+
+def _horizontal_speed(x: np.ndarray, fps: float) -> np.ndarray:
+    """(F, 3) -> (F,) horizontal speed, the smaller of the backward and forward differences, so a
+    foot that lands (or lifts off) on frame t counts as still on that frame."""
+    n = len(x)
+    if n < 2:
+        return np.zeros(n)
+    d = np.linalg.norm(np.diff(x[:, [0, 2]], axis=0), axis=1) * fps
+    back = np.r_[d[0], d]
+    fwd = np.r_[d, d[-1]]
+    return np.minimum(back, fwd)
+
+
+def detect_gait(motion: Motion, p: GaitParams, body: Body | None = None,
+                positions: np.ndarray | None = None) -> GaitInfo:
+    """Foot contacts, heel strikes and contact phases of a locomotion clip (Y up, cm)."""
+    body = body or find_body(motion.skeleton, motion.name)
+    pos = joint_positions(motion) if positions is None else positions
+    fps = motion.fps
+    downs = {}
+    for side in ("l", "r"):
+        a, t = pos[:, body.joints[f"foot_{side}"]], pos[:, body.joints[f"toes_{side}"]]
+        down = foot_down(a[:, 1], _horizontal_speed(a, fps), p) | foot_down(t[:, 1], _horizontal_speed(t, fps), p)
+        keep = np.zeros_like(down)
+        for s, e in _runs(down, p.min_down_frames):
+            keep[s:e] = True
+        downs[side] = keep
+    flight = ~(downs["l"] | downs["r"])
+    gait = "jog" if flight.mean() >= p.jog_flight_frac else "walk"
+    if gait == "jog":
+        contact = ~flight
+    else:
+        root = pos[:, body.joints["hips"]]
+        vel = root[-1] - root[0]
+        heading = np.array([vel[0], 0.0, vel[2]])
+        heading = heading / max(np.linalg.norm(heading), 1e-9)
+        fl, fr = pos[:, body.joints["foot_l"]], pos[:, body.joints["foot_r"]]
+        front_is_l = (fl - fr) @ heading > 0
+        front_h = np.where(front_is_l, fl[:, 1], fr[:, 1])
+        ground = min(fl[:, 1].min(), fr[:, 1].min())
+        front_down = np.where(front_is_l, downs["l"], downs["r"])
+        contact = front_down | (front_h - ground < p.near_ground_cm)
+    strikes = {s: tuple(a for a, _ in _runs(downs[s], p.min_down_frames) if a > 0) for s in ("l", "r")}
+    return GaitInfo(downs["l"], downs["r"], contact, strikes["l"], strikes["r"], gait,
+                    pos[:, body.joints["hips"], 1].copy())
+
+
+def seam_correct(rotations: np.ndarray) -> np.ndarray:
+    """Spread the rotation residual between frame N (the frame after the loop) and frame 0 over the loop.
+
+    rotations: (N+1, J, 4), the loop plus the following frame -> (N, J, 4) where corrected frame
+    i is slerp(I, r, i/N) q_i with r = q_0 q_N^-1, so that the virtual frame N equals frame 0.
+    Float64 NumPy (runs once per loop): slerp from the identity is r's rotation angle scaled by i/N.
+    """
+    n = rotations.shape[0] - 1
+    q = np.asarray(rotations, dtype=np.float64)
+    r = _qmul(q[0], _qconj(q[n]))
+    r = np.where(r[:, :1] < 0, -r, r)  # shorter arc
+    half = np.arccos(np.clip(r[:, 0], -1.0, 1.0))  # (J,)
+    s = np.sin(half)
+    axis = np.where(s[:, None] > 1e-12, r[:, 1:] / np.where(s > 1e-12, s, 1.0)[:, None], 0.0)
+    a = np.arange(n)[:, None] / n  # (N, 1)
+    corr = np.concatenate([np.cos(a * half)[..., None], np.sin(a * half)[..., None] * axis[None]], axis=-1)
+    return _qmul(corr, q[:n]).astype(rotations.dtype)
+
+
+def _qconj(q):
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def _qmul(a, b):
+    """Hamilton product in NumPy, (..., 4)."""
+    aw, ax, ay, az = np.moveaxis(a, -1, 0)
+    bw, bx, by, bz = np.moveaxis(b, -1, 0)
+    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+
+
+def extract_loop(motion: Motion, p: GaitParams, body: Body | None = None, which: str = "middle") -> Loop:
+    """Two full gait cycles from a left heel strike (paper Sec. 4); raises :class:`WalkTalkError`
+    listing the strikes found when the clip holds fewer than two cycles."""
+    body = body or find_body(motion.skeleton, motion.name)
+    g = detect_gait(motion, p, body)
+    sl = list(g.strikes_l)
+    if len(sl) < 3:
+        raise WalkTalkError(f"fewer than two gait cycles: left heel strikes at frames {list(g.strikes_l)}, "
+                            f"right heel strikes at frames {list(g.strikes_r)} (need three left strikes)",
+                            motion.name, f"frames 0-{motion.num_frames - 1}")
+    cands = [(sl[i], sl[i + 2]) for i in range(len(sl) - 2)]
+    if which == "middle":
+        mid = motion.num_frames / 2
+        a, b = min(cands, key=lambda c: abs(0.5 * (c[0] + c[1]) - mid))
+    else:
+        a, b = cands[int(which)]
+    n = b - a
+    rot = seam_correct(motion.rotations[a:b + 1])
+    tr = np.array(motion.translations[a:b], dtype=np.float64)
+    # the topmost joint with moving position channels (the hips in bandai2; joint_Root is static)
+    # carries the travel: it advances horizontally by its displacement over the loop, and its
+    # vertical residual is spread linearly like the rotations
+    moving = [j for j in range(motion.skeleton.num_joints) if np.ptp(motion.translations[a:b + 1, j], axis=0).max() > 1e-6]
+    j0 = moving[0] if moving else 0
+    d = motion.translations[b, j0] - motion.translations[a, j0]
+    adv = np.array([d[0], 0.0, d[2]])
+    tr[:, j0, 1] -= np.arange(n) / n * d[1]
+    lm = dataclasses.replace(motion, rotations=rot, translations=tr, name=f"{motion.name}[{a}:{b}]")
+    return Loop(lm, adv, g.contact[a:b].copy(), g.gait, motion.name, int(a),
+                tuple(s - a for s in g.strikes_l if a <= s < b), tuple(s - a for s in g.strikes_r if a <= s < b),
+                j0, g.root_height[a:b].copy())
+
+
+def tile_indices(n_loop: int, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
+    """Frame t of a tiled loop is loop frame idx[t] in copy copies[t]."""
+    t = np.arange(n_frames)
+    return t % n_loop, t // n_loop
+
+
+def tile_loop(loop: Loop, n_frames: int, start_offset: np.ndarray | None = None) -> Motion:
+    """The loop repeated to ``n_frames`` frames; copy k is advanced by k * loop.advance."""
+    idx, copies = tile_indices(loop.num_frames, n_frames)
+    m = loop.motion
+    rot = m.rotations[idx]
+    tr = m.translations[idx].copy()
+    j = loop.root_joint
+    tr[:, j] += copies[:, None] * loop.advance[None]
+    if start_offset is not None:
+        tr[:, j] += start_offset[None]
+    return dataclasses.replace(m, rotations=rot, translations=tr, name=f"{m.name}x{n_frames}")
+
+
+def tile_contact(loop: Loop, n_frames: int) -> np.ndarray:
+    return loop.contact[tile_indices(loop.num_frames, n_frames)[0]]
+
+
+def seam_foot_slide(motion: Motion, n_loop: int, p: GaitParams, body: Body | None = None,
+                    positions: np.ndarray | None = None, window: int = 5) -> float:
+    """Largest horizontal step (cm) between consecutive frames of a foot point that is down in both
+    frames, over the frames within ``window`` of a loop seam (frame k*N-1 -> k*N); 0 when no seam
+    lies inside the motion."""
+    body = body or find_body(motion.skeleton, motion.name)
+    pos = joint_positions(motion) if positions is None else positions
+    worst = 0.0
+    seams = list(range(n_loop, motion.num_frames, n_loop))
+    for side in ("l", "r"):
+        for key in (f"foot_{side}", f"toes_{side}"):
+            x = pos[:, body.joints[key]]
+            down = foot_down(x[:, 1], _horizontal_speed(x, motion.fps), p)
+            for s in seams:
+                for t in range(max(1, s - window), min(motion.num_frames, s + window + 1)):
+                    if down[t - 1] and down[t]:
+                        worst = max(worst, float(np.linalg.norm(x[t, [0, 2]] - x[t - 1, [0, 2]])))
+    return worst

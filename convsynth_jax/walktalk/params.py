@@ -1,0 +1,117 @@
+"""Parameters of the walk-the-talk system (Wang et al., "Walk the Talk"), as frozen dataclasses.
+
+The defaults here mirror ``conf/walktalk/default.yaml`` (a test composes the config and compares).
+Values the paper gives are marked (paper); every other default is ours and says so in the YAML.
+Library functions take these objects, never a DictConfig; tasks build them once with
+:func:`params_from_dict`.
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass, field, fields
+
+from ..errors import WalkTalkError
+
+
+@dataclass(frozen=True)
+class GaitParams:
+    """Contact / heel-strike detection (Sec. 3.1, 4). Heights and speeds in cm, cm/s."""
+
+    height_tol_cm: float = 3.0        # a foot is down when ankle or toe is this close to its lowest height
+    speed_tol_cms: float = 50.0       # ... and that point moves slower than this horizontally
+    near_ground_cm: float = 2.0       # walking contact: the front foot down, or its ankle this close to the ground
+    min_down_frames: int = 2          # shorter down runs are noise
+    jog_flight_frac: float = 0.05     # a clip with this fraction of frames with both feet up is a jog
+    max_root_travel_cm: float = 20.0  # a gesture clip whose root moves farther than this is not standing
+
+
+@dataclass(frozen=True)
+class PhaseParams:
+    """Automatic gesture-phase detection from root-relative wrist excursion and speed (ours)."""
+
+    rest_frames: int = 3              # the rest pose is the mean of this many first frames
+    active_frac: float = 0.03         # active (preparation..retraction end) where excursion > frac * max
+    stroke_frac: float = 0.85         # stroke/hold where excursion > frac * max
+    peak_prominence_frac: float = 0.25  # a stroke peak is a wrist-speed minimum with this prominence (x max speed)
+    hand_min_cm: float = 15.0         # a hand gestures when its excursion exceeds this ...
+    hand_rel_frac: float = 0.3        # ... and this fraction of the other hand's
+
+
+@dataclass(frozen=True)
+class SpliceParams:
+    """Stylization (Sec. 4.1), synchronization (Sec. 4.2) and splicing (Sec. 4.3)."""
+
+    c: float = 3.0                    # (paper) arm DOFs within +- c std of the loop
+    k_bounce: float = 1.0             # elbow bounce, degrees of elbow DOF per cm of root height change (ours)
+    lead_s: float = 0.2               # nominal stroke-peak lead before the stress peak (paper window 0.2-0.6)
+    max_shift_s: float = 0.6          # (paper) search this far earlier for a contact phase
+    stylize_deictic: bool = False     # (paper) deictic gestures are not stylized
+    ease: str = "smootherstep"        # blend ramp: "linear" = Eq. 2 as printed; smootherstep is ours
+    transition_pad_s: float = 0.25    # hold the gesture's rest pose this long before/after and blend over it (ours)
+
+    def __post_init__(self):
+        if not self.c > 0:
+            raise WalkTalkError(f"stylization constant c must be > 0, got {self.c}", where="walktalk.splice.c")
+        if self.max_shift_s < 0 or self.lead_s < 0:
+            raise WalkTalkError("lead_s and max_shift_s must be >= 0", where="walktalk.splice")
+
+
+@dataclass(frozen=True)
+class GazeParams:
+    """Gaze and attention (Sec. 5)."""
+
+    r_min: float = 0.6                # (paper) torso/neck yaw = r * theta_yaw, r uniform in [r_min, r_max]
+    r_max: float = 1.0                # (paper)
+    # share of the yaw per joint, spine to head (ours; the paper says "spine and neck DOFs")
+    joint_shares: dict = field(default_factory=lambda: {"Spine": 0.2, "Chest": 0.3, "Neck": 0.25, "Head": 0.25})
+    lean_max_deg: float = 15.0        # (paper) lean at most this much
+    lean_distance_m: float = 1.0      # (paper) lean only when the addressee is this far ahead / behind
+    lean_full_m: float = 2.0          # lean reaches lean_max_deg at this distance (ours)
+    lean_joint: str = "Spine"
+    max_yaw_deg: float = 90.0         # torso+neck yaw clipped to this (ours)
+    # statistics-driven AAR: gaze-at / gaze-away durations in s (mean, sd) -- ours, the paper gives none
+    gaze_at_s: tuple = (2.0, 0.5)
+    gaze_away_s: tuple = (1.5, 0.5)
+
+    def __post_init__(self):
+        for name in ("r_min", "r_max"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise WalkTalkError(f"{name} must lie in [0, 1], got {v}", where=f"walktalk.gaze.{name}")
+        if self.r_min > self.r_max:
+            raise WalkTalkError(f"r_min {self.r_min} > r_max {self.r_max}", where="walktalk.gaze")
+
+
+@dataclass(frozen=True)
+class WalkTalkParams:
+    data_dir: str = ""                # BVH folder with walk/run/gesture clips ("" = ../shared/data/bandai2/bvh)
+    fps: float = 30.0
+    walk_glob: str = "*_walk_normal_*.bvh"
+    jog_glob: str = "*_run_normal_*.bvh"
+    gesture_globs: tuple = ("*raise-up-*.bvh", "*wave-*.bvh")
+    phases_csv: str = ""              # optional CSV overriding detected phases
+    seed: int = 0
+    gait: GaitParams = GaitParams()
+    phases: PhaseParams = PhaseParams()
+    splice: SpliceParams = SpliceParams()
+    gaze: GazeParams = GazeParams()
+
+
+def _build(cls, d: dict | None):
+    d = dict(d or {})
+    names = {f.name for f in fields(cls)}
+    unknown = sorted(set(d) - names)
+    if unknown:
+        raise WalkTalkError(f"unknown keys {unknown} for {cls.__name__}", where="walktalk")
+    for k, v in list(d.items()):
+        if isinstance(v, list):
+            d[k] = tuple(tuple(x) if isinstance(x, list) else x for x in v)
+    return cls(**d)
+
+
+def params_from_dict(d: dict) -> WalkTalkParams:
+    """Build :class:`WalkTalkParams` from a plain dict (``OmegaConf.to_container(cfg.walktalk)``)."""
+    d = dict(d)
+    nested = {"gait": GaitParams, "phases": PhaseParams, "splice": SpliceParams, "gaze": GazeParams}
+    kw = {k: _build(cls, d.pop(k, None)) for k, cls in nested.items()}
+    top = _build(WalkTalkParams, d)
+    return WalkTalkParams(**{**{f.name: getattr(top, f.name) for f in fields(WalkTalkParams)}, **kw})

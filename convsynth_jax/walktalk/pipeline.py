@@ -1,0 +1,146 @@
+"""One splice end to end (paper Fig. 4): stylize -> synchronize -> splice, for the three methods
+compared in the evaluation: ``naive`` (raw gesture DOFs spliced with Eq. 2 at the nominal time),
+``stylized`` (+ Sec. 4.1), ``stylized+synced`` (+ Sec. 4.2 alignment and elbow bounce).
+"""
+from __future__ import annotations
+
+import dataclasses
+from dataclasses import dataclass
+
+import numpy as np
+
+from ..skeleton import Motion
+from .body import Body, find_body, mask
+from .gestures import Gesture, Phases
+from .locomotion import Loop, tile_contact, tile_loop
+from .params import SpliceParams
+from .splice import (
+    LoopStats,
+    arm_joints,
+    elbow_dof,
+    joint_euler,
+    loop_stats,
+    place_gesture_arms,
+    rest_pose,
+    splice_arrays,
+    splice_weights,
+    stylize,
+)
+from .sync import align_peak, nominal_frame, shift_frames
+
+
+@dataclass(frozen=True)
+class Method:
+    stylize: bool
+    sync: bool
+    bounce: bool
+
+
+# The evaluation's methods, looked up by name (config lists the names).
+METHODS: dict[str, Method] = {
+    "naive": Method(stylize=False, sync=False, bounce=False),
+    "stylized": Method(stylize=True, sync=False, bounce=False),
+    "stylized+synced": Method(stylize=True, sync=True, bounce=True),
+}
+
+
+@dataclass(frozen=True)
+class LoopContext:
+    """A loop with its arm statistics: euler (N, A, 3) over both arms' joints (``joints``)."""
+
+    loop: Loop
+    body: Body
+    joints: tuple[int, ...]
+    euler: np.ndarray
+    stats: LoopStats
+    elbow_dof: dict
+
+
+@dataclass(frozen=True)
+class GestureContext:
+    gesture: Gesture
+    joints: tuple[int, ...]       # the gesturing arm(s)' joints
+    euler: np.ndarray             # (Fg, A, 3)
+    rest: np.ndarray              # B_G (A, 3)
+
+
+def loop_context(loop: Loop, body: Body | None = None) -> LoopContext:
+    body = body or find_body(loop.motion.skeleton, loop.source)
+    joints = arm_joints(body)
+    e = joint_euler(loop.motion, joints)
+    dofs = {s: elbow_dof(e[:, joints.index(body.joints[f"elbow_{s}"])]) for s in ("l", "r")}
+    return LoopContext(loop, body, joints, e, loop_stats(e), dofs)
+
+
+def pad_gesture(g: Gesture, frames: int) -> Gesture:
+    """Hold the gesture's first and last pose for ``frames`` extra frames and widen t_Pb / t_Re
+    by as much (ours): the Eq. 2 blend toward the gesture then starts while the gesture is still
+    at rest instead of while its own preparation is already moving, which removes most of the
+    wrist-jerk excess at t_Pb (experiments/bench_walktalk.py reports the effect)."""
+    if frames <= 0:
+        return g
+    m = g.motion
+    rot = np.concatenate([np.repeat(m.rotations[:1], frames, 0), m.rotations, np.repeat(m.rotations[-1:], frames, 0)])
+    tr = np.concatenate([np.repeat(m.translations[:1], frames, 0), m.translations,
+                         np.repeat(m.translations[-1:], frames, 0)])
+    ph = g.phases.shifted(frames)
+    ph = dataclasses.replace(ph, pb=ph.pb - frames, re=ph.re + frames)
+    return dataclasses.replace(g, motion=dataclasses.replace(m, rotations=rot, translations=tr), phases=ph)
+
+
+def gesture_context(g: Gesture, body: Body, pad_frames: int = 0) -> GestureContext:
+    g = pad_gesture(g, pad_frames)
+    joints = arm_joints(body, g.sides)
+    e = joint_euler(g.motion, joints)
+    return GestureContext(g, joints, e, rest_pose(e, g.phases))
+
+
+@dataclass(frozen=True)
+class SpliceResult:
+    motion: Motion
+    phases: Phases            # on the timeline
+    offset: int               # timeline frame of the gesture's first frame
+    nominal_peak: int         # timeline frame before synchronization
+    peak: int                 # timeline frame of the (first) stroke peak
+    shift_s: float
+    contact: np.ndarray       # (T,) timeline contact labels
+    arm_euler: np.ndarray     # (Fg, A, 3) gesture arm DOFs as spliced (after stylization and bounce)
+    styled_euler: np.ndarray  # (Fg, A, 3) after stylization, before the bounce
+
+
+def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float, num_frames: int,
+                   p: SpliceParams, method: Method | str, loco: Motion | None = None,
+                   contact: np.ndarray | None = None) -> SpliceResult:
+    """Splice one gesture into ``num_frames`` frames of the tiled loop so its stroke peak serves
+    the stress peak at ``utterance_peak_s`` (seconds on the timeline)."""
+    m = METHODS[method] if isinstance(method, str) else method
+    g = gc.gesture
+    fps = lc.loop.motion.fps
+    loco = tile_loop(lc.loop, num_frames) if loco is None else loco
+    contact = tile_contact(lc.loop, num_frames) if contact is None else contact
+    n0 = nominal_frame(utterance_peak_s, p.lead_s, fps, num_frames, g.name)
+    shift = align_peak(n0, contact, shift_frames(p.max_shift_s, fps), not g.single_peak) if m.sync else 0
+    peak = n0 + shift
+    offset = peak - g.phases.peaks[0]
+    idx = [lc.joints.index(j) for j in gc.joints]
+    e = gc.euler
+    if m.stylize and (g.kind != "deictic" or p.stylize_deictic):
+        st = LoopStats(lc.stats.mean[idx], lc.stats.std[idx])
+        e = stylize(e, st, gc.rest, p.c)
+    styled = e
+    if m.bounce and p.k_bounce != 0.0:
+        from .splice import check_placement
+
+        check_placement(offset, g.motion.num_frames, num_frames, g.name)
+        h = lc.loop.root_height
+        d_h = (h - h.mean())[(np.arange(offset, offset + g.motion.num_frames)) % lc.loop.num_frames]
+        e = e.copy()
+        for s in g.sides:
+            a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
+            e[:, a, lc.elbow_dof[s]] += np.radians(p.k_bounce * d_h)   # R' = R + k dH_root (Sec. 4.2)
+    gest_q = place_gesture_arms(loco, g, e, gc.joints, offset)
+    ph = g.phases.shifted(offset)
+    w = splice_weights(num_frames, ph, p.ease)
+    rot = splice_arrays(np.asarray(loco.rotations), gest_q, w, mask(loco.skeleton.num_joints, gc.joints))
+    out = Motion(loco.skeleton, rot, loco.translations, fps, f"{g.name}+{lc.loop.source}")
+    return SpliceResult(out, ph, offset, n0, peak, shift / fps, contact, e, styled)

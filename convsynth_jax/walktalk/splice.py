@@ -1,0 +1,180 @@
+"""Stylized splicing (paper Sec. 4.1, 4.2 "Synthesis", 4.3 Eq. 1-2).
+
+Arm DOFs are the BVH Euler channels (degrees in the paper, radians here) of every joint of both
+arms (shoulder, upper arm, forearm, hand), unwrapped over time.
+
+* Stylization (Sec. 4.1): B_L = mean arm pose of the loop, B_G = rest pose of the gesture (mean of
+  its frames outside t_Pb..t_Re), M'_G = M_G + (B_L - B_G). Each DOF's deviation from B_L is then
+  rescaled linearly (not clipped) so that its largest excursion over the clip is at most c * STD_L.
+  Deictic gestures are left alone.
+* Elbow bounce (Sec. 4.2): R'_elbow = R_elbow + k * dH_root, dH_root = loop root height minus its
+  mean (cm), on the forearm DOF that varies most in the loop, over the whole gesture.
+* Splicing (Sec. 4.3): lower body and torso from the locomotion (Eq. 1); arms from the loop
+  outside t_Pb..t_Re, from the gesture inside the stroke and holds, slerp in preparation and
+  retraction (Eq. 2). Only the gesturing arm(s) are spliced; the other keeps the loop's swing (ours).
+"""
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import partial
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from ..errors import WalkTalkError
+from ..rotations import quat_slerp
+from ..skeleton import Motion
+from .body import Body
+from .gestures import Gesture, Phases
+
+
+def arm_joints(body: Body, sides=("l", "r")) -> tuple[int, ...]:
+    return tuple(j for s in sides for j in body.arm(s))
+
+
+def joint_euler(motion: Motion, joints) -> np.ndarray:
+    """(F, len(joints), 3) Euler angles (radians, BVH channel order of each joint), unwrapped in time.
+
+    Float64 statistics outside jit use SciPy (intrinsic upper-case orders, the BVH convention, the
+    same as ``rotations.quat_to_euler``; a test checks the two agree)."""
+    out = np.empty((motion.num_frames, len(joints), 3))
+    for a, j in enumerate(joints):
+        q = np.asarray(motion.rotations[:, j], dtype=np.float64)
+        out[:, a] = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_euler(motion.skeleton.rotation_order(j))
+    return np.unwrap(out, axis=0)
+
+
+def euler_to_joint_quats(euler: np.ndarray, motion: Motion, joints) -> np.ndarray:
+    """Inverse of :func:`joint_euler`: (F, A, 3) -> (F, A, 4) (w, x, y, z)."""
+    out = np.empty(euler.shape[:2] + (4,))
+    for a, j in enumerate(joints):
+        xyzw = Rotation.from_euler(motion.skeleton.rotation_order(j), euler[:, a]).as_quat()
+        out[:, a] = xyzw[:, [3, 0, 1, 2]]
+    return out
+
+
+@dataclass(frozen=True)
+class LoopStats:
+    """Arm-DOF statistics of a locomotion loop: mean B_L and std (A, 3), radians."""
+
+    mean: np.ndarray
+    std: np.ndarray
+
+
+def loop_stats(loop_euler: np.ndarray) -> LoopStats:
+    return LoopStats(loop_euler.mean(axis=0), loop_euler.std(axis=0))
+
+
+def rest_pose(gesture_euler: np.ndarray, ph: Phases) -> np.ndarray:
+    """B_G: mean of the frames outside t_Pb..t_Re (the first frame if there are none). (A, 3)."""
+    n = gesture_euler.shape[0]
+    keep = np.r_[0:ph.pb, ph.re + 1:n]
+    return gesture_euler[keep].mean(axis=0) if keep.size else gesture_euler[0]
+
+
+def stylize(gesture_euler, stats: LoopStats, b_g, c: float) -> np.ndarray:
+    """:func:`stylize_kernel` padded to a bucket length (edge frames repeat, so maxima do not change)."""
+    f = gesture_euler.shape[0]
+    p = bucket(f)
+    x = np.pad(gesture_euler, ((0, p - f), (0, 0), (0, 0)), mode="edge")
+    return np.asarray(stylize_kernel(jnp.asarray(x, jnp.float32), jnp.asarray(stats.mean, jnp.float32),
+                                     jnp.asarray(stats.std, jnp.float32), jnp.asarray(b_g, jnp.float32),
+                                     jnp.float32(c)), dtype=np.float64)[:f]
+
+
+@jax.jit
+def stylize_kernel(gesture_euler, b_l, std_l, b_g, c):
+    """Sec. 4.1. gesture_euler: (F, A, 3); b_l, std_l, b_g: (A, 3); c: scalar > 0 -> (F, A, 3).
+
+    M'_G = M_G + (B_L - B_G); deviation D = M'_G - B_L; per DOF, s = min(1, c std / max_t |D|);
+    result B_L + s D (linear rescaling of the deviation, so every DOF stays within B_L +- c std).
+    """
+    dev = gesture_euler + (b_l - b_g) - b_l
+    peak = jnp.max(jnp.abs(dev), axis=0)
+    lim = c * std_l
+    scale = jnp.where(peak > lim, lim / jnp.where(peak > 0, peak, 1.0), 1.0)
+    return b_l + dev * scale
+
+
+def splice_weights(num_frames: int, ph: Phases, ease: str = "linear") -> np.ndarray:
+    """Eq. 2 blend weight toward the gesture per timeline frame, (T,).
+
+    0 outside [t_Pb, t_Re]; (t - t_Pb) / (t_Pe - t_Pb + 1) in preparation; 1 from t_Sb through
+    the holds to t_Se; (t_Re - t) / (t_Re - t_Rb + 1) in retraction. NOTE: Eq. 2 as printed uses
+    slerp(M_L, M_G, (t - t_Rb) / (t_Re - t_Rb + 1)) in retraction, which would blend *toward* the
+    gesture; the text says retraction returns the arm to the locomotion swing, so we use the
+    mirrored weight, which ends at the loop pose on t_Re.
+
+    ``ease="smootherstep"`` (ours, the configured default) maps each ramp weight w through
+    6w^5 - 15w^4 + 10w^3, which has zero first and second derivatives at both ends, so the blend
+    adds no velocity or acceleration kink at t_Pb, t_Sb, t_Rb, t_Re (the paper's linear ramp does).
+    """
+    if ease not in EASES:
+        raise WalkTalkError(f"unknown ease {ease!r}; choose one of {sorted(EASES)}", where="walktalk.splice.ease")
+    t = np.arange(num_frames, dtype=np.float64)
+    w = np.zeros(num_frames)
+    prep = (t >= ph.pb) & (t <= ph.pe)
+    w[prep] = (t[prep] - ph.pb) / (ph.pe - ph.pb + 1)
+    w[(t > ph.pe) & (t < ph.rb)] = 1.0
+    ret = (t >= ph.rb) & (t <= ph.re)
+    w[ret] = (ph.re - t[ret]) / (ph.re - ph.rb + 1)
+    return EASES[ease](w)
+
+
+EASES = {
+    "linear": lambda w: w,                                          # Eq. 2 as printed
+    "smootherstep": lambda w: w * w * w * (w * (6 * w - 15) + 10),  # ours
+}
+
+
+def _splice_frame(loco_q, gest_q, w, arm_mask):
+    """One frame of Eq. 1-2: loco_q, gest_q: (J, 4); w scalar; arm_mask (J,) bool -> (J, 4)."""
+    blended = quat_slerp(loco_q, gest_q, jnp.broadcast_to(w, loco_q.shape[:-1]))
+    return jnp.where(arm_mask[:, None] & (w > 0), blended, loco_q)
+
+
+@partial(jax.jit, donate_argnums=())
+def splice_kernel(loco_q, gest_q, w, arm_mask):
+    """Eq. 1-2 over a timeline: loco_q, gest_q: (T, J, 4); w: (T,); arm_mask: (J,) -> (T, J, 4).
+    Joints outside ``arm_mask`` (lower body, torso, the idle arm) are copied from the locomotion."""
+    return jax.vmap(_splice_frame, in_axes=(0, 0, 0, None))(loco_q, gest_q, w, arm_mask)
+
+
+def bucket(n: int, minimum: int = 64) -> int:
+    """Pad lengths to powers of two so the jitted kernels compile a handful of times."""
+    return max(minimum, 1 << (int(n) - 1).bit_length())
+
+
+def splice_arrays(loco_q: np.ndarray, gest_q: np.ndarray, w: np.ndarray, arm_mask: np.ndarray) -> np.ndarray:
+    """Pad to a bucket length, run :func:`splice_kernel`, cut back. Shapes as the kernel."""
+    t = loco_q.shape[0]
+    p = bucket(t)
+    pad = ((0, p - t), (0, 0), (0, 0))
+    out = splice_kernel(jnp.asarray(np.pad(loco_q, pad, mode="edge"), dtype=jnp.float32),
+                        jnp.asarray(np.pad(gest_q, pad, mode="edge"), dtype=jnp.float32),
+                        jnp.asarray(np.pad(w, (0, p - t)), dtype=jnp.float32), jnp.asarray(arm_mask))
+    return np.asarray(out)[:t]
+
+
+def elbow_dof(loop_euler_elbow: np.ndarray) -> int:
+    """Index (0..2) of the forearm Euler channel with the largest std over the loop (the flexion)."""
+    return int(np.argmax(loop_euler_elbow.std(axis=0)))
+
+
+def check_placement(offset: int, gesture_frames: int, timeline_frames: int, name: str) -> None:
+    if offset < 0 or offset + gesture_frames > timeline_frames:
+        raise WalkTalkError(f"gesture placed at frames {offset}..{offset + gesture_frames - 1} falls outside the "
+                            f"timeline of {timeline_frames} frames (utterance time too early or too late)",
+                            name, f"frame {offset if offset < 0 else offset + gesture_frames - 1}")
+
+
+def place_gesture_arms(loco: Motion, gesture: Gesture, arm_euler: np.ndarray, joints, offset: int) -> np.ndarray:
+    """Timeline-length gesture rotations (T, J, 4): the loop's everywhere, the gesture's (possibly
+    stylized) arm joints ``joints`` from ``arm_euler`` (Fg, A, 3) at frames offset..offset+Fg-1."""
+    check_placement(offset, gesture.motion.num_frames, loco.num_frames, gesture.name)
+    g = np.array(loco.rotations, dtype=np.float64)
+    q = euler_to_joint_quats(arm_euler, gesture.motion, joints)
+    g[offset:offset + q.shape[0], list(joints)] = q
+    return g

@@ -1,0 +1,140 @@
+"""Benchmark: Walk the Talk (convsynth_jax.walktalk) on ../shared/data/bandai2 (fixtures if absent).
+
+Reported (goals from issue #12, never asserted):
+  * one splice (stylize + sync + Eq. 1-2, 300-frame timeline), warm median of 50, and cold;
+  * the whole ``walktalk_eval`` task (all single-peak gestures x 3 loops per gait x 3 methods,
+    figures included), in-process, after imports;
+  * the demo: 2 characters x 60 s per gait (walk and jog), task time after start-up (speech
+    annotation, library loading and synthesis included);
+  * an ablation of the stylization constant c on joint-limit violations (subset of gestures).
+Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results/bench_walktalk.json.
+
+    python experiments/bench_walktalk.py [--skip-ablation]
+"""
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+import platform
+import statistics
+import tempfile
+import time
+from pathlib import Path
+
+from _bench import REPO, RESULTS, SHARED
+
+from convsynth_jax.config import compose, run_task
+from convsynth_jax.utils import write_json_atomic
+
+GOALS = {"splice_warm_ms": 20.0, "eval_s": 60.0, "demo_s": 10.0}
+
+
+def bench_splice(data_dir: Path) -> dict:
+    from convsynth_jax.walktalk.evaluate import load_library
+    from convsynth_jax.walktalk.params import WalkTalkParams
+
+    p = WalkTalkParams()
+    lib = load_library(p, data_dir, 1, max_gestures=1, single_peak_only=True)
+    from convsynth_jax.walktalk.pipeline import splice_gesture
+
+    lc, gc = lib.loops["jog"][0], lib.gestures[0]
+    t0 = time.perf_counter()
+    splice_gesture(lc, gc, 5.0, 300, p.splice, "stylized+synced")
+    cold = time.perf_counter() - t0
+    times = []
+    for i in range(50):
+        t0 = time.perf_counter()
+        splice_gesture(lc, gc, 4.0 + 0.01 * i, 300, p.splice, "stylized+synced")
+        times.append(time.perf_counter() - t0)
+    return {"splice_cold_ms": 1e3 * cold, "splice_warm_ms": 1e3 * statistics.median(times),
+            "splice_warm_ms_max": 1e3 * max(times), "timeline_frames": 300}
+
+
+def bench_eval(data_dir: Path) -> dict:
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={data_dir}"])
+    with tempfile.TemporaryDirectory() as d:
+        t0 = time.perf_counter()
+        s = run_task(cfg, d)
+        wall = time.perf_counter() - t0
+    return {"eval_s": wall, "eval_load_s": s["load_seconds"], "eval_splice_metrics_s": s["eval_seconds"],
+            "eval_splices": s["splices"], "eval_gestures": s["gestures"], "per_gait_method": s["per_gait_method"]}
+
+
+def bench_demo(data_dir: Path) -> dict:
+    out = {}
+    for gaits in (["walk"], ["walk", "jog"]):
+        cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={data_dir}", f"task.gaits=[{','.join(gaits)}]"])
+        with tempfile.TemporaryDirectory() as d:
+            t0 = time.perf_counter()
+            s = run_task(cfg, d)
+            wall = time.perf_counter() - t0
+        key = "+".join(gaits)
+        out[key] = {"demo_s": wall, "speech_s": s["speech_seconds"], "load_s": s["load_seconds"],
+                    "synthesis_s": s["synthesis_seconds"], "gestures_spliced": s["gestures_spliced"],
+                    "single_peak_contact_rate": s["single_peak_contact_rate"], "shift_range_s": s["shift_range_s"]}
+    return out
+
+
+def bench_ablation(data_dir: Path) -> list[dict]:
+    import pandas as pd
+
+    from convsynth_jax.walktalk.evaluate import (
+        EvalParams,
+        load_library,
+        run_evaluation,
+        summarize,
+    )
+    from convsynth_jax.walktalk.params import WalkTalkParams
+
+    rows = []
+    base = WalkTalkParams()
+    lib = load_library(base, data_dir, 3, single_peak_only=True)
+    lib.gestures = lib.gestures[::5]
+    for c in (1.0, 1.5, 2.0, 3.0, 5.0):
+        p = dataclasses.replace(base, splice=dataclasses.replace(base.splice, c=c))
+        df = run_evaluation(lib, p, EvalParams(methods=("naive", "stylized+synced")))
+        for r in summarize(df):
+            if r["gait"] != "all":
+                rows.append({"c": c, "gait": r["gait"], "method": r["method"],
+                             "violation_frac_mean": r["violation_frac_mean"],
+                             "max_jerk_ratio_median": r["max_jerk_ratio_median"],
+                             "elbow_corr_all_loops": None})
+        allr = {r["method"]: r for r in summarize(df) if r["gait"] == "all"}
+        for r in rows[-4:]:
+            r["elbow_corr_all_loops"] = allr[r["method"]]["elbow_corr_per_gesture_mean"]
+    pd.DataFrame(rows)  # shape check
+    return rows
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--skip-ablation", action="store_true")
+    a = ap.parse_args()
+    data_dir = SHARED / "bandai2" / "bvh"
+    if not data_dir.is_dir():
+        data_dir = REPO / "tests" / "data" / "walktalk"
+    import jax
+
+    result = {"machine": {"platform": platform.platform(), "python": platform.python_version(),
+                          "jax": jax.__version__, "devices": [str(d) for d in jax.devices()]},
+              "data_dir": str(data_dir), "goals": GOALS}
+    result.update(bench_splice(data_dir))
+    result.update(bench_eval(data_dir))
+    result["demo"] = bench_demo(data_dir)
+    if not a.skip_ablation:
+        result["ablation_c"] = bench_ablation(data_dir)
+    result["met"] = {"splice": result["splice_warm_ms"] < GOALS["splice_warm_ms"],
+                     "eval": result["eval_s"] < GOALS["eval_s"],
+                     "demo": all(v["demo_s"] < GOALS["demo_s"] for v in result["demo"].values())}
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    write_json_atomic(RESULTS / "bench_walktalk.json", result)
+    print(json.dumps({k: v for k, v in result.items() if k not in ("per_gait_method", "ablation_c")}, indent=2,
+                     default=float))
+    if "ablation_c" in result:
+        for r in result["ablation_c"]:
+            print(r)
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,377 @@
+"""Walk the Talk core: planted-truth tests of contacts, loops, phases, Eq. 1-2, stylization, the
+shift rule and the elbow bounce, each fast kernel against a slow NumPy reference."""
+from __future__ import annotations
+
+import dataclasses
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation, Slerp
+
+from convsynth_jax.errors import ConvSynthError, WalkTalkError
+from convsynth_jax.walktalk.body import check_same_skeleton, find_body, joint_positions
+from convsynth_jax.walktalk.gestures import (
+    Phases,
+    check_standing,
+    detect_phases,
+    make_gesture,
+    validate_phases,
+)
+from convsynth_jax.walktalk.locomotion import (
+    detect_gait,
+    extract_loop,
+    seam_correct,
+    tile_contact,
+    tile_loop,
+)
+from convsynth_jax.walktalk.params import (
+    GaitParams,
+    GazeParams,
+    PhaseParams,
+    SpliceParams,
+)
+from convsynth_jax.walktalk.pipeline import (
+    gesture_context,
+    loop_context,
+    splice_gesture,
+)
+from convsynth_jax.walktalk.splice import (
+    joint_euler,
+    splice_arrays,
+    splice_weights,
+    stylize,
+)
+from convsynth_jax.walktalk.sync import align_kernel, align_peak, nominal_frame
+from convsynth_jax.walktalk.synthetic import synthetic_gesture, synthetic_jog
+
+TOL_Q = 2e-6   # float32 splice kernel vs float64 reference (quaternion components)
+
+
+@pytest.fixture(scope="module")
+def jog():
+    return synthetic_jog(periods=3.5)
+
+
+@pytest.fixture(scope="module")
+def loop(jog):
+    return extract_loop(jog[0], GaitParams())
+
+
+# ---------------------------------------------------------------- locomotion
+
+
+def test_contacts_and_strikes_match_planted_truth(jog):
+    m, truth = jog
+    g = detect_gait(m, GaitParams())
+    assert g.gait == "jog"
+    assert g.strikes_l == truth["strikes_l"] and g.strikes_r == truth["strikes_r"]
+    np.testing.assert_array_equal(g.down_l, truth["down_l"])
+    np.testing.assert_array_equal(g.contact, truth["contact"])
+
+
+def test_loop_is_two_cycles_from_left_contact(jog, loop):
+    m, truth = jog
+    assert loop.start in truth["strikes_l"]
+    assert loop.num_frames == 60  # two 30-frame cycles
+    np.testing.assert_array_equal(loop.contact, truth["contact"][loop.start:loop.start + 60])
+    np.testing.assert_allclose(loop.advance, [0, 0, 600.0])
+    # the synthetic clip is exactly periodic: tiling reproduces the source clip
+    tiled = tile_loop(loop, 45)
+    np.testing.assert_allclose(tiled.rotations, m.rotations[loop.start:loop.start + 45], atol=1e-12)
+    p_t, p_s = joint_positions(tiled), joint_positions(m.slice(loop.start, loop.start + 45))
+    np.testing.assert_allclose(p_t, p_s, atol=1e-9)
+    np.testing.assert_array_equal(tile_contact(loop, 150)[60:120], loop.contact)
+
+
+def test_seam_correct_against_scipy_slerp():
+    rng = np.random.default_rng(1)
+    q = Rotation.random(13 * 3, random_state=2).as_quat().reshape(13, 3, 4)[..., [3, 0, 1, 2]]
+    out = seam_correct(q)
+    n = 12
+    for j in range(3):
+        r0 = Rotation.from_quat(q[0, j, [1, 2, 3, 0]])
+        rn = Rotation.from_quat(q[n, j, [1, 2, 3, 0]])
+        resid = r0 * rn.inv()
+        sl = Slerp([0.0, 1.0], Rotation.concatenate([Rotation.identity(), resid]))
+        for i in range(n):
+            ref = (sl([i / n])[0] * Rotation.from_quat(q[i, j, [1, 2, 3, 0]])).as_quat()
+            got = out[i, j, [1, 2, 3, 0]]
+            assert min(np.abs(ref - got).max(), np.abs(ref + got).max()) < 1e-9
+        # the virtual frame N after correction equals frame 0
+        full = (resid * rn).as_quat()
+        assert min(np.abs(full - q[0, j, [1, 2, 3, 0]]).max(), np.abs(full + q[0, j, [1, 2, 3, 0]]).max()) < 1e-9
+    assert rng is not None
+
+
+def test_too_few_cycles_lists_strikes(jog):
+    short = jog[0].slice(0, 70)
+    with pytest.raises(WalkTalkError) as e:
+        extract_loop(short, GaitParams())
+    assert "left heel strikes at frames [30, 60]" in str(e.value)
+    assert "synthetic_jog" in str(e.value) and "frames 0-69" in str(e.value)
+
+
+# ---------------------------------------------------------------- gestures
+
+
+def test_phases_of_planted_gesture():
+    m = synthetic_gesture(n=70, rise=(10, 25), fall=(40, 55))
+    ph, hand = detect_phases(m, PhaseParams())
+    assert hand == "r"
+    # planted: motion starts after frame 10, the arm is up from 25 to 40, back at rest at 55
+    assert 10 <= ph.pb < ph.sb <= 25 and 40 <= ph.se < ph.re <= 55
+    assert len(ph.peaks) == 1 and 25 <= ph.peaks[0] <= 40
+    wave, hand2 = detect_phases(synthetic_gesture(sides="both", oscillations=3), PhaseParams())
+    assert hand2 == "both" and len(wave.peaks) >= 2
+
+
+def test_phase_errors():
+    with pytest.raises(WalkTalkError, match="out of order"):
+        validate_phases(Phases(5, 12, 10, 20, 21, 30, (15,)), 40, "g.bvh")
+    with pytest.raises(WalkTalkError, match="outside the stroke"):
+        validate_phases(Phases(5, 9, 10, 20, 21, 30, (25,)), 40, "g.bvh")
+    travelling = synthetic_gesture(travel_cm=100.0)
+    with pytest.raises(WalkTalkError, match="not standing") as e:
+        check_standing(travelling, GaitParams())
+    assert "frame" in str(e.value) and travelling.name in str(e.value)
+    assert issubclass(WalkTalkError, ConvSynthError)
+
+
+def test_mismatched_joints_listed(jog):
+    m = jog[0]
+    sk = m.skeleton
+    names = tuple("Wrist_R" if n == "Hand_R" else n for n in sk.names)
+    other = dataclasses.replace(sk, names=names)
+    with pytest.raises(WalkTalkError) as e:
+        check_same_skeleton(sk, other, "loop.bvh", "gesture.bvh")
+    assert "missing joints ['Hand_R']" in str(e.value) and "extra joints ['Wrist_R']" in str(e.value)
+    with pytest.raises(WalkTalkError, match="hand_r"):
+        find_body(other, "gesture.bvh")
+
+
+# ---------------------------------------------------------------- Eq. 1-2
+
+
+def test_splice_weights_eq2_exact():
+    ph = Phases(10, 13, 14, 20, 21, 24, (17,))
+    w = splice_weights(30, ph)
+    expect = np.zeros(30)
+    expect[10:14] = [0, 1 / 4, 2 / 4, 3 / 4]         # (t - Pb) / (Pe - Pb + 1)
+    expect[14:21] = 1.0                              # stroke and holds: the gesture
+    expect[21:25] = [3 / 4, 2 / 4, 1 / 4, 0]         # back to the locomotion by t_Re
+    np.testing.assert_allclose(w, expect, atol=0)
+
+
+def _slerp_ref(a, b, t):
+    """Slow reference: explicit slerp along the shorter arc, one pair at a time."""
+    if np.dot(a, b) < 0:
+        b = -b
+    d = np.clip(np.dot(a, b), -1, 1)
+    th = np.arccos(d)
+    if np.sin(th) < 1e-6:
+        out = (1 - t) * a + t * b
+    else:
+        out = (np.sin((1 - t) * th) * a + np.sin(t * th) * b) / np.sin(th)
+    return out / np.linalg.norm(out)
+
+
+def test_splice_kernel_matches_numpy_reference():
+    rng = np.random.default_rng(3)
+    T, J = 37, 6
+    lq = Rotation.random(T * J, random_state=4).as_quat().reshape(T, J, 4)
+    gq = Rotation.random(T * J, random_state=5).as_quat().reshape(T, J, 4)
+    w = rng.uniform(0, 1, T)
+    w[:5] = 0
+    w[10:15] = 1
+    arm = np.array([False, True, True, False, True, False])
+    out = splice_arrays(lq, gq, w, arm)
+    for t in range(T):
+        for j in range(J):
+            ref = _slerp_ref(lq[t, j], gq[t, j], w[t]) if (arm[j] and w[t] > 0) else lq[t, j]
+            assert min(np.abs(out[t, j] - ref).max(), np.abs(out[t, j] + ref).max()) < TOL_Q
+
+
+def test_splice_end_to_end_eq1_eq2(loop):
+    body = find_body(loop.motion.skeleton)
+    lc = loop_context(loop, body)
+    gm = synthetic_gesture(n=70)
+    g = make_gesture(gm, GaitParams(), PhaseParams())
+    gc = gesture_context(g, body)
+    T = 180
+    r = splice_gesture(lc, gc, 3.0, T, SpliceParams(), "naive")
+    loco = tile_loop(loop, T)
+    ph = r.phases
+    arm = list(body.arm_r)
+    other = [j for j in range(22) if j not in arm]
+    # Eq. 1: lower body, torso (and the idle arm) are the locomotion's, feet identical
+    np.testing.assert_allclose(r.motion.rotations[:, other], loco.rotations[:, other], atol=1e-7)
+    np.testing.assert_allclose(r.motion.translations, loco.translations, atol=0)
+    pos, pos_l = joint_positions(r.motion), joint_positions(loco)
+    for key in ("foot_l", "foot_r", "toes_l", "toes_r"):
+        np.testing.assert_allclose(pos[:, body.joints[key]], pos_l[:, body.joints[key]], atol=1e-4)
+    # Eq. 2: outside the gesture the loop's arm, in the stroke the gesture's arm
+    out = np.r_[0:ph.pb, ph.re + 1:T]
+    np.testing.assert_allclose(r.motion.rotations[out][:, arm], loco.rotations[out][:, arm], atol=1e-7)
+    for t in range(ph.sb, ph.se + 1):
+        np.testing.assert_allclose(np.abs(np.sum(r.motion.rotations[t, arm] * gm.rotations[t - r.offset, arm], -1)),
+                                   1.0, atol=1e-6)
+    # the retraction ends on the locomotion (Eq. 2 as printed would end on the gesture)
+    np.testing.assert_allclose(r.motion.rotations[ph.re, arm], loco.rotations[ph.re, arm], atol=1e-7)
+
+
+# ---------------------------------------------------------------- stylization
+
+
+def _stylize_ref(ge, b_l, sd, b_g, c):
+    out = np.empty_like(ge)
+    F, A, _ = ge.shape
+    for a in range(A):
+        for d in range(3):
+            dev = [ge[f, a, d] + (b_l[a, d] - b_g[a, d]) - b_l[a, d] for f in range(F)]
+            m = max(abs(x) for x in dev)
+            s = 1.0 if m <= c * sd[a, d] else c * sd[a, d] / m
+            for f in range(F):
+                out[f, a, d] = b_l[a, d] + s * dev[f]
+    return out
+
+
+def test_stylize_kernel_vs_reference_and_bounds():
+    from convsynth_jax.walktalk.splice import LoopStats
+
+    rng = np.random.default_rng(7)
+    ge = rng.normal(0, 1.0, (23, 4, 3))
+    b_l, sd, b_g = rng.normal(0, 1, (4, 3)), rng.uniform(0.05, 0.6, (4, 3)), rng.normal(0, 1, (4, 3))
+    for c in (0.5, 3.0, 100.0):
+        got = stylize(ge, LoopStats(b_l, sd), b_g, c)
+        ref = _stylize_ref(ge, b_l, sd, b_g, c)
+        np.testing.assert_allclose(got, ref, atol=1e-5)
+        assert np.all(np.abs(got - b_l) <= c * sd + 1e-5)
+    # planted: one DOF deviating by 10 with std 1 and c 3 is rescaled to 3 (not clipped: the
+    # half-way frame keeps half of it); a DOF inside the band is only offset by B_D
+    ge2 = np.zeros((3, 1, 3))
+    ge2[:, 0, 0] = [0.0, 5.0, 10.0]
+    ge2[:, 0, 1] = [0.0, 0.5, 1.0]
+    got = stylize(ge2, LoopStats(np.full((1, 3), 2.0), np.ones((1, 3))), np.zeros((1, 3)), 3.0)
+    np.testing.assert_allclose(got[:, 0, 0], [2.0, 3.5, 5.0], atol=1e-6)
+    np.testing.assert_allclose(got[:, 0, 1], [2.0, 2.5, 3.0], atol=1e-6)
+
+
+def test_parameter_errors():
+    with pytest.raises(WalkTalkError, match="c must be > 0"):
+        SpliceParams(c=0.0)
+    with pytest.raises(WalkTalkError, match=r"\[0, 1\]"):
+        GazeParams(r_min=-0.1)
+    with pytest.raises(WalkTalkError, match=r"\[0, 1\]"):
+        GazeParams(r_max=1.5)
+
+
+# ---------------------------------------------------------------- synchronization
+
+
+def test_shift_rule_planted():
+    contact = np.array([1, 1, 0, 0, 0, 0, 0, 1, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0], bool)
+    assert align_peak(1, contact, 18, False) == 0          # already in contact
+    assert align_peak(10, contact, 18, False) == -3        # nearest earlier contact frame 7
+    assert align_peak(5, contact, 18, False) == -4         # frame 1
+    assert align_peak(29, contact, 18, False) == 0         # none within 0.6 s: stays
+    assert align_peak(10, contact, 18, True) == 0          # multi-peak gestures are not realigned
+    assert align_peak(10, contact, 2, False) == 0          # search limited to max shift
+    rng = np.random.default_rng(0)
+    c = rng.uniform(size=200) < 0.3
+    nom = rng.integers(0, 200, 64)
+    multi = rng.uniform(size=64) < 0.2
+    got = np.asarray(align_kernel(nom, c, multi, max_shift_frames=18))
+    ref = [align_peak(int(n), c, 18, bool(mu)) for n, mu in zip(nom, multi)]
+    np.testing.assert_array_equal(got, ref)
+    assert np.all(got <= 0) and np.all(got >= -18)
+
+
+def test_utterance_outside_timeline():
+    with pytest.raises(WalkTalkError, match="outside the timeline"):
+        nominal_frame(12.0, 0.2, 30.0, 300)
+    with pytest.raises(WalkTalkError, match="outside the timeline"):
+        nominal_frame(0.1, 0.2, 30.0, 300)
+    assert nominal_frame(1.0, 0.2, 30.0, 300) == 24
+
+
+def test_synced_peak_in_contact_and_before_utterance(loop):
+    body = find_body(loop.motion.skeleton)
+    lc = loop_context(loop, body)
+    gc = gesture_context(make_gesture(synthetic_gesture(), GaitParams(), PhaseParams()), body)
+    p = SpliceParams()
+    for u in np.linspace(2.2, 4.0, 25):
+        r = splice_gesture(lc, gc, float(u), 200, p, "stylized+synced")
+        assert -0.6 - 1e-9 <= r.shift_s <= 0
+        assert r.peak / 30.0 <= u
+        assert r.contact[r.peak] or not r.contact[r.nominal_peak - 18:r.nominal_peak + 1].any()
+
+
+def test_elbow_bounce_exact(loop):
+    """R'_elbow = R_elbow + k dH_root: the spliced forearm DOF in the stroke differs from the
+    unbounced stylized one by exactly k * (root height - its loop mean)."""
+    body = find_body(loop.motion.skeleton)
+    lc = loop_context(loop, body)
+    gc = gesture_context(make_gesture(synthetic_gesture(), GaitParams(), PhaseParams()), body)
+    k = 2.0
+    p = SpliceParams(k_bounce=k)
+    always = np.ones(200, bool)  # all contact: the synced splice is not shifted, same frames
+    loco = tile_loop(loop, 200)
+    a = splice_gesture(lc, gc, 3.0, 200, p, "stylized", loco=loco, contact=always)
+    b = splice_gesture(lc, gc, 3.0, 200, p, "stylized+synced", loco=loco, contact=always)
+    assert a.offset == b.offset
+    elbow = body.joints["elbow_r"]
+    dof = lc.elbow_dof["r"]
+    ea = joint_euler(a.motion, (elbow,))[:, 0, dof]
+    eb = joint_euler(b.motion, (elbow,))[:, 0, dof]
+    h = loop.root_height
+    ph = a.phases
+    for t in range(ph.sb, ph.se + 1):
+        dh = h[t % loop.num_frames] - h.mean()
+        assert abs((eb[t] - ea[t]) - np.radians(k * dh)) < 1e-5
+    assert np.ptp(h) > 5  # the planted bounce is there to see
+
+
+# ---------------------------------------------------------------- references of helpers
+
+
+def test_numpy_fk_matches_project_fk(jog):
+    from convsynth_jax.kinematics import forward_kinematics
+
+    m = jog[0].slice(0, 20)
+    np.testing.assert_allclose(joint_positions(m), np.asarray(forward_kinematics(m)), atol=1e-3)
+
+
+def test_quat_to_euler_matches_scipy_and_joint_euler(jog):
+    import jax.numpy as jnp
+
+    from convsynth_jax.rotations import euler_to_quat, quat_to_euler
+
+    rng = np.random.default_rng(5)
+    for order in ("XYZ", "XZY", "YXZ", "YZX", "ZXY", "ZYX"):
+        e = rng.uniform(-1.4, 1.4, (50, 3))
+        q = np.asarray(euler_to_quat(jnp.asarray(e), order), dtype=np.float64)
+        got = np.asarray(quat_to_euler(jnp.asarray(q), order))
+        ref = Rotation.from_quat(q[:, [1, 2, 3, 0]]).as_euler(order)
+        np.testing.assert_allclose(got, ref, atol=1e-5)
+    m = jog[0]
+    je = joint_euler(m, (8,))[:, 0]
+    np.testing.assert_allclose(je, np.asarray(quat_to_euler(jnp.asarray(m.rotations[:, 8]), "ZXY")), atol=1e-5)
+
+
+def test_smootherstep_ease_and_transition_pad():
+    from convsynth_jax.walktalk.pipeline import pad_gesture
+
+    ph = Phases(10, 13, 14, 20, 21, 24, (17,))
+    lin = splice_weights(30, ph, "linear")
+    sm = splice_weights(30, ph, "smootherstep")
+    np.testing.assert_allclose(sm, 6 * lin**5 - 15 * lin**4 + 10 * lin**3, atol=1e-12)
+    assert sm[9] == 0 and sm[14] == 1 and sm[20] == 1 and sm[24] == 0
+    with pytest.raises(WalkTalkError, match="unknown ease"):
+        splice_weights(30, ph, "cubic")
+    g = make_gesture(synthetic_gesture(n=70), GaitParams(), PhaseParams())
+    gp = pad_gesture(g, 5)
+    assert gp.motion.num_frames == 80
+    assert (gp.phases.pb, gp.phases.sb, gp.phases.se, gp.phases.re) == (g.phases.pb, g.phases.sb + 5, g.phases.se + 5, g.phases.re + 10)
+    assert gp.phases.peaks == (g.phases.peaks[0] + 5,)
+    np.testing.assert_array_equal(gp.motion.rotations[:5], np.repeat(g.motion.rotations[:1], 5, 0))
+    np.testing.assert_array_equal(gp.motion.rotations[5:75], g.motion.rotations)

@@ -1,0 +1,178 @@
+"""walktalk_eval on the small bandai2 fixtures (always) and on the shared data (when present);
+config defaults; bad input errors and atomic outputs."""
+from __future__ import annotations
+
+import dataclasses
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+from omegaconf import OmegaConf
+
+from convsynth_jax.config import compose, run_task
+from convsynth_jax.errors import WalkTalkError
+from convsynth_jax.io.bvh import load_bvh, save_bvh
+from convsynth_jax.walktalk.body import find_body, joint_positions
+from convsynth_jax.walktalk.gestures import make_gesture
+from convsynth_jax.walktalk.locomotion import extract_loop, seam_foot_slide, tile_loop
+from convsynth_jax.walktalk.params import WalkTalkParams, params_from_dict
+
+FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
+COLUMNS = ["gesture", "loop", "gait", "method", "stroke_peak_s", "utterance_peak_s", "shift_s", "peak_in_contact",
+           "max_jerk_ratio", "joint_limit_violation_frac", "foot_slide_cm", "elbow_bend_deg"]
+
+
+def _asdict(x):
+    if dataclasses.is_dataclass(x):
+        return {f.name: _asdict(getattr(x, f.name)) for f in dataclasses.fields(x)}
+    if isinstance(x, (tuple, list)):
+        return [_asdict(v) for v in x]
+    return x
+
+
+def test_yaml_defaults_equal_dataclass_defaults():
+    cfg = compose(["task=walktalk_eval"])
+    from_yaml = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
+    assert _asdict(from_yaml) == _asdict(WalkTalkParams())
+    with pytest.raises(WalkTalkError, match="unknown keys"):
+        params_from_dict({"splice": {"cc": 1.0}})
+    with pytest.raises(WalkTalkError, match="c must be > 0"):
+        params_from_dict({"splice": {"c": -1.0}})
+
+
+def test_fixture_size_and_licence():
+    files = list(FIXTURES.glob("*.bvh"))
+    assert len(files) == 4 and sum(f.stat().st_size for f in files) < 300 * 1024
+    text = (FIXTURES / "LICENSE").read_text()
+    assert "Kobayashi et al." in text and "arXiv:2306.08861" in text and "CC BY-NC 4.0" in text
+
+
+def test_fixture_loops_seamless_and_gestures_single_peak():
+    from convsynth_jax.walktalk.params import GaitParams, PhaseParams
+
+    for pat, gait in (("*_walk_normal_*", "walk"), ("*_run_normal_*", "jog")):
+        m = load_bvh(next(FIXTURES.glob(pat + ".bvh")))
+        lp = extract_loop(m, GaitParams())
+        assert lp.gait == gait and lp.contact[0]
+        tiled = tile_loop(lp, 4 * lp.num_frames)
+        assert seam_foot_slide(tiled, lp.num_frames, GaitParams()) <= 2.0
+    for f in FIXTURES.glob("*raise-up*.bvh"):
+        g = make_gesture(load_bvh(f), GaitParams(), PhaseParams())
+        assert g.single_peak
+
+
+def test_walktalk_eval_on_fixtures(tmp_path):
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={FIXTURES}", "task.loops_per_gait=1"])
+    summary = run_task(cfg, tmp_path)
+    df = pd.read_csv(tmp_path / "walktalk_eval.csv")
+    assert list(df.columns[:len(COLUMNS)]) == COLUMNS
+    assert len(df) == 2 * 2 * 3  # gestures x gaits x methods
+    synced = df[df["method"] == "stylized+synced"]
+    assert synced["peak_in_contact"].all()
+    assert ((synced["shift_s"] <= 0) & (synced["shift_s"] >= -0.6)).all()
+    assert (df["stroke_peak_s"] <= df["utterance_peak_s"]).all()
+    assert (df["foot_slide_cm"] <= 2.0).all()
+    assert (df.loc[df["method"] != "naive", "dof_within_csigma"]).all()
+    for name in ("walktalk_eval_summary.csv", "walktalk_peak_phase.png", "walktalk_elbow.png",
+                 "walktalk_contact_sheet.png", "summary.json"):
+        assert (tmp_path / name).stat().st_size > 0
+    assert summary["splices"] == 12
+
+
+def test_spliced_lower_body_equals_locomotion_on_real_fixture():
+    from convsynth_jax.walktalk.params import GaitParams, PhaseParams, SpliceParams
+    from convsynth_jax.walktalk.pipeline import (
+        gesture_context,
+        loop_context,
+        splice_gesture,
+    )
+
+    m = load_bvh(next(FIXTURES.glob("*_run_normal_*.bvh")))
+    body = find_body(m.skeleton)
+    lc = loop_context(extract_loop(m, GaitParams()), body)
+    gc = gesture_context(make_gesture(load_bvh(next(FIXTURES.glob("*raise-up-right*.bvh"))), GaitParams(),
+                                      PhaseParams()), body)
+    T = 220
+    r = splice_gesture(lc, gc, 3.5, T, SpliceParams(), "stylized+synced")
+    loco = tile_loop(lc.loop, T)
+    keep = [j for j in range(m.skeleton.num_joints) if j not in body.arm_r]
+    np.testing.assert_allclose(r.motion.rotations[:, keep], loco.rotations[:, keep], atol=1e-6)
+    pa, pb = joint_positions(r.motion), joint_positions(loco)
+    for j in body.lower:
+        np.testing.assert_allclose(pa[:, j], pb[:, j], atol=1e-3)
+
+
+def test_eval_on_shared_data_subset(tmp_path, bandai_dir):
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={bandai_dir}", "task.loops_per_gait=2",
+                   "task.max_gestures=12", "task.figures=false"])
+    run_task(cfg, tmp_path)
+    df = pd.read_csv(tmp_path / "walktalk_eval.csv")
+    synced = df[df["method"] == "stylized+synced"]
+    assert synced["peak_in_contact"].mean() >= 0.95
+    assert ((synced["shift_s"] <= 0) & (synced["shift_s"] >= -0.6)).all()
+    assert (df["foot_slide_cm"] <= 2.0).all()
+
+
+# ---------------------------------------------------------------- bad input
+
+
+def _data_dir_with(tmp_path, extra: dict) -> Path:
+    d = tmp_path / "data"
+    d.mkdir()
+    for f in FIXTURES.glob("*.bvh"):
+        shutil.copy(f, d / f.name)
+    for name, motion in extra.items():
+        save_bvh(motion, d / name)
+    return d
+
+
+def test_travelling_gesture_clip_is_rejected_and_nothing_written(tmp_path):
+    walk = load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh")))
+    d = _data_dir_with(tmp_path, {"dataset-2_raise-up-fake_normal_999.bvh": walk})
+    out = tmp_path / "out"
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={d}", "task.loops_per_gait=1"])
+    with pytest.raises(WalkTalkError, match="not standing") as e:
+        run_task(cfg, out)
+    assert "raise-up-fake" in str(e.value) and "frame" in str(e.value)
+    assert not (out / "walktalk_eval.csv").exists()
+
+
+def test_short_locomotion_clip_lists_strikes():
+    from convsynth_jax.walktalk.params import GaitParams
+
+    walk = load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh")))
+    with pytest.raises(WalkTalkError, match=r"left heel strikes at frames \[\d+") as e:
+        extract_loop(walk.slice(0, 45), GaitParams())
+    assert "walk_normal_001" in str(e.value)
+
+
+def test_gesture_with_other_skeleton_is_rejected(tmp_path):
+    g = load_bvh(next(FIXTURES.glob("*raise-up-right*.bvh")))
+    sk = g.skeleton
+    other = dataclasses.replace(g, skeleton=dataclasses.replace(sk, names=tuple(
+        "Wrist_R" if n == "Hand_R" else n for n in sk.names)))
+    d = _data_dir_with(tmp_path, {"dataset-2_raise-up-odd_normal_998.bvh": other})
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={d}", "task.loops_per_gait=1"])
+    with pytest.raises(WalkTalkError, match=r"missing joints \['Hand_R'\]"):
+        run_task(cfg, tmp_path / "out")
+
+
+def test_phase_csv_override_and_out_of_order(tmp_path):
+    csv = tmp_path / "phases.csv"
+    stem = next(FIXTURES.glob("*raise-up-right*.bvh")).stem
+    csv.write_text(f"gesture,t_pb,t_pe,t_sb,t_se,t_rb,t_re,peaks,handedness,type\n{stem},0.1,0.3,0.2,1.0,1.1,1.6,0.5,r,beat\n")
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={FIXTURES}", f"walktalk.phases_csv={csv}",
+                   "task.loops_per_gait=1"])
+    with pytest.raises(WalkTalkError, match="out of order") as e:
+        run_task(cfg, tmp_path / "out")
+    assert "phases.csv line 2" in str(e.value)
+    csv.write_text(f"gesture,t_pb,t_pe,t_sb,t_se,t_rb,t_re,peaks\n{stem},0.1,0.3,0.4,1.0,1.1,1.6,0.5\n")
+    run_task(cfg, tmp_path / "ok")
+    from convsynth_jax.walktalk.evaluate import load_library
+
+    lib = load_library(params_from_dict({"phases_csv": str(csv), "splice": {"transition_pad_s": 0.0}}), FIXTURES, 1)
+    g = next(gc.gesture for gc in lib.gestures if Path(gc.gesture.name).stem == stem)
+    assert (g.phases.pb, g.phases.pe, g.phases.sb, g.phases.se, g.phases.rb, g.phases.re) == (3, 9, 12, 30, 33, 48)
+    assert g.phases.peaks == (15,) and g.handedness == "r"

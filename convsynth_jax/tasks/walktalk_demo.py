@@ -50,7 +50,9 @@ def speech_peaks(spec: dict, cfg) -> tuple[float, ...]:
     from ..io.transcripts import load_transcript
 
     wav, tr = _resolve(spec["wav"]), _resolve(spec["transcript"])
-    seg = annotate_audio(load_transcript(tr), load_audio(wav), cfg)
+    from .common import params_of
+
+    seg = annotate_audio(load_transcript(tr), load_audio(wav), params_of(cfg).annotate)
     return tuple(float(x) + off for x in seg.loc[seg["kind"] == "PC", "peak"])
 
 

@@ -5,7 +5,7 @@ import pandas as pd
 import pytest
 from tolerances import F0_RELATIVE
 
-from convsynth_jax.annotate.audio import (add_peaks, annotate_audio, f0_contour, f0_track, load_word_corpus,
+from convsynth_jax.annotate.audio import (add_peaks, annotate_audio, f0_contour, f0_track, load_word_corpus, normalize_word,
                                           local_peaks, segment_words, word_corpus_for)
 from convsynth_jax.annotate.params import AnnotateParams
 from convsynth_jax.errors import ConfigError, FormatError, TranscriptFormatError
@@ -184,3 +184,54 @@ def test_unquoted_yaml_boolean_is_rejected(tmp_path):
     f.write_text("listener_response: [yes]\nhesitation: [uh]\n")  # YAML 1.1 reads yes as True
     with pytest.raises(FormatError, match="quote"):
         load_word_corpus(f)
+
+
+# ---------------------------------------------------------------------------- words in context (#14)
+def _kinds(rows, **kw):
+    seg = segment_words(words(rows), load_word_corpus(), params=AnnotateParams(**kw))
+    return list(zip(seg["kind"], seg["text"]))
+
+
+def test_like_as_a_verb_is_no_hesitation():
+    rows = [(0.0, 0.2, "I"), (0.2, 0.45, "like"), (0.45, 0.6, "to"), (0.6, 0.9, "walk")]
+    assert _kinds(rows) == [("PC", "I like to walk")]
+    # "I like." before a pause is still the verb; "do you know" is a question, not a filler
+    assert _kinds([(0.0, 0.2, "I"), (0.2, 0.5, "like")]) == [("PC", "I like")]
+    assert _kinds([(0.0, 0.2, "do"), (0.2, 0.4, "you"), (0.4, 0.6, "know"), (0.6, 0.9, "him")]) == \
+        [("PC", "do you know him")]
+    # "stuff like that": no pause after it
+    assert _kinds([(0.0, 0.3, "stuff"), (0.3, 0.5, "like"), (0.5, 0.8, "that")]) == [("PC", "stuff like that")]
+    # the old word-by-word rule, still available
+    assert ("HP", "like") in _kinds(rows, word_context=False)
+
+
+def test_like_and_well_followed_by_a_pause_are_hesitations():
+    rows = [(0.0, 0.2, "it"), (0.2, 0.4, "was"), (0.45, 0.7, "like"), (1.0, 1.4, "huge")]
+    assert _kinds(rows) == [("PC", "it was"), ("HP", "like"), ("PC", "huge")]
+    assert _kinds([(0.0, 0.3, "well"), (0.6, 0.8, "we"), (0.8, 1.0, "left")]) == [("HP", "well"), ("PC", "we left")]
+    # pure fillers are hesitations anywhere
+    assert _kinds([(0.0, 0.2, "so"), (0.2, 0.4, "um"), (0.4, 0.6, "we")]) == [("PC", "so"), ("HP", "um"), ("PC", "we")]
+
+
+def test_response_word_inside_ones_clause_is_no_listener_response():
+    rows = [(0.0, 0.2, "if"), (0.2, 0.3, "I"), (0.3, 0.6, "feel"), (0.65, 1.0, "okay")]
+    assert _kinds(rows) == [("PC", "if I feel okay")]
+    assert _kinds([(0.0, 0.3, "that's"), (0.3, 0.6, "right"), (0.6, 0.9, "there")]) == [("PC", "that's right there")]
+    # a short turn of response words, or one after a pause, is a listener response
+    assert _kinds([(0.0, 0.3, "okay")]) == [("LR", "okay")]
+    assert _kinds([(0.0, 0.3, "we"), (0.3, 0.6, "left"), (1.2, 1.4, "oh"), (1.4, 1.7, "yeah")]) == \
+        [("PC", "we left"), ("LR", "oh"), ("LR", "yeah")]
+    assert ("LR", "okay") in _kinds(rows, word_context=False)
+
+
+@pytest.mark.parametrize("name", ["acoustic_corpus", "cold_corpus"])
+def test_real_speech_no_filler_or_response_label_on_a_content_word(speech_dir, name):
+    from convsynth_jax.io import load_transcript
+
+    corpus = load_word_corpus()
+    lists = {"HP": set(corpus["hesitation"]), "LR": set(corpus["listener_response"])}
+    seg = segment_words(load_transcript(speech_dir / f"{name}.TextGrid"), corpus, params=AnnotateParams())
+    assert (seg["kind"] == "HP").sum() >= 3
+    for kind, text in zip(seg["kind"], seg["text"]):
+        if kind in lists:
+            assert " ".join(normalize_word(w) for w in text.split()) in lists[kind], (kind, text)

@@ -236,3 +236,22 @@ def test_batched_features_equal_per_clip_features():
         np.testing.assert_allclose(P[start:start + m.num_frames], np.asarray(f.positions), atol=1e-4)
         np.testing.assert_allclose(V[start:start + m.num_frames], np.asarray(f.velocities), atol=1e-2)
         start += m.num_frames
+
+
+def test_scc_collapse_warns_and_is_marked_in_meta(db, caplog):
+    """Without synthetic transitions every clip is a chain: the largest SCC is one state."""
+    from convsynth_jax.graph.build import assemble_graph
+
+    keys = np.zeros(db.num_frames, bool)
+    none = np.zeros(0, np.int64)
+    with caplog.at_level("WARNING", logger="convsynth_jax.graph.build"):
+        g = assemble_graph(db, keys, none, none, np.zeros(0, np.float32), {"k": 2})
+    assert g.num_states == 1 and g.num_edges == 0
+    assert "keeps 1 of 450 states" in g.meta["scc_warning"] and "k = 2" in g.meta["scc_warning"]
+    assert any(r.levelname == "WARNING" and "strongly connected" in r.getMessage() for r in caplog.records)
+    # a healthy graph carries an empty warning and logs none
+    caplog.clear()
+    with caplog.at_level("WARNING", logger="convsynth_jax.graph.build"):
+        g = build_graph(db, GP)
+    assert g.num_states >= 0.5 * db.num_frames and g.meta["scc_warning"] == ""
+    assert not [r for r in caplog.records if "strongly connected" in r.getMessage()]

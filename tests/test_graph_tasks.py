@@ -61,14 +61,20 @@ def test_build_graph_task_writes_graph_and_summary(bvh_root, tmp_path):
     assert s2["num_frames"] == 150 + 160 + 170
 
 
-def test_table2_and_figure4_agree_with_build_graph(bvh_root, tmp_path):
-    run_task(cfg("table2", bvh_root), tmp_path / "t2")
+def test_table2_and_figure4_agree_with_build_graph(bvh_root, tmp_path, caplog):
+    with caplog.at_level("WARNING"):
+        run_task(cfg("table2", bvh_root), tmp_path / "t2")
     t2 = pd.read_csv(tmp_path / "t2" / "table2.csv")
     assert list(t2["k"]) == [2, 3, 4, 5]
     assert (tmp_path / "t2" / "table2.md").read_text().count("\n") >= 5
     assert (t2["states_after_scc"] <= t2["states_before_scc"]).all()
     assert (t2["edges_after_scc"] <= t2["edges_before_scc"]).all()
     assert t2["threshold"].is_monotonic_increasing  # poses drift further apart over more frames
+    # at k = 2 this corpus collapses to one state (issue #14): the scc_warning column and a WARNING say so
+    warned = t2["scc_warning"].fillna("") != ""
+    assert (warned == (t2["kept_state_fraction"] < 0.5)).all() and warned.iloc[0]
+    assert "strongly connected component at k = 2 keeps" in t2["scc_warning"].iloc[0]
+    assert any(r.levelname == "WARNING" and "at k = 2 keeps" in r.getMessage() for r in caplog.records)
     s = run_task(cfg("build_graph", bvh_root, "graph.k=4"), tmp_path / "g4")
     row = t2[t2["k"] == 4].iloc[0]
     assert row["threshold"] == pytest.approx(s["threshold"], rel=1e-12)
@@ -100,3 +106,4 @@ def test_figure4_plot_is_pure_data_to_figure():
     ax = fig.axes[0]
     assert len(ax.patches) == 10 and len(ax.lines) == 2  # chosen curve + threshold line; failed fit skipped
     assert ax.lines[1].get_xdata()[0] == pytest.approx(9.0)
+

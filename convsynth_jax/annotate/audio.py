@@ -5,9 +5,14 @@ LR and HP come from an editable word corpus (``resources/word_corpus.yaml``, or
 ``annotate.word_corpus`` in the config: a path or inline lists): a token (or a phrase of up to
 three tokens, matched greedily, longest first) in a list gets that label. Every run of other words
 becomes a phonemic clause, split at pauses longer than ``max_gap`` seconds, at LR/HP tokens and,
-optionally, when a clause reaches ``max_clause_words`` words or ``max_clause_seconds``. Note the
-ambiguity the paper accepts: a one-word answer such as "yeah" inside a turn is labelled LR even
-when the speaker holds the floor.
+optionally, when a clause reaches ``max_clause_words`` words or ``max_clause_seconds``.
+
+Words in context (``word_context``, default): a listener response is a short turn, or a
+backchannel, made of response words: a response word that follows a word of the speaker's own
+clause within ``max_gap`` ("if I feel okay") belongs to that clause. A lexical filler ("like",
+"well", "you know": also ordinary words) is a hesitation only when isolated or followed by a pause
+(``filler_pause``) and never as a verb (after a pronoun, "to" or an auxiliary: "I like to"). Pure
+fillers (um, uh, %HESITATION) are always hesitations.
 
 F0 backends: Praat (praat-parselmouth, default) or openSMILE (eGeMAPS F0, optional: used only
 when ``annotate.f0_backend: opensmile`` and the ``opensmile`` package is installed).
@@ -118,14 +123,52 @@ def _label_tokens(words: pd.DataFrame, corpus: dict) -> list[tuple[int, int, str
     return out
 
 
+# A lexical filler right after one of these is a verb or an object ("I like", "to like", "you
+# know", "do you know", "as well"), not a hesitation.
+_VERB_CUES = frozenset("i you we they he she it who that to would 'd do does did don't doesn't didn't "
+                       "can can't will won't should could might must really also just not never as "
+                       "very pretty".split())
+
+
+def _in_context(words: pd.DataFrame, tokens: list, max_gap: float, filler_pause: float,
+                lexical_fillers) -> list:
+    """Relabel the (first, last + 1, kind) tokens of _label_tokens by context (module docstring):
+    an LR token continuing one's own clause and a lexical filler used as a word become 'W'."""
+    st = words["start"].to_numpy(np.float64)
+    en = words["end"].to_numpy(np.float64)
+    toks = [normalize_word(w) for w in words["word"]]
+    lexical = {" ".join(normalize_word(x).replace("-", " ").split()) for x in lexical_fillers}
+    out = []
+    for t, (a, b, kind) in enumerate(tokens):
+        prev = out[-1] if out else None
+        gap_before = st[a] - en[prev[1] - 1] if prev else np.inf
+        gap_after = st[tokens[t + 1][0]] - en[b - 1] if t + 1 < len(tokens) else np.inf
+        if kind == "LR" and prev is not None and prev[2] == "W" and gap_before <= max_gap:
+            kind = "W"  # inside the speaker's own clause
+        elif kind == "HP" and " ".join(" ".join(toks[a:b]).replace("-", " ").split()) in lexical:
+            verb = prev is not None and gap_before <= max_gap and toks[prev[1] - 1] in _VERB_CUES
+            paused = gap_after >= filler_pause or (t + 1 < len(tokens) and tokens[t + 1][2] == "HP")
+            if verb or not paused:
+                kind = "W"
+        out.append((a, b, kind))
+    return out
+
+
 def segment_words(words: pd.DataFrame, corpus: dict | None = None, max_gap: float = 0.3,
-                  max_clause_words: int | None = None, max_clause_seconds: float | None = None) -> pd.DataFrame:
+                  max_clause_words: int | None = None, max_clause_seconds: float | None = None,
+                  params: AnnotateParams | None = None) -> pd.DataFrame:
     """Words DataFrame[start, end, word] (seconds) -> segments DataFrame[kind, start, end, text]
     (kind PC, LR or HP), in time order. A clause is closed before a word that follows a pause longer
-    than ``max_gap`` s, or that would make it longer than ``max_clause_words`` / ``max_clause_seconds``."""
+    than ``max_gap`` s, or that would make it longer than ``max_clause_words`` / ``max_clause_seconds``.
+    ``params`` (default AnnotateParams()) gives the word-context rules (word_context, filler_pause,
+    lexical_fillers)."""
     corpus = corpus or load_word_corpus()
+    p = params or AnnotateParams()
     check_words(words)
     words = words.sort_values("start", kind="stable").reset_index(drop=True)
+    tokens = _label_tokens(words, corpus)
+    if p.word_context:
+        tokens = _in_context(words, tokens, max_gap, p.filler_pause, p.lexical_fillers)
     rows = []
     clause: list[int] = []
 
@@ -136,14 +179,14 @@ def segment_words(words: pd.DataFrame, corpus: dict | None = None, max_gap: floa
                          "text": " ".join(str(words["word"].iat[k]) for k in clause)})
             clause.clear()
 
-    for a, b, kind in _label_tokens(words, corpus):
+    for a, b, kind in tokens:
         if kind == "W":
             if clause and (float(words["start"].iat[a]) - float(words["end"].iat[clause[-1]]) > max_gap
                            or (max_clause_words and len(clause) >= max_clause_words)
                            or (max_clause_seconds and float(words["end"].iat[a]) - float(words["start"].iat[clause[0]])
                                > max_clause_seconds)):
                 flush()
-            clause.append(a)
+            clause.extend(range(a, b))  # a phrase taken back into the clause keeps all its words
             continue
         flush()
         rows.append({"kind": kind, "start": float(words["start"].iat[a]), "end": float(words["end"].iat[b - 1]),
@@ -248,7 +291,7 @@ def annotate_audio(words: pd.DataFrame, audio, params: AnnotateParams, word_corp
     participant's channel. ``audio`` None: peaks at segment midpoints."""
     corpus = word_corpus or word_corpus_for(params)
     seg = segment_words(words, corpus, max_gap=params.max_gap, max_clause_words=params.max_clause_words,
-                        max_clause_seconds=params.max_clause_seconds or None)
+                        max_clause_seconds=params.max_clause_seconds or None, params=params)
     if audio is None:
         seg["peak"] = 0.5 * (seg["start"] + seg["end"])
         seg["f0_peak"] = np.nan

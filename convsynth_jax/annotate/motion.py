@@ -13,6 +13,7 @@ motion segment found. The window holds a movement if the speed exceeds the clip'
 from __future__ import annotations
 
 import logging
+import re
 from typing import NamedTuple
 
 import numpy as np
@@ -26,19 +27,70 @@ from .params import AnnotateParams
 
 log = logging.getLogger(__name__)
 
+# A joint name may carry a namespace ("mixamorig:LeftHand", "mixamorig1:LeftHand", "Armature|Head"):
+# every default pattern matches at the start of the name or right after ':' or '|', and ends with '$'
+# so finger, twist and end joints (LeftHandThumb1, b_l_wrist_twist, Head_End, HeadTop_End, Neck1
+# when Neck exists) are never taken. Patterns are tried in order over all joints (Skeleton.find).
+_NS = r"(?:^|[:|])"
+
+
+def _side(side: str) -> dict:
+    """Hand and upper-arm patterns of one side ("l" or "r")."""
+    full = {"l": "left", "r": "right"}[side]
+    return {
+        f"{full}_hand": [
+            rf"{_NS}{full}_?hand$",                              # CMU, BEAT, Trinity, Mixamo, Rokoko
+            rf"{_NS}(?:hand_{side}|{side}_?hand)$",              # Bandai Hand_L, Unreal hand_l, l_hand
+            rf"{_NS}(?:{full}_?wrist|{side}_wrist)$",            # SMPL / SMPL-X left_wrist
+            rf"^b_{side}_wrist$",                                # GENEA 2022/2023 (Talking With Hands)
+            rf"^bip\d*[ _]{side}[ _]hand$",                      # 3ds Max Biped "Bip01 L Hand"
+        ],
+        # The shoulder role is the upper-arm joint: its parent's frame turns with the torso.
+        f"{full}_shoulder": [
+            rf"{_NS}{full}_?arm$",                               # CMU, BEAT, Trinity, Mixamo LeftArm
+            rf"{_NS}(?:{full}_?upper_?arm|upper_?arm_{side}|{side}_?upper_?arm)$",  # Bandai UpperArm_L
+            rf"^b_{side}_arm$",                                  # GENEA b_l_arm (b_l_shoulder = clavicle)
+            rf"^bip\d*[ _]{side}[ _]upperarm$",                  # Biped
+            rf"{_NS}(?-i:{full}_shoulder)$",                     # SMPL / SMPL-X: parent is left_collar
+        ],
+    }
+
+
 DEFAULT_JOINTS = {
-    "left_hand": [r"^LeftHand$", r"^Hand_L$", r"^l_?hand$", r"left.?hand$", r"^LeftWrist$"],
-    "left_shoulder": [r"^LeftArm$", r"^UpperArm_L$", r"^l_?upperarm$", r"^LeftUpperArm$", r"^l_?shoulder$"],
-    "right_hand": [r"^RightHand$", r"^Hand_R$", r"^r_?hand$", r"right.?hand$", r"^RightWrist$"],
-    "right_shoulder": [r"^RightArm$", r"^UpperArm_R$", r"^r_?upperarm$", r"^RightUpperArm$", r"^r_?shoulder$"],
-    "neck": [r"^Neck$", r"^neck", r"Neck"],
-    "head": [r"^Head$", r"^head", r"Head"],
+    **_side("l"),
+    **_side("r"),
+    "neck": [rf"{_NS}neck$", r"^b_neck0?$", rf"{_NS}neck_?0?1$", r"^bip\d*[ _]neck$"],
+    "head": [rf"{_NS}head$", r"^b_head$", r"^bip\d*[ _]head$"],
 }
+# Words that make a joint a plausible candidate for a role, listed when no pattern matched.
+_ROLE_HINTS = {"left_hand": r"hand|hnd|wrist|wrst", "right_hand": r"hand|hnd|wrist|wrst", "left_shoulder": r"arm|shoulder|clav|collar",
+               "right_shoulder": r"arm|shoulder|clav|collar", "neck": r"neck", "head": r"head"}
+_OTHER_SIDE = {"left": re.compile(r"right|(^|[_:| ])r[_ ]|_r$|^R[A-Z]", re.IGNORECASE),
+               "right": re.compile(r"left|(^|[_:| ])l[_ ]|_l$|^L[A-Z]", re.IGNORECASE)}
+# Joints whose speeds are measured relative to another joint must lie below it in the tree.
+_BELOW = {"left_hand": "left_shoulder", "right_hand": "right_shoulder", "head": "neck"}
+
+
+def joint_override(role: str, joint_name: str) -> str:
+    """The command-line override that selects ``joint_name`` for ``role``, quoted for Hydra (a regex
+    with ^, $ or : must be a quoted string) inside single quotes for the shell (so $ stays)."""
+    return f"'annotate.joints.{role}=\"^{re.escape(joint_name)}$\"'"
+
+
+def _is_below(skeleton, j: int, ancestor: int) -> bool:
+    while j >= 0:
+        j = skeleton.parents[j]
+        if j == ancestor:
+            return True
+    return False
 
 
 def find_joints(skeleton, patterns: dict | None = None) -> dict:
     """{role: joint index} for the six roles of DEFAULT_JOINTS; ``patterns`` overrides a role's
-    regex list (a None value keeps the default). Raises ConfigError naming the missing role."""
+    regex list (a None value keeps the default). Recognizes SMPL/SMPL-X, CMU, Mixamo, GENEA
+    (Talking With Hands), Trinity, BEAT, Bandai, Unreal and Biped names. Raises ConfigError naming
+    the missing role, the candidate joints and the override that selects one; also when a hand is not
+    below its upper arm or the head not below the neck."""
     pats = {**DEFAULT_JOINTS, **{k: v for k, v in (patterns or {}).items() if v is not None}}
     unknown = set(pats) - set(DEFAULT_JOINTS)
     if unknown:
@@ -46,11 +98,26 @@ def find_joints(skeleton, patterns: dict | None = None) -> dict:
                           where="annotate.joints")
     out = {}
     for key, pl in pats.items():
-        j = skeleton.find(*([pl] if isinstance(pl, str) else list(pl)))
+        pl = [pl] if isinstance(pl, str) else list(pl)
+        j = skeleton.find(*pl)
         if j is None:
-            raise ConfigError(f"no joint for {key!r} among {list(skeleton.names)} (patterns {pl}); "
-                              f"set annotate.joints.{key}")
+            hint = re.compile(_ROLE_HINTS[key], re.IGNORECASE)
+            other = _OTHER_SIDE.get(key.split("_")[0])
+            cands = [n for n in skeleton.names if hint.search(n) and not (other and other.search(n))]
+            example = joint_override(key, cands[0] if cands else skeleton.names[0])
+            raise ConfigError(
+                f"no joint for {key!r} (patterns {pl}); candidates {cands or 'none'} among "
+                f"{list(skeleton.names)}; choose one on the command line with {example} "
+                f"(Hydra needs the double quotes around a regex with ^, $ or :; the single quotes keep "
+                f"the shell from expanding $)", where="annotate.joints")
         out[key] = j
+    for key, above in _BELOW.items():
+        if not _is_below(skeleton, out[key], out[above]):
+            names = skeleton.names
+            raise ConfigError(
+                f"{key} joint {names[out[key]]!r} is not below the {above} joint {names[out[above]]!r} in the "
+                f"hierarchy; set the right ones, e.g. {joint_override(above, names[out[above]])}",
+                where="annotate.joints")
     return out
 
 

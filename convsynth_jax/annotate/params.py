@@ -16,6 +16,14 @@ class AnnotateParams:
     extra_words: Dict[str, List[str]] = field(
         default_factory=lambda: {"listener_response": [], "hesitation": []})
     max_gap: float = 0.3                       # s; a longer pause between words ends a phonemic clause
+    # Words in context (issue #14): a response word right after a word of one's own clause (within
+    # max_gap) is part of that clause, not a listener response; a lexical filler (below; a word that
+    # is also an ordinary word) is a hesitation only when a pause of filler_pause s or the end of the
+    # turn follows it and it is no verb (not after a pronoun, "to" or an auxiliary). False = the
+    # lists alone decide, word by word.
+    word_context: bool = True
+    filler_pause: float = 0.15                 # s (ours)
+    lexical_fillers: List[str] = field(default_factory=lambda: ["like", "well", "you know"])
     max_clause_words: Optional[int] = None     # split longer clauses (None = no limit)
     max_clause_seconds: Optional[float] = None  # split clauses longer than this (None = no limit)
     # F0 for the peak indicator: praat (parselmouth) or opensmile (optional package, eGeMAPS F0)

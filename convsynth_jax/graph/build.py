@@ -37,6 +37,10 @@ from .types import MotionGraph
 
 log = logging.getLogger(__name__)
 
+# The largest SCC keeping fewer than this share of the states means the threshold (small k, low
+# quantile) left too few synthetic transitions: the graph is logged as a warning and marked in meta.
+SCC_WARN_FRACTION = 0.5
+
 def velocity_weight(db: MotionDatabase, params: GraphParams) -> float:
     """w_v of Eq. 3: ``params.w_v`` or, for ``auto`` (ours), the k-step mean-term ratio (auto_w_v)."""
     return auto_w_v(db, params.k, seed=params.seed) if str(params.w_v) == "auto" else float(params.w_v)
@@ -172,13 +176,27 @@ def assemble_graph(db: MotionDatabase, keys, a, j, c, meta: dict) -> MotionGraph
     r, cc, co, sy = new_id[rows[e]], new_id[cols[e]], cost[e], syn[e]
     S = int(keep.sum())
     indptr = np.concatenate([[0], np.cumsum(np.bincount(r, minlength=S))]).astype(np.int64)
-    meta.update(num_states=S, num_edges=int(r.size), num_synthetic_edges=int(sy.sum()), num_components=int(ncomp))
+    meta.update(num_states=S, num_edges=int(r.size), num_synthetic_edges=int(sy.sum()), num_components=int(ncomp),
+                scc_warning=scc_warning(S, n, int(r.size), meta.get("k")))
+    if meta["scc_warning"]:
+        log.warning("%s", meta["scc_warning"])
     return MotionGraph(
         clip_names=db.clip_names, fps=db.fps, clip=db.clip[keep], frame=db.frame[keep],
         own_label=db.own.label[keep], own_start=db.own.seg_start[keep], own_end=db.own.seg_end[keep],
         own_peak=db.own.seg_peak[keep], partner_label=db.partner.label[keep],
         partner_start=db.partner.seg_start[keep], partner_end=db.partner.seg_end[keep], is_key=keys[keep],
         indptr=indptr, indices=cc.astype(np.int64), cost=co.astype(np.float32), synthetic=sy, meta=meta)
+
+
+def scc_warning(kept_states: int, states: int, kept_edges: int, k=None) -> str:
+    """A warning when the largest strongly connected component keeps under SCC_WARN_FRACTION of the
+    states, else the empty string."""
+    if states == 0 or kept_states >= SCC_WARN_FRACTION * states:
+        return ""
+    at_k = f" at k = {k}" if k is not None else ""
+    return (f"the largest strongly connected component{at_k} keeps {kept_states} of {states} states "
+            f"({100 * kept_states / states:.1f}%, under {100 * SCC_WARN_FRACTION:.0f}%) and {kept_edges} edges: too few "
+            f"synthetic transitions fall below the threshold; raise graph.quantile or graph.k")
 
 
 def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: dict | None = None) -> MotionGraph:

@@ -21,7 +21,7 @@ from pathlib import Path
 KEYS = ("num_frames", "num_key_states", "key_fraction", "threshold", "num_states_before_scc",
         "num_edges_before_scc", "num_states", "num_edges", "num_synthetic_edges", "seconds", "w_v",
         "distribution", "k", "quantile", "joint_weights", "joint_names", "root_relative", "remove_yaw", "timings",
-        "kernel")
+        "kernel", "scc_warning")
 
 
 def character_clip_sets(params):

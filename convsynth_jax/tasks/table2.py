@@ -1,6 +1,7 @@
 """Task ``table2``: states and edges before and after keeping the largest strongly connected
 component for k = 2, 3, 4, 5 (``task.ks``), per character (or one row set for bvh_folder).
-Writes ``table2.csv`` and ``table2.md``."""
+Writes ``table2.csv`` and ``table2.md``; the ``scc_warning`` column is non-empty for a k whose largest
+SCC keeps under half of the states (also logged as a warning)."""
 from __future__ import annotations
 
 import dataclasses
@@ -30,7 +31,8 @@ def run(cfg, out_dir: Path) -> dict:
             rows.append({"character": char or "all", "k": int(k), "threshold": m["threshold"],
                          "states_before_scc": m["num_states_before_scc"], "edges_before_scc": m["num_edges_before_scc"],
                          "states_after_scc": m["num_states"], "edges_after_scc": m["num_edges"],
-                         "kept_state_fraction": m["num_states"] / m["num_states_before_scc"], "seconds": m["seconds"]})
+                         "kept_state_fraction": m["num_states"] / m["num_states_before_scc"], "seconds": m["seconds"],
+                         "scc_warning": m.get("scc_warning", "")})
     table = pd.DataFrame(rows)
     with atomic_path(out_dir / "table2.csv") as tmp:
         table.to_csv(tmp, index=False)

@@ -6,7 +6,8 @@ a^k_ij = P(q_t = j | q_{t-1} = i, C_t = k)) and the initial distribution at the 
 Emissions are computed in log space; the recursions are *scaled* (each frame's emissions are shifted
 by their maximum and the forward message renormalized, the normalizers accumulated as the
 log-likelihood), which keeps exact zeros of the transition matrices exact (structural zeros) and is
-as stable as a log-space recursion. Viterbi runs fully in log space.
+as stable as a log-space recursion (the shift uses the best state reachable from the previous
+frame, so no frame underflows to zero probability). Viterbi runs fully in log space.
 
 Primitives work on one sequence of ``T`` frames of which the first ``length`` are valid (the rest
 is padding, so that batches of sequences share one compiled shape); batch them with ``jax.vmap``.
@@ -54,8 +55,13 @@ def _forward_step(carry, inp, initial, transitions):
     alpha_prev, ll = carry
     loglik_t, c_t, valid_t, first_t = inp
     pred = jnp.where(first_t, initial[c_t], alpha_prev @ transitions[c_t])
-    m = jnp.max(loglik_t)
-    b = jnp.exp(loglik_t - m)
+    # shift by the best *reachable* state (a structural zero can make every reachable emission
+    # underflow next to an unreachable one); unreachable states get b = 0, which changes nothing
+    # downstream (their forward mass and every xi into them are zero anyway)
+    reach = pred > 0
+    m = jnp.max(jnp.where(reach, loglik_t, -jnp.inf))
+    m = jnp.where(jnp.isfinite(m), m, jnp.max(loglik_t))
+    b = jnp.where(reach, jnp.exp(jnp.minimum(loglik_t - m, 0.0)), 0.0)
     u = pred * b
     s = jnp.sum(u)
     alpha = u / s

@@ -86,15 +86,17 @@ def hmm_filter(initial, transitions, log_lik, constraints, length):
 def _backward_step(carry, inp, log_transitions):
     log_beta, xi_sum = carry
     loglik_t, c_t, valid_t, log_alpha_prev = inp
-    la = log_transitions[c_t]
-    w = loglik_t + log_beta                                   # (K,)
-    m = la + w[None, :]                                        # (K, K)
-    log_beta_prev = _lse(m, axis=1)
+    m = log_transitions[c_t] + (loglik_t + log_beta)[None, :]          # (K, K): i -> j
+    row = jnp.max(m, axis=1)
+    row = jnp.where(jnp.isfinite(row), row, 0.0)
+    e = jnp.exp(m - row[:, None])                                       # the one K x K exp per frame
+    log_beta_prev = row + jnp.log(jnp.sum(e, axis=1))
+    # xi_ij = alpha_i a_ij b_j beta_j / sum(...) reuses e: its normalizer is lse_i(alpha_i + beta_prev_i)
+    norm = _lse(log_alpha_prev + log_beta_prev, axis=0)
+    scale = jnp.exp(jnp.where(jnp.isfinite(log_alpha_prev), log_alpha_prev + row - norm, -jnp.inf))
+    xi = jnp.where(valid_t, e * scale[:, None], 0.0)
     mx = jnp.max(log_beta_prev)
     log_beta_prev = log_beta_prev - jnp.where(jnp.isfinite(mx), mx, 0.0)   # per-frame factor is free
-    lx = log_alpha_prev[:, None] + m
-    xi = jnp.exp(lx - _lse(lx.reshape(-1), axis=0))
-    xi = jnp.where(valid_t, xi, 0.0)
     log_beta_prev = jnp.where(valid_t, log_beta_prev, jnp.zeros_like(log_beta_prev))
     xi_sum = xi_sum.at[c_t].add(xi)
     return (log_beta_prev, xi_sum), log_beta_prev

@@ -119,7 +119,7 @@ def bench_planted(nseq=60, length=1000):
             "states_estimated": tm.model.num_states, "states_recovered_fraction": rep["states_recovered"],
             "transition_linf": rep["transition_linf"], "transition_linf_per_constraint": rep["transition_linf_per_constraint"],
             "structural_zeros": int((tm.model.transitions == 0).sum()), "same_sparsity_as_planted": same_structure,
-            "merges": [list(m) for m in getattr(tm, "merges", [])]}
+            "merges": [list(m) for m in tm.merges]}
 
 
 def bench_eval():

@@ -24,7 +24,7 @@ states. Transition probabilities inside a constraint start from that constraint'
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -54,12 +54,14 @@ def transition_distance(a: np.ndarray, b: np.ndarray) -> float:
 @dataclass
 class TrainedModel:
     """A trained model with its bookkeeping. owners: (K, C) bool, which constraints use each state
-    (all True for the jDBN / shared model); log_likelihoods: EM trace (per frame)."""
+    (all True for the jDBN / shared model); log_likelihoods: EM trace (per frame); merges: the
+    (constraint, state, KL) merges of Sec. VII-B (CDBN only)."""
 
     model: DBNModel
     owners: np.ndarray
     log_likelihoods: list
     kind: str
+    merges: list = field(default_factory=list)
 
     @property
     def num_parameters(self) -> int:
@@ -239,6 +241,4 @@ def train_cdbn(sequences, constraints, states_per_constraint: int | tuple, speec
     model = DBNModel(means, covs, init, trans, tuple(speech_dims), tuple(motion_dims), tuple(constraint_names),
                      tuple(feature_layout))
     fit = fit_em(model, batch, params)
-    tm = TrainedModel(fit.model, owners, fit.log_likelihoods, "cdbn")
-    tm.merges = merges  # type: ignore[attr-defined]
-    return tm
+    return TrainedModel(fit.model, owners, fit.log_likelihoods, "cdbn", merges)

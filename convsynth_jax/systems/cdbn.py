@@ -56,6 +56,8 @@ def _params(params, options: dict) -> CDBNParams:
     base = None
     if params is not None:
         base = params.get("cdbn") if isinstance(params, dict) else getattr(params, "cdbn", None)
+        if base is None:  # convsynth_jax.params.Params: the cdbn group's dict is in Params.extra
+            base = (getattr(params, "extra", None) or {}).get("cdbn")
     if isinstance(base, CDBNParams):
         if not options:
             return base

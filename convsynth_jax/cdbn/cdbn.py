@@ -62,12 +62,19 @@ class TrainedModel:
     log_likelihoods: list
     kind: str
     merges: list = field(default_factory=list)
+    transition_mask: np.ndarray | None = None   # the designed structure (None: dense)
+    initial_mask: np.ndarray | None = None
 
     @property
     def num_parameters(self) -> int:
+        """Free parameters of the designed structure (dense for jDBN / shared, the sparse masks of
+        Sec. VII-B for the CDBN). Entries EM drove to exactly zero (float underflow of a tiny
+        probability, which EM then keeps at zero) still count."""
         m = self.model
+        if self.transition_mask is None:
+            return num_parameters(m.num_states, len(m.speech_dims), len(m.motion_dims))
         return num_parameters(m.num_states, len(m.speech_dims), len(m.motion_dims),
-                              m.transitions > 0, m.initial > 0)
+                              self.transition_mask, self.initial_mask)
 
 
 def _best_of_restarts(make_model, batch: Batch, params: TrainParams, rng: np.random.Generator):
@@ -241,4 +248,4 @@ def train_cdbn(sequences, constraints, states_per_constraint: int | tuple, speec
     model = DBNModel(means, covs, init, trans, tuple(speech_dims), tuple(motion_dims), tuple(constraint_names),
                      tuple(feature_layout))
     fit = fit_em(model, batch, params)
-    return TrainedModel(fit.model, owners, fit.log_likelihoods, "cdbn", merges)
+    return TrainedModel(fit.model, owners, fit.log_likelihoods, "cdbn", merges, tmask, imask)

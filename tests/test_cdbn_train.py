@@ -92,6 +92,13 @@ def test_planted_cdbn_is_recovered():
     ll_est = e_step(tm.model, b).log_likelihood / b.num_frames
     assert abs(ll_est - ll_true) < 0.02 * abs(ll_true)
     assert tm.log_likelihoods[-1] > tm.log_likelihoods[0]
+    # parameters: the Gaussians plus the free entries of the designed sparse structure
+    from convsynth_jax.cdbn.params import num_parameters
+
+    K = true.num_states
+    dense = num_parameters(K, 3, 2)
+    n_free = int((tm.transition_mask.sum(-1) - 1).sum() + (tm.initial_mask.sum(-1) - 1).sum())
+    assert tm.num_parameters == K * (3 + 6 + 2 + 3) + n_free < dense * 3
 
 
 def test_too_few_frames_per_state():

@@ -24,7 +24,7 @@ states. Transition probabilities inside a constraint start from that constraint'
 from __future__ import annotations
 
 import logging
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -54,18 +54,27 @@ def transition_distance(a: np.ndarray, b: np.ndarray) -> float:
 @dataclass
 class TrainedModel:
     """A trained model with its bookkeeping. owners: (K, C) bool, which constraints use each state
-    (all True for the jDBN / shared model); log_likelihoods: EM trace (per frame)."""
+    (all True for the jDBN / shared model); log_likelihoods: EM trace (per frame); merges: the
+    (constraint, state, KL) merges of Sec. VII-B (CDBN only)."""
 
     model: DBNModel
     owners: np.ndarray
     log_likelihoods: list
     kind: str
+    merges: list = field(default_factory=list)
+    transition_mask: np.ndarray | None = None   # the designed structure (None: dense)
+    initial_mask: np.ndarray | None = None
 
     @property
     def num_parameters(self) -> int:
+        """Free parameters of the designed structure (dense for jDBN / shared, the sparse masks of
+        Sec. VII-B for the CDBN). Entries EM drove to exactly zero (float underflow of a tiny
+        probability, which EM then keeps at zero) still count."""
         m = self.model
+        if self.transition_mask is None:
+            return num_parameters(m.num_states, len(m.speech_dims), len(m.motion_dims))
         return num_parameters(m.num_states, len(m.speech_dims), len(m.motion_dims),
-                              m.transitions > 0, m.initial > 0)
+                              self.transition_mask, self.initial_mask)
 
 
 def _best_of_restarts(make_model, batch: Batch, params: TrainParams, rng: np.random.Generator):
@@ -239,6 +248,4 @@ def train_cdbn(sequences, constraints, states_per_constraint: int | tuple, speec
     model = DBNModel(means, covs, init, trans, tuple(speech_dims), tuple(motion_dims), tuple(constraint_names),
                      tuple(feature_layout))
     fit = fit_em(model, batch, params)
-    tm = TrainedModel(fit.model, owners, fit.log_likelihoods, "cdbn")
-    tm.merges = merges  # type: ignore[attr-defined]
-    return tm
+    return TrainedModel(fit.model, owners, fit.log_likelihoods, "cdbn", merges, tmask, imask)

@@ -3,10 +3,12 @@ transition counts and Viterbi, each a ``lax.scan`` over a named ``_step`` (dynam
 
 The constraint sequence c_t selects the transition matrix at every frame (Eq. 5:
 a^k_ij = P(q_t = j | q_{t-1} = i, C_t = k)) and the initial distribution at the first frame.
-Emissions are computed in log space; the recursions are *scaled* (each frame's emissions are shifted
-by their maximum and the forward message renormalized, the normalizers accumulated as the
-log-likelihood), which keeps exact zeros of the transition matrices exact (structural zeros) and is
-as stable as a log-space recursion. Viterbi runs fully in log space.
+Everything runs in log space (log-sum-exp over the previous state at every frame): structural zeros
+of the transition matrices are -inf and stay exact, and no frame underflows even when the emissions
+of every reachable state are thousands of nats below an unreachable one (a scaled float32
+recursion, tried first, failed exactly there on concatenated held-out turns). The forward message is
+renormalized per frame (the normalizers sum to the log-likelihood); the backward message is shifted
+per frame (it is defined up to a per-frame factor); expected transitions are normalized per frame.
 
 Primitives work on one sequence of ``T`` frames of which the first ``length`` are valid (the rest
 is padding, so that batches of sequences share one compiled shape); batch them with ``jax.vmap``.
@@ -50,59 +52,71 @@ def stream_log_likelihoods(x, means, covariances, dims: tuple):
     return gaussian_log_density(x[:, idx], means[:, idx], covariances[:, idx][:, :, idx])
 
 
-def _forward_step(carry, inp, initial, transitions):
-    alpha_prev, ll = carry
+def _lse(x, axis):
+    """logsumexp that maps an all -inf slice to -inf without NaNs."""
+    m = jnp.max(x, axis=axis, keepdims=True)
+    m = jnp.where(jnp.isfinite(m), m, 0.0)
+    return jnp.squeeze(m, axis) + jnp.log(jnp.sum(jnp.exp(x - m), axis=axis))
+
+
+def _forward_step(carry, inp, log_initial, log_transitions):
+    log_alpha_prev, ll = carry
     loglik_t, c_t, valid_t, first_t = inp
-    pred = jnp.where(first_t, initial[c_t], alpha_prev @ transitions[c_t])
-    m = jnp.max(loglik_t)
-    b = jnp.exp(loglik_t - m)
-    u = pred * b
-    s = jnp.sum(u)
-    alpha = u / s
-    alpha = jnp.where(valid_t, alpha, alpha_prev)
-    ll = jnp.where(valid_t, ll + jnp.log(s) + m, ll)
-    return (alpha, ll), (alpha, b, jnp.where(valid_t, s, 1.0))
+    log_pred = jnp.where(first_t, log_initial[c_t], _lse(log_alpha_prev[:, None] + log_transitions[c_t], axis=0))
+    v = log_pred + loglik_t
+    norm = _lse(v, axis=0)
+    log_alpha = v - norm
+    log_alpha = jnp.where(valid_t, log_alpha, log_alpha_prev)
+    ll = jnp.where(valid_t, ll + norm, ll)
+    return (log_alpha, ll), log_alpha
 
 
 def hmm_filter(initial, transitions, log_lik, constraints, length):
-    """Forward pass. initial: (C, K); transitions: (C, K, K); log_lik: (T, K); constraints: (T,) int;
-    length: () valid frames. Returns (log_likelihood, filtered (T, K), scaled emissions (T, K),
-    normalizers (T,))."""
+    """Forward pass in log space. initial: (C, K); transitions: (C, K, K) (zeros allowed: -inf);
+    log_lik: (T, K); constraints: (T,) int; length: () valid frames.
+    Returns (log_likelihood, filtered (T, K), log filtered (T, K))."""
     T, K = log_lik.shape
     t = jnp.arange(T)
-    step = partial(_forward_step, initial=initial, transitions=transitions)
-    (_, ll), (alpha, b, s) = lax.scan(step, (jnp.zeros(K, log_lik.dtype), jnp.zeros((), log_lik.dtype)),
-                                      (log_lik, constraints, t < length, t == 0))
-    return ll, alpha, b, s
+    step = partial(_forward_step, log_initial=jnp.log(initial), log_transitions=jnp.log(transitions))
+    (_, ll), log_alpha = lax.scan(step, (jnp.zeros(K, log_lik.dtype), jnp.zeros((), log_lik.dtype)),
+                                  (log_lik, constraints, t < length, t == 0))
+    return ll, jnp.exp(log_alpha), log_alpha
 
 
-def _backward_step(carry, inp, transitions):
-    beta, xi_sum = carry
-    b_t, s_t, c_t, valid_t, alpha_prev = inp
-    A = transitions[c_t]
-    w = b_t * beta / s_t                                   # (K,)
-    beta_prev = A @ w
-    xi = alpha_prev[:, None] * A * w[None, :]              # (K, K)
-    xi = jnp.where(valid_t, xi, 0.0)
-    beta_prev = jnp.where(valid_t, beta_prev, jnp.ones_like(beta_prev))
+def _backward_step(carry, inp, log_transitions):
+    log_beta, xi_sum = carry
+    loglik_t, c_t, valid_t, log_alpha_prev = inp
+    m = log_transitions[c_t] + (loglik_t + log_beta)[None, :]          # (K, K): i -> j
+    row = jnp.max(m, axis=1)
+    row = jnp.where(jnp.isfinite(row), row, 0.0)
+    e = jnp.exp(m - row[:, None])                                       # the one K x K exp per frame
+    log_beta_prev = row + jnp.log(jnp.sum(e, axis=1))
+    # xi_ij = alpha_i a_ij b_j beta_j / sum(...) reuses e: its normalizer is lse_i(alpha_i + beta_prev_i)
+    norm = _lse(log_alpha_prev + log_beta_prev, axis=0)
+    scale = jnp.exp(jnp.where(jnp.isfinite(log_alpha_prev), log_alpha_prev + row - norm, -jnp.inf))
+    xi = jnp.where(valid_t, e * scale[:, None], 0.0)
+    mx = jnp.max(log_beta_prev)
+    log_beta_prev = log_beta_prev - jnp.where(jnp.isfinite(mx), mx, 0.0)   # per-frame factor is free
+    log_beta_prev = jnp.where(valid_t, log_beta_prev, jnp.zeros_like(log_beta_prev))
     xi_sum = xi_sum.at[c_t].add(xi)
-    return (beta_prev, xi_sum), beta_prev
+    return (log_beta_prev, xi_sum), log_beta_prev
 
 
 def hmm_posterior(initial, transitions, log_lik, constraints, length) -> Posterior:
-    """Forward-backward (smoother) with expected transition counts per constraint. Shapes as
-    :func:`hmm_filter`."""
+    """Forward-backward (smoother) in log space with expected transition counts per constraint.
+    Shapes as :func:`hmm_filter`."""
     T, K = log_lik.shape
     C = transitions.shape[0]
-    ll, alpha, b, s = hmm_filter(initial, transitions, log_lik, constraints, length)
+    ll, alpha, log_alpha = hmm_filter(initial, transitions, log_lik, constraints, length)
     t = jnp.arange(1, T)
-    step = partial(_backward_step, transitions=transitions)
-    init = (jnp.ones(K, log_lik.dtype), jnp.zeros((C, K, K), log_lik.dtype))
-    (_, xi_sum), betas = lax.scan(step, init, (b[1:], s[1:], constraints[1:], t < length, alpha[:-1]),
-                                  reverse=True)
-    beta = jnp.concatenate([betas, jnp.ones((1, K), log_lik.dtype)], axis=0)
-    g = alpha * beta
-    g = g / jnp.maximum(jnp.sum(g, axis=-1, keepdims=True), jnp.finfo(g.dtype).tiny)  # empty sequence -> 0
+    step = partial(_backward_step, log_transitions=jnp.log(transitions))
+    init = (jnp.zeros(K, log_lik.dtype), jnp.zeros((C, K, K), log_lik.dtype))
+    (_, xi_sum), log_betas = lax.scan(step, init, (log_lik[1:], constraints[1:], t < length, log_alpha[:-1]),
+                                      reverse=True)
+    log_beta = jnp.concatenate([log_betas, jnp.zeros((1, K), log_lik.dtype)], axis=0)
+    lg = log_alpha + log_beta
+    g = jnp.exp(lg - _lse(lg, axis=1)[:, None])
+    g = jnp.where(jnp.isfinite(g), g, 0.0)                    # empty (length 0) sequences
     return Posterior(ll, alpha, g, xi_sum)
 
 

@@ -16,7 +16,6 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import CDBNError
-from ..rotations import quat_slerp
 from .features import check_finite, head_euler_to_quat
 from .hmm import batch_filter, batch_posterior, batch_viterbi
 from .params import POSTERIORS, DBNModel
@@ -51,11 +50,11 @@ def state_posteriors(model: DBNModel, speech: np.ndarray, constraints: np.ndarra
             jnp.asarray(model.initial, jnp.float32), jnp.asarray(model.transitions, jnp.float32))
     dims = tuple(model.speech_dims)
     if posterior == "smoother":
-        g = np.asarray(batch_posterior(*args, dims).smoothed[0, :T], np.float64)
+        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)[0, :T]  # slice on the host: no recompiles
     elif posterior == "filter":
-        g = np.asarray(batch_filter(*args, dims)[1][0, :T], np.float64)
+        g = np.asarray(batch_filter(*args, dims)[1], np.float64)[0, :T]
     else:
-        path = np.asarray(batch_viterbi(*args, dims)[0][0, :T])
+        path = np.asarray(batch_viterbi(*args, dims)[0])[0, :T]
         g = np.eye(model.num_states)[path]
     return g
 
@@ -72,13 +71,13 @@ def keypoint_smooth(angles: np.ndarray, fps: float, keypoints_per_second: float)
     q = head_euler_to_quat(np.asarray(angles, np.float64))
     if T < 3 or keypoints_per_second <= 0:
         return q
+    from scipy.spatial.transform import Rotation, Slerp
+
     step = max(fps / keypoints_per_second, 1.0)
     keys = np.unique(np.concatenate([np.round(np.arange(0, T - 1, step)).astype(int), [T - 1]]))
-    kq = q[keys]
-    seg = np.clip(np.searchsorted(keys, np.arange(T), side="right") - 1, 0, len(keys) - 2)
-    a, b = keys[seg], keys[seg + 1]
-    t = (np.arange(T) - a) / np.maximum(b - a, 1)
-    return np.asarray(quat_slerp(jnp.asarray(kq[seg]), jnp.asarray(kq[seg + 1]), jnp.asarray(t)), np.float64)
+    # SciPy's Slerp (NumPy, any length without recompiling) between the key-point rotations
+    slerp = Slerp(keys.astype(np.float64), Rotation.from_quat(q[keys][:, [1, 2, 3, 0]]))
+    return slerp(np.arange(T, dtype=np.float64)).as_quat()[:, [3, 0, 1, 2]]
 
 
 def synthesize_head(model: DBNModel, speech_z: np.ndarray, constraints: np.ndarray | None, posterior: str,

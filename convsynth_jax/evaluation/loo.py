@@ -10,6 +10,7 @@ motion-quality metrics; system-specific scalars come as ``diag_<key>`` columns.
 """
 from __future__ import annotations
 
+import functools
 import logging
 from pathlib import Path
 
@@ -60,14 +61,22 @@ def session_windows(held: dict, fps: float, length: float, hop: float, max_windo
     return windows[: int(max_windows)] if max_windows else windows
 
 
+@functools.lru_cache(maxsize=4)
+def _recording_audio(path: str, channel):
+    """One participant's whole recording, read once for all of its windows (the two roles of the
+    held-out session are the ones in use at a time)."""
+    from ..io import load_audio
+
+    return load_audio(path, channel=channel)
+
+
 def _audio_slice(ann, w: Window):
     """The window's samples of a participant's audio (None without audio)."""
     if not getattr(ann, "audio_path", None):
         return None
-    from ..io import load_audio
     from ..io.audio import Audio
 
-    aud = load_audio(ann.audio_path, channel=ann.audio_channel)
+    aud = _recording_audio(str(ann.audio_path), ann.audio_channel)
     a0, a1 = int(round(w.start * aud.sample_rate)), int(round(w.end * aud.sample_rate))
     return Audio(aud.samples[a0:a1], aud.sample_rate)
 

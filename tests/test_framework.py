@@ -4,6 +4,7 @@ baseline, one seed derivation shared by task=loo and task=synthesize."""
 from __future__ import annotations
 
 import dataclasses
+import json
 from pathlib import Path
 
 import numpy as np
@@ -157,6 +158,9 @@ def test_loo_and_synthesize_give_the_same_motion_for_the_same_window(tiny_corpus
     cases = pd.read_csv(tmp_path / "loo" / "cases.csv")
     w1 = cases[cases["window"] == 1]
     assert len(w1) == 2
+    report = json.loads((tmp_path / "syn" / "report.json").read_text())["characters"]
+    for r in w1.itertuples():  # the same seed for each character, whatever the search then does
+        assert report[r.character]["seed"] == r.seed, r.character
     compared = 0
     for ch in w1["character"]:
         a = tmp_path / "loo" / "bvh" / f"{s['session']}_w01_{ch}_all.bvh"

@@ -190,7 +190,7 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
             row, motion = evaluate_window(system, fitted[ann.character], win, condition, gt, clip_audio, params)
             rows.append({"system": system.name, "fold": fold, "session": held_out, "condition": condition,
                          "window": w.index, "window_start": w.start, "window_end": w.end,
-                         "character": ann.character, "role": role, **row})
+                         "character": ann.character, "role": role, "seed": seed, **row})
             if motion is not None:
                 synth_windows.setdefault(ann.character, []).append(np.asarray(pose_features(motion).positions))
                 if export_bvh and out_dir is not None:

@@ -115,7 +115,7 @@ def run(cfg, out_dir: Path) -> dict:
             summary["failure"][char] = res.failure
             summary["constraints_met"][char] = 0
             summary["num_synthetic_transitions"][char] = 0
-            report["characters"][char] = {"success": False, "failure": res.failure}
+            report["characters"][char] = {"success": False, "failure": res.failure, "seed": seed}
             log.warning("%s: %s", char, res.failure)
             continue
         entry = {"success": True, "role": role, "seed": seed, "search_seconds": res.seconds,

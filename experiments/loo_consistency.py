@@ -69,7 +69,7 @@ def main():
     table1 = cooccurrence_table(ann, params.annotate, params.stats, params.seed)
     t2 = time.perf_counter()
     conf = float(params.stats.confidence)
-    tables = {scope: consistency_table(table1, loo_ground_truth(ann, params, scope), conf)
+    tables = {scope: consistency_table(table1, loo_ground_truth(ann, params, scope), confidence=conf)
               for scope in ("recording", "window")}
     t3 = time.perf_counter()
     res = tables["recording"]

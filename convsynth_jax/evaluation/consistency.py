@@ -97,20 +97,25 @@ CONSISTENCY_COLUMNS = ["character", "hypothesis", "table1_matched", "table1_tota
                        "edge_affected", "duplicated", "uncovered", "within_edges", "within_ci", "passes"]
 
 
-def consistency_table(table1: pd.DataFrame, gt: pd.DataFrame, confidence: float = 0.95) -> pd.DataFrame:
+def consistency_table(table1: pd.DataFrame, gt: pd.DataFrame, edges: pd.DataFrame | None = None,
+                      confidence: float = 0.95) -> pd.DataFrame:
     """One row per character x hypothesis of ``table1`` (``cooccurrence_table`` output): Table 1's
-    counts and Wilson interval beside the leave-one-out ground truth summed over ``gt``
-    (``loo_ground_truth`` output), the differences, the edge allowances and the verdicts
-    (CONSISTENCY_COLUMNS; see the module docstring for the rule)."""
+    counts and Wilson interval beside the leave-one-out ground truth summed over ``gt`` (rows with
+    character and ``gt_<h>_matched`` / ``_total``: ``loo_ground_truth`` output, or the test cases of
+    ``run_fold`` over every fold of one condition), the differences, the edge allowances (from
+    ``edges``, a ``loo_ground_truth`` output; default ``gt``) and the verdicts (CONSISTENCY_COLUMNS;
+    see the module docstring for the rule)."""
+    edges = gt if edges is None else edges
     rows = []
     for r in table1.itertuples(index=False):
         g = gt[gt["character"] == r.character]
+        e = edges[edges["character"] == r.character]
         h = r.hypothesis
         lm, lt = int(g[f"gt_{h}_matched"].sum()), int(g[f"gt_{h}_total"].sum())
-        straddling = int(g[f"straddling_{h}"].sum())
-        edge = int(g[f"edge_affected_{h}"].sum())
-        uncovered = int(g[f"uncovered_{h}"].sum())
-        duplicated = int(g[f"duplicated_{h}"].sum())
+        straddling = int(e[f"straddling_{h}"].sum())
+        edge = int(e[f"edge_affected_{h}"].sum())
+        uncovered = int(e[f"uncovered_{h}"].sum())
+        duplicated = int(e[f"duplicated_{h}"].sum())
         tm, tt = int(r.matched), int(r.total)
         lo, hi = wilson_interval(tm, tt, confidence)
         loo_rate = lm / lt if lt else np.nan
@@ -135,4 +140,4 @@ def check_consistency(annotations: dict, params, table1: pd.DataFrame | None = N
 
         table1 = cooccurrence_table(annotations, params.annotate, params.stats, params.seed)
     gt = loo_ground_truth(annotations, params, threshold_scope)
-    return consistency_table(table1, gt, float(params.stats.confidence))
+    return consistency_table(table1, gt, confidence=float(params.stats.confidence))

@@ -227,15 +227,16 @@ def cooccurrence_table(annotations, annotate: AnnotateParams, stats: StatsParams
         if method == "none":
             if t:
                 log.warning("no chance baseline for %s: no %s window fits (stats.chance_fallback=%s); p-values left "
-                            "empty", row, stats.chance_baseline, stats.chance_fallback)
+                            "empty", " ".join(map(str, key)) if isinstance(key, tuple) else key,
+                            stats.chance_baseline, stats.chance_fallback)
             row.update({"chance_matched": np.nan, "chance_total": 0, "chance_rate": np.nan, "chance_ci_low": np.nan,
                         "chance_ci_high": np.nan, "chi2": np.nan, "df": np.nan, "p_chi2": np.nan,
                         "p_permutation": np.nan})
             rows.append(row)
             continue
         if method != stats.chance_baseline:
-            log.warning("chance baseline for %s: no %s window fits; using %s windows instead", row,
-                        stats.chance_baseline, method)
+            log.warning("chance baseline for %s: no %s window fits; using %s windows instead",
+                        " ".join(map(str, key)) if isinstance(key, tuple) else key, stats.chance_baseline, method)
         chance = np.concatenate(list(g[f"_{method}"]))
         cm, ct = int(chance.sum()), int(chance.size)
         ci = chi2_independence(m, t, cm, ct)

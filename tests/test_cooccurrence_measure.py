@@ -233,3 +233,78 @@ def test_quiet_window_ground_truth_uses_the_recording_threshold(annotations, tin
     old = loo_ground_truth(quiet, p, threshold_scope="window")
     old = old[(old["fold"] == fold) & (old["window"] == window) & (old["role"] == role)].iloc[0]
     assert old["gt_PH-Nod_matched"] + old["gt_LR-Nod_matched"] >= 1
+
+
+class _CopySystem:
+    """A stand-in system that 'synthesizes' the held-out ground truth itself (hands or not)."""
+
+    def __new__(cls, params, annotations, produces_hands=True):
+        from convsynth_jax.systems.base import SynthesisSystem, SystemParams, WindowResult
+
+        class Copy(SynthesisSystem):
+            def fit(self, clips, character, condition, cache_dir=None):
+                return None
+
+            def synthesize(self, model, window, condition):
+                ann = annotations[window.session][window.role]
+                return WindowResult(True, ann.motion.slice(window.start_frame, window.start_frame + window.num_frames))
+
+        s = Copy(params, SystemParams("copy", "x:y", {"none": {}}))
+        s.produces_hands = produces_hands
+        return s
+
+
+def test_synthesized_and_ground_truth_windows_are_counted_alike(annotations, tiny_params):
+    """Every system goes through one measure: motion equal to the ground truth, judged with the
+    same thresholds, gets the ground truth's counts; with the character's mean thresholds (what a
+    synthesized window gets) the counts may differ only by that threshold; a system without hands
+    reports hand hypotheses as NaN, not 0."""
+    from convsynth_jax.evaluation.loo import evaluate_window, fold_thresholds, session_windows, window_input
+
+    session = list(annotations)[0]
+    held = annotations[session]
+    gt_th, synth_th = fold_thresholds(annotations, session, AP)
+    assert set(gt_th) == set(held) and set(synth_th) == {"female", "male"}
+    # the held-out recording's own threshold is not the training mean: the two really differ
+    role = list(held)[0]
+    assert gt_th[role] != synth_th[held[role].character]
+    w = session_windows(held, 30.0, 15.0, 14.0)[0]
+    win = window_input(held, role, w, 30.0, 0)
+    gt = held[role].motion.slice(win.start_frame, win.start_frame + win.num_frames)
+    system = _CopySystem(tiny_params, annotations)
+    row, motion = evaluate_window(system, None, win, "none", gt, {}, tiny_params, gt_thresholds=gt_th[role],
+                                  synth_thresholds=gt_th[role])
+    hyps = ("PC-LH", "PC-RH", "PC-LH/RH", "LR-Nod", "PH-Nod")
+    for h in hyps:
+        assert (row[f"synth_{h}_matched"], row[f"synth_{h}_total"]) == (row[f"gt_{h}_matched"], row[f"gt_{h}_total"])
+    with pytest.raises(TypeError):  # thresholds are required
+        evaluate_window(system, None, win, "none", gt, {}, tiny_params)
+    headless = _CopySystem(tiny_params, annotations, produces_hands=False)
+    row2, _ = evaluate_window(headless, None, win, "none", gt, {}, tiny_params, gt_thresholds=gt_th[role],
+                              synth_thresholds=synth_th[held[role].character])
+    for h in hyps[:3]:
+        assert np.isnan(row2[f"synth_{h}_matched"]) and np.isnan(row2[f"synth_{h}_total"])
+        assert row2[f"gt_{h}_total"] == row[f"gt_{h}_total"]  # the ground truth keeps its hands
+    for h in hyps[3:]:
+        assert row2[f"synth_{h}_total"] == row[f"gt_{h}_total"]
+
+
+def test_figures_draw_wilson_error_bars():
+    from convsynth_jax.figures import ablation_figure, table1_figure
+
+    t = pd.DataFrame({"character": ["f", "f"], "hypothesis": ["PC-LH", "LR-Nod"], "rate": [0.5, 0.25],
+                      "ci_low": [0.4, 0.1], "ci_high": [0.6, 0.45], "chance_method": ["away", "none"],
+                      "chance_rate": [0.1, np.nan], "chance_ci_low": [0.05, np.nan], "chance_ci_high": [0.2, np.nan]})
+    ax = table1_figure(t).axes[0]
+    bars = [c for c in ax.containers if getattr(c, "errorbar", None) is not None]
+    assert len(bars) == 2
+    seg = bars[0].errorbar.lines[2][0].get_segments()
+    assert [tuple(np.round(s[:, 1], 6)) for s in seg] == [(40.0, 60.0), (10.0, 45.0)]
+    assert "LR-Nod\n(none)" in [x.get_text() for x in ax.get_xticklabels()]
+    co = pd.DataFrame({"condition": ["all", "all"], "character": ["f", "f"], "hypothesis": ["PC-LH", "LR-Nod"],
+                       "synth_rate": [0.5, 0.3], "ci_low": [0.45, 0.2], "ci_high": [0.55, 0.4],
+                       "gt_rate": [0.6, 0.7], "gt_ci_low": [0.5, 0.6], "gt_ci_high": [0.7, 0.8]})
+    ax = ablation_figure(co).axes[0]
+    bars = [c for c in ax.containers if getattr(c, "errorbar", None) is not None]
+    segs = [tuple(np.round(s[:, 1], 6)) for c in bars for s in c.errorbar.lines[2][0].get_segments()]
+    assert segs == [(50.0, 70.0), (60.0, 80.0), (45.0, 55.0), (20.0, 40.0)]

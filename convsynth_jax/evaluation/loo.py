@@ -61,12 +61,29 @@ def fit_fold(system: SynthesisSystem, annotations: dict, held_out: str, conditio
     return out
 
 
-def recording_threshold_table(annotations: dict, annotate) -> dict:
-    """(session, role) -> Eq. 1's θ_S per motion kind over that participant's whole clip."""
+_THRESHOLD_CACHE: dict = {}  # (id(motion), annotate params) -> (motion, thresholds); the motion is kept so its id stays its own
+
+
+def _recording_thresholds(motion, annotate) -> dict:
+    """Eq. 1's θ_S per kind over the whole ``motion``, memoized per Motion object: a sweep in one
+    process (17 folds x 4 conditions) would otherwise run forward kinematics over every training
+    recording again for every fold and condition."""
     from ..annotate.motion import joint_speeds, recording_thresholds
 
-    return {(s, r): recording_thresholds(joint_speeds(a.motion, annotate), annotate.alpha_s)
-            for s, d in annotations.items() for r, a in d.items()}
+    key = (id(motion), repr(annotate))
+    hit = _THRESHOLD_CACHE.get(key)
+    if hit is not None and hit[0] is motion:
+        return dict(hit[1])
+    th = recording_thresholds(joint_speeds(motion, annotate), annotate.alpha_s)
+    if len(_THRESHOLD_CACHE) >= 256:
+        _THRESHOLD_CACHE.pop(next(iter(_THRESHOLD_CACHE)))
+    _THRESHOLD_CACHE[key] = (motion, th)
+    return dict(th)
+
+
+def recording_threshold_table(annotations: dict, annotate) -> dict:
+    """(session, role) -> Eq. 1's θ_S per motion kind over that participant's whole clip."""
+    return {(s, r): _recording_thresholds(a.motion, annotate) for s, d in annotations.items() for r, a in d.items()}
 
 
 def fold_thresholds(annotations: dict, held_out: str, annotate, table: dict | None = None) -> tuple[dict, dict]:

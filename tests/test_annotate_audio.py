@@ -83,9 +83,15 @@ def test_max_gap_and_clause_length_limits():
     w = words([(0.0, 0.2, "a"), (0.3, 0.5, "b"), (0.6, 0.8, "c"), (0.9, 1.1, "d"), (1.2, 1.4, "e")])
     assert segment_words(w, max_gap=0.3)["text"].tolist() == ["a b c d e"]
     assert segment_words(w, max_gap=0.05)["text"].tolist() == ["a", "b", "c", "d", "e"]
-    assert segment_words(w, max_clause_words=2)["text"].tolist() == ["a b", "c d", "e"]
+    pause = AnnotateParams(clause_method="pause")  # the greedy limits of the pause method
+    assert segment_words(w, max_clause_words=2, params=pause)["text"].tolist() == ["a b", "c d", "e"]
     # "c" would stretch the clause to 0.8 s > 0.7 s
-    assert segment_words(w, max_clause_seconds=0.7)["text"].tolist() == ["a b", "c d", "e"]
+    assert segment_words(w, max_clause_seconds=0.7, params=pause)["text"].tolist() == ["a b", "c d", "e"]
+    # the prosodic method honours the same limits (where it cuts is its own choice)
+    for kw in ({"max_clause_words": 2}, {"max_clause_seconds": 0.7}):
+        seg = segment_words(w, **kw)
+        assert " ".join(seg["text"]) == "a b c d e"
+        assert (seg["text"].str.split().str.len() <= 2).all() and (seg["end"] - seg["start"] <= 0.7 + 1e-9).all()
     # unsorted input is put in time order first
     assert segment_words(w.iloc[::-1], max_gap=0.3)["text"].tolist() == ["a b c d e"]
 
@@ -111,7 +117,8 @@ def test_add_peaks_and_local_peaks_by_hand():
     out = add_peaks(seg, t, f0)
     assert out.loc[0, "peak"] == pytest.approx(0.30) and out.loc[0, "f0_peak"] == 150.0
     assert out.loc[1, "peak"] == pytest.approx(1.25) and np.isnan(out.loc[1, "f0_peak"])  # midpoint
-    assert list(out.columns) == ["kind", "start", "peak", "end", "text", "f0_peak"]
+    assert list(out.columns) == ["kind", "start", "peak", "end", "text", "f0_peak", "f0_suspect"]
+    assert not out["f0_suspect"].any()  # no guard information given
     np.testing.assert_allclose(local_peaks(t, f0, 0.0, 0.5), [0.30, 0.40])
     assert local_peaks(t, f0, 1.0, 1.5).size == 0
 

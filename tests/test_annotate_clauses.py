@@ -11,34 +11,12 @@ from convsynth_jax.annotate.audio import annotate_audio, load_word_corpus, norma
 from convsynth_jax.annotate.clauses import (WordProsody, boundary_evidence, guard_f0, segmentation_score, split_run,
                                             syllables)
 from convsynth_jax.annotate.params import AnnotateParams
+from convsynth_jax.data.fluent import fluent_speech
 from convsynth_jax.data.synthetic import VOCAB, Segment, _render_voice
 from convsynth_jax.errors import ConfigError
 from convsynth_jax.io.audio import Audio
 
 BOUNDARY_TOL = 0.15  # s: a detected clause start within this of a planted one is a hit
-
-
-def fluent_speech(seed: int, sizes, f0_base: float = 150.0, sr: int = 16000, lengthening: float = 1.3):
-    """One speaker's clauses of ``sizes`` words with no pause anywhere (word gaps of 30-70 ms, also
-    between clauses), rendered by the synthetic corpus's voice (declination per clause, a pitch
-    accent on one random word); the last word of each clause is ``lengthening`` times longer.
-    Returns (audio, words DataFrame, planted Segments)."""
-    rng = np.random.default_rng(seed)
-    t, segs, words = 0.3, [], []
-    for n in sizes:
-        ws, w0 = [], t
-        for i in range(n):
-            d = rng.uniform(0.2, 0.34) * (lengthening if i == n - 1 else 1.0)
-            ws.append([t, t + d, VOCAB[rng.integers(len(VOCAB))], False])
-            t += d + rng.uniform(0.03, 0.07)
-        t = ws[-1][1]
-        k = int(rng.integers(n))
-        ws[k][3] = True
-        segs.append(Segment("a", "PC", w0, t, 0.5 * (ws[k][0] + ws[k][1]), [tuple(w) for w in ws]))
-        words += [tuple(w[:3]) for w in ws]
-        t += rng.uniform(0.03, 0.07)
-    x, _ = _render_voice(segs, f0_base, t + 0.5, sr, rng, 0.28)
-    return Audio(x.astype(np.float32), sr), pd.DataFrame(words, columns=["start", "end", "word"]), segs
 
 
 def boundary_hits(detected_starts, planted_starts):

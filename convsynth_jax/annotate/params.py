@@ -37,7 +37,7 @@ class AnnotateParams:
     clause_prior_weight: float = 1.0           # weights of the DP objective (ours)
     clause_boundary_bias: float = 1.0          # cost of a boundary without evidence
     clause_w_pause: float = 2.0
-    clause_w_reset: float = 3.5
+    clause_w_reset: float = 5.0
     clause_reset_semitones: float = 2.0        # an F0 reset of this size counts fully
     clause_w_lengthening: float = 1.0
     clause_w_function: float = 1.0             # no boundary after "the", "of", "I", "and" ...

@@ -5,7 +5,11 @@ LR and HP come from an editable word corpus (``resources/word_corpus.yaml``, or
 ``annotate.word_corpus`` in the config: a path or inline lists): a token (or a phrase of up to
 three tokens, matched greedily, longest first) in a list gets that label. Every run of other words
 becomes a phonemic clause, split at pauses longer than ``max_gap`` seconds, at LR/HP tokens and,
-optionally, when a clause reaches ``max_clause_words`` words or ``max_clause_seconds``.
+optionally, when a clause reaches ``max_clause_words`` words or ``max_clause_seconds``. With
+``clause_method: prosodic`` (default) each such run is split further into clauses of one primary
+stress from pauses, F0 resets, pre-boundary lengthening and prominence with a words-per-clause prior
+(``annotate/clauses.py``); ``pause`` stops at the runs. The F0 track is octave-guarded
+(``clauses.guard_f0``) before peaks are picked; a clause's peak is that of its stressed word.
 
 Words in context (``word_context``, default): a listener response is a short turn, or a
 backchannel, made of response words: a response word that follows a word of the speaker's own
@@ -373,6 +377,7 @@ def annotate_audio(words: pd.DataFrame, audio, params: AnnotateParams, word_corp
     n_sus = int(out["f0_suspect"].sum())
     if n_sus:
         log.warning("%s: %d of %d segment F0 peaks were octave jumps of the tracker (speaker median %.0f Hz); "
-                    "used the guarded peaks (column f0_suspect)", words.attrs.get("path", "transcript"), n_sus,
+                    "used the guarded peaks (column f0_suspect)",
+                    words.attrs.get("path") or getattr(audio, "path", "") or "audio", n_sus,
                     len(out), g.median)
     return out

@@ -59,14 +59,15 @@ def test_word_corpus_from_hydra_config():
 
 
 # ------------------------------------------------------------------------------------ segmentation
-def test_segment_words_groups_clauses_and_labels_tokens():
+@pytest.mark.parametrize("method", ["prosodic", "pause"])
+def test_segment_words_groups_clauses_and_labels_tokens(method):
     w = words([(0.0, 0.2, "So"), (0.25, 0.5, "we"), (0.55, 0.9, "went,"),     # clause 1 (punctuation ignored)
                (1.5, 1.8, "home"),                                           # pause 0.6 > 0.3: clause 2
                (1.85, 2.1, "uh"),                                            # HP splits
                (2.15, 2.4, "and"), (2.45, 2.6, "you"), (2.6, 2.8, "know"),   # "you know" is one HP
                (3.0, 3.3, "I"), (3.3, 3.5, "see"),                           # "I see" is one LR
                (3.6, 3.8, "uh"), (3.8, 4.0, "huh")])                         # "uh huh": LR, not two HPs
-    seg = segment_words(w, load_word_corpus(), max_gap=0.3)
+    seg = segment_words(w, load_word_corpus(), max_gap=0.3, params=AnnotateParams(clause_method=method))
     assert seg["kind"].tolist() == ["PC", "PC", "HP", "PC", "HP", "LR", "LR"]
     assert seg["text"].tolist() == ["So we went,", "home", "uh", "and", "you know", "I see", "uh huh"]
     assert seg[["start", "end"]].to_numpy().tolist() == [[0.0, 0.9], [1.5, 1.8], [1.85, 2.1], [2.15, 2.4],
@@ -196,7 +197,11 @@ def test_unquoted_yaml_boolean_is_rejected(tmp_path):
 # ---------------------------------------------------------------------------- words in context (#14)
 def _kinds(rows, **kw):
     seg = segment_words(words(rows), load_word_corpus(), params=AnnotateParams(**kw))
-    return list(zip(seg["kind"], seg["text"]))
+    out = list(zip(seg["kind"], seg["text"]))
+    # these short runs are single clauses for both clause methods
+    pause = segment_words(words(rows), load_word_corpus(), params=AnnotateParams(**{**kw, "clause_method": "pause"}))
+    assert list(zip(pause["kind"], pause["text"])) == out
+    return out
 
 
 def test_like_as_a_verb_is_no_hesitation():

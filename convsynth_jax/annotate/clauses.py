@@ -37,6 +37,7 @@ octave-jump cost (``f0_octave_jump_cost``) already penalizes such jumps inside t
 from __future__ import annotations
 
 import re
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,12 +62,9 @@ def _nan_median_filter(x: np.ndarray, width: int) -> np.ndarray:
     h = width // 2
     pad = np.concatenate([np.full(h, np.nan), x, np.full(h, np.nan)])
     win = np.lib.stride_tricks.sliding_window_view(pad, 2 * h + 1)
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            med = np.nanmedian(win, axis=1)
+    with warnings.catch_warnings():  # all-NaN windows (unvoiced stretches) give NaN quietly
+        warnings.simplefilter("ignore", RuntimeWarning)
+        med = np.nanmedian(win, axis=1)
     return np.where(np.isfinite(x), med, np.nan)
 
 
@@ -182,17 +180,15 @@ def word_prosody(words: pd.DataFrame, f0: GuardedF0 | None = None, energy=None) 
                 e_max[k] = float(edb[a[k]:b[k]].max())
     syl = np.array([syllables(w) for w in words["word"]], np.float64)
     dur = np.maximum(en - st, 1e-3)
-    per_syl = float(dur.sum() / syl.sum()) if n else 1.0
-    ratio = dur / (per_syl * np.sqrt(syl))  # a word of s syllables lasts about sqrt(s) "units" (ours)
+    # a word of s syllables lasts about sqrt(s) times a one-syllable word (ours); the ratio is
+    # relative to the speaker's geometric mean over all words
+    ratio = dur / np.sqrt(syl)
     ratio = ratio / float(np.exp(np.mean(np.log(ratio)))) if n else ratio
     parts = [_z(f0_max), _z(f0_max), _z(e_max), _z(np.log(ratio))]
     stack = np.vstack(parts) if n else np.zeros((4, 0))
-    with np.errstate(all="ignore"):
-        import warnings
-
-        with warnings.catch_warnings():
-            warnings.simplefilter("ignore", RuntimeWarning)
-            prom = np.nanmean(stack, axis=0) if n else np.zeros(0)
+    with warnings.catch_warnings():  # a word without any feature gets prominence 0
+        warnings.simplefilter("ignore", RuntimeWarning)
+        prom = np.nanmean(stack, axis=0) if n else np.zeros(0)
     return WordProsody(f0_max, f0_low, f0_start, f0_end, e_max, ratio, np.nan_to_num(prom, nan=0.0))
 
 

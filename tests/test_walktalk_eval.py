@@ -75,6 +75,10 @@ def test_walktalk_eval_on_fixtures(tmp_path):
     assert (df["stroke_peak_s"] <= df["utterance_peak_s"]).all()
     assert (df["foot_slide_cm"] <= 2.0).all()
     assert (df.loc[df["method"] != "naive", "dof_within_csigma"]).all()
+    # the loop-alone baseline covers the same frames for the unsynchronized methods
+    assert df["loop_violation_frac"].between(0, 1).all()
+    unsynced = df[df["method"] != "stylized+synced"]
+    assert (unsynced.groupby(["gesture", "gait"])["loop_violation_frac"].nunique() == 1).all()
     for name in ("walktalk_eval_summary.csv", "walktalk_peak_phase.png", "walktalk_elbow.png",
                  "walktalk_contact_sheet.png", "summary.json"):
         assert (tmp_path / name).stat().st_size > 0
@@ -176,3 +180,34 @@ def test_phase_csv_override_and_out_of_order(tmp_path):
     g = next(gc.gesture for gc in lib.gestures if Path(gc.gesture.name).stem == stem)
     assert (g.phases.pb, g.phases.pe, g.phases.sb, g.phases.se, g.phases.rb, g.phases.re) == (3, 9, 12, 30, 33, 48)
     assert g.phases.peaks == (15,) and g.handedness == "r"
+
+
+def test_stylized_strokes_stay_within_joint_limits_on_fixtures():
+    """Defect: with c = 3 the stylization band of a jog loop (elbows already flexed ~90 deg) reached
+    past any flexion in the clips, so raise-hand strokes were spliced with the elbow folded beyond
+    its limit (jog stylized violations 42% vs naive 5% on bandai2). The band is now also cut at
+    the library's range of motion; the elbow bounce is rescaled into it as well. The paper's band
+    alone (respect_joint_limits=False) still leaves the limits on the jog fixture."""
+    from convsynth_jax.walktalk.evaluate import dof_limits, load_library
+    from convsynth_jax.walktalk.pipeline import splice_gesture
+    from convsynth_jax.walktalk.splice import joint_euler
+
+    p = WalkTalkParams()
+    lib = load_library(p, FIXTURES, 1, single_peak_only=True)
+    rom, scored = dof_limits(lib), dof_limits(lib, (0.5, 99.5), 0.5)
+    paper = dataclasses.replace(p.splice, respect_joint_limits=False)
+    for gait in ("walk", "jog"):
+        lc = lib.loops[gait][0]
+        for gc in lib.gestures:
+            for method in ("stylized", "stylized+synced"):
+                r = splice_gesture(lc, gc, 4.0, 220, p.splice, method, limits=rom)
+                e = joint_euler(r.motion.slice(r.phases.sb, r.phases.se + 1), gc.joints)
+                assert not scored.violations(e, gc.joints).any(), (gait, gc.gesture.name, method)
+                # still within the paper's +- c sigma
+                st = lc.stats.mean[[lc.joints.index(j) for j in gc.joints]]
+                sd = lc.stats.std[[lc.joints.index(j) for j in gc.joints]]
+                assert np.all(np.abs(r.styled_euler - st) <= p.splice.c * sd + 1e-4)
+            if gait == "jog":
+                r = splice_gesture(lc, gc, 4.0, 220, paper, "stylized", limits=rom)
+                e = joint_euler(r.motion.slice(r.phases.sb, r.phases.se + 1), gc.joints)
+                assert scored.violations(e, gc.joints).any(axis=(1, 2)).mean() > 0.5

@@ -75,7 +75,10 @@ def _figures(df, lib, p, out_dir: Path) -> list[str]:
     T = fg + 2 * (lc.loop.num_frames + 30)
     u = (lc.loop.num_frames + 30 + gc.gesture.phases.peaks[0]) / p.fps + p.splice.lead_s
     loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
-    res = {m: splice_gesture(lc, gc, u, T, p.splice, m, loco=loco, contact=contact)
+    from ..walktalk.evaluate import dof_limits
+
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
+    res = {m: splice_gesture(lc, gc, u, T, p.splice, m, loco=loco, contact=contact, limits=rom)
            for m in ("naive", "stylized+synced")}
     ph = res["stylized+synced"].phases
     frames = sorted({ph.pb, (ph.pb + ph.sb) // 2, ph.sb, *ph.peaks, ph.se, (ph.rb + ph.re) // 2, ph.re})

@@ -30,7 +30,7 @@ from .pipeline import (
     loop_context,
     splice_gesture,
 )
-from .splice import joint_euler
+from .splice import JointLimits, joint_euler, joint_limits
 
 log = logging.getLogger(__name__)
 
@@ -133,30 +133,10 @@ def _arm_joints(body: Body) -> tuple:
     return tuple(j for s in ("l", "r") for j in body.arm(s))
 
 
-def _wrap(x):
-    return (x + np.pi) % (2 * np.pi) - np.pi
-
-
-@dataclass(frozen=True)
-class Limits:
-    """Per arm-DOF limits (A, 3) as wrapped offsets from a reference angle (circular mean)."""
-
-    joints: tuple
-    ref: np.ndarray
-    lo: np.ndarray
-    hi: np.ndarray
-
-
-def dof_limits(lib: Library, percentiles=(0.5, 99.5), tolerance_deg: float = 0.0) -> Limits:
+def dof_limits(lib: Library, percentiles=(0.5, 99.5), tolerance_deg: float = 0.0) -> JointLimits:
     """Limits over every source clip loaded (all locomotion and gesture clips found, not only the
     loops and gestures chosen for the evaluation)."""
-    joints = _arm_joints(lib.body)
-    x = np.concatenate(lib.source_euler)
-    ref = np.angle(np.exp(1j * x).mean(axis=0))
-    d = _wrap(x - ref)
-    tol = np.radians(tolerance_deg)
-    return Limits(joints, ref, np.percentile(d, percentiles[0], axis=0) - tol,
-                  np.percentile(d, percentiles[1], axis=0) + tol)
+    return joint_limits(lib.source_euler, _arm_joints(lib.body), percentiles, tolerance_deg)
 
 
 def _segment_distance(p, a, b):
@@ -188,28 +168,38 @@ def loop_source_jerk(lc: LoopContext, sides) -> float:
     return float(wrist_jerk(joint_positions(m), lc.body, sides, m.fps).max())
 
 
-def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: Limits, ep: EvalParams,
-                   c: float, src_jerk: float) -> dict:
+def limit_violations(m, pos, ph, joints, body: Body, limits: JointLimits, torso_radius_cm: float):
+    """Per frame t_Pb..t_Re of ``m`` (positions ``pos``): (DOF of ``joints`` outside its limits,
+    a hand inside the torso), two (n,) bool arrays."""
+    frames = np.arange(ph.pb, ph.re + 1)
+    dof_bad = np.any(limits.violations(joint_euler(m.slice(ph.pb, ph.re + 1), joints), joints), axis=(1, 2))
+    torso_bad = np.zeros(len(frames), bool)
+    for s in ("l", "r"):
+        dist = _segment_distance(pos[frames, body.joints[f"hand_{s}"]], pos[frames, body.joints["hips"]],
+                                 pos[frames, body.joints["neck"]])
+        torso_bad |= dist < torso_radius_cm
+    return dof_bad, torso_bad
+
+
+def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits, ep: EvalParams,
+                   c: float, src_jerk: float, loco=None, loco_pos=None) -> dict:
+    """One row of the evaluation; ``loco``/``loco_pos``: the tiled loop alone and its positions
+    (computed here when absent) for the loop-alone violation baseline."""
     body, g, ph = lc.body, gc.gesture, res.phases
     m = res.motion
     fps = m.fps
     pos = joint_positions(m)
+    if loco is None:
+        loco = tile_loop(lc.loop, m.num_frames)
+    loco_pos = joint_positions(loco) if loco_pos is None else loco_pos
     jerk = wrist_jerk(pos, body, g.sides, fps)
     near = []
     for b in (ph.pb, ph.pe + 1, ph.rb, ph.re + 1):
         lo, hi = max(0, b - 2 * JERK_WINDOW), min(len(jerk), b + JERK_WINDOW + 1)
         if hi > lo:
             near.append(jerk[lo:hi].max())
-    frames = np.arange(ph.pb, ph.re + 1)
-    idx = [limits.joints.index(j) for j in gc.joints]
-    e = joint_euler(m.slice(ph.pb, ph.re + 1), gc.joints)
-    d = _wrap(e - limits.ref[idx])
-    dof_bad = np.any((d < limits.lo[idx]) | (d > limits.hi[idx]), axis=(1, 2))
-    torso_bad = np.zeros(len(frames), bool)
-    for s in ("l", "r"):
-        dist = _segment_distance(pos[frames, body.joints[f"hand_{s}"]], pos[frames, body.joints["hips"]],
-                                 pos[frames, body.joints["neck"]])
-        torso_bad |= dist < ep.torso_radius_cm
+    dof_bad, torso_bad = limit_violations(m, pos, ph, gc.joints, body, limits, ep.torso_radius_cm)
+    loop_dof, loop_torso = limit_violations(loco, loco_pos, ph, gc.joints, body, limits, ep.torso_radius_cm)
     stroke = slice(ph.sb, ph.se + 1)
     bend = np.mean([elbow_bend(pos[stroke], body, s).mean() for s in g.sides])
     loop_bend = np.mean([lc_bend(lc, s) for s in g.sides])
@@ -226,6 +216,8 @@ def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: Limits, ep:
         "joint_limit_violation_frac": float(np.mean(dof_bad | torso_bad)),
         "dof_violation_frac": float(np.mean(dof_bad)),
         "hand_in_torso_frac": float(np.mean(torso_bad)),
+        # the same metric on the locomotion alone (no gesture) over the same frames and joints
+        "loop_violation_frac": float(np.mean(loop_dof | loop_torso)),
         "foot_slide_cm": seam_foot_slide(m, lc.loop.num_frames, _GAIT, body, pos),
         "elbow_bend_deg": float(bend),
         "loop_elbow_bend_deg": float(loop_bend),
@@ -250,6 +242,7 @@ def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bo
     _GAIT = p.gait
     rng = np.random.default_rng(p.seed)
     limits = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)   # the range of motion the stylization respects
     fps = p.fps
     s_frames = int(np.floor(p.splice.max_shift_s * fps + 1e-9))
     rows = []
@@ -271,11 +264,13 @@ def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bo
                     src_cache[key] = loop_source_jerk(lc, g.sides)
                 src = max(src_cache[key], gjerk)
                 loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
+                loco_pos = joint_positions(loco)
                 for name in ep.methods:
-                    res = splice_gesture(lc, gc, u, T, p.splice, METHODS[name], loco=loco, contact=contact)
+                    res = splice_gesture(lc, gc, u, T, p.splice, METHODS[name], loco=loco, contact=contact,
+                                         limits=rom)
                     row = {"gesture": Path(g.name).stem, "loop": f"{Path(lc.loop.source).stem}[{lc.loop.start}]",
                            "gait": gait, "method": name, "utterance_peak_s": u, "handedness": g.handedness}
-                    row.update(splice_metrics(res, lc, gc, limits, ep, p.splice.c, src))
+                    row.update(splice_metrics(res, lc, gc, limits, ep, p.splice.c, src, loco, loco_pos))
                     rows.append(row)
     cols = ["gesture", "loop", "gait", "method", "stroke_peak_s", "utterance_peak_s", "shift_s", "peak_in_contact",
             "max_jerk_ratio", "joint_limit_violation_frac", "foot_slide_cm", "elbow_bend_deg"]
@@ -315,6 +310,7 @@ def summarize(df: pd.DataFrame) -> list[dict]:
             "violation_frac_max": float(d["joint_limit_violation_frac"].max()),
             "dof_violation_frac_mean": float(d["dof_violation_frac"].mean()),
             "hand_in_torso_frac_mean": float(d["hand_in_torso_frac"].mean()),
+            "loop_violation_frac_mean": float(d["loop_violation_frac"].mean()),
             "max_jerk_ratio_max": float(d["max_jerk_ratio"].max()),
             "max_jerk_ratio_median": float(d["max_jerk_ratio"].median()),
             "jerk_ratio_le_2_rate": float((d["max_jerk_ratio"] <= 2.0).mean()),

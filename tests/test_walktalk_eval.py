@@ -248,3 +248,31 @@ def test_elbow_tracking_follows_the_loop_on_fixtures():
         assert abs(w.loc[(g, "naive"), "jog"] - w.loc[(g, "naive"), "walk"]) < 1.0
     s = {(r["gait"], r["method"]): r for r in elbow_tracking_summary(df)}
     assert s[("all", "stylized")]["elbow_corr_pooled"] > 0.9
+
+
+def test_walking_contact_is_the_landing_front_foot_on_fixture():
+    """Defect: the swing ankle skims the floor within near_ground_cm at ~300 cm/s after passing the
+    stance leg, and those frames counted as walking contact (~80% of a walk was contact). Contact
+    is now the front foot down, or near the ground and landing (slower than near_ground_speed_cms):
+    ~60% on bandai2, and every contact frame has a slow front foot."""
+    from convsynth_jax.walktalk.locomotion import _horizontal_speed, detect_gait
+    from convsynth_jax.walktalk.params import GaitParams
+
+    p = GaitParams()
+    m = load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh")))
+    b = find_body(m.skeleton)
+    pos = joint_positions(m)
+    g = detect_gait(m, p, b, pos)
+    assert g.gait == "walk"
+    assert 0.5 <= g.contact.mean() <= 0.7, g.contact.mean()
+    heading = pos[-1, b.joints["hips"]] - pos[0, b.joints["hips"]]
+    heading[1] = 0.0
+    fl, fr = pos[:, b.joints["foot_l"]], pos[:, b.joints["foot_r"]]
+    front_l = (fl - fr) @ heading > 0
+    speed = np.where(front_l, _horizontal_speed(fl, m.fps), _horizontal_speed(fr, m.fps))
+    assert (speed[g.contact] < p.near_ground_speed_cms).all()
+    # flight frames exist between consecutive left and right strikes (one leg passing the other)
+    for s in g.strikes_l:
+        nxt = [r for r in g.strikes_r if r > s]
+        if nxt:
+            assert not g.contact[s:nxt[0]].all()

@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
@@ -57,6 +58,7 @@ def run(cfg, out_dir: Path) -> dict:
                           for lc in v] for g, v in lib.loops.items()},
             "skipped_clips": lib.skipped, "splices": len(df), "per_gait_method": summary,
             "limits_in_sample_violation": in_sample_violations(lib, scored),
+            "loop_contact_frac": {g: float(np.mean([lc.loop.contact.mean() for lc in v])) for g, v in lib.loops.items() if v},
             "load_seconds": t1 - t0, "eval_seconds": t2 - t1, "figures": figures}
 
 

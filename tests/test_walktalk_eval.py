@@ -77,6 +77,7 @@ def test_walktalk_eval_on_fixtures(tmp_path):
     assert (df.loc[df["method"] != "naive", "dof_within_csigma"]).all()
     # the loop-alone baseline covers the same frames for the unsynchronized methods
     assert df["loop_violation_frac"].between(0, 1).all()
+    assert (df["new_violation_frac"] <= df["joint_limit_violation_frac"] + 1e-12).all()
     unsynced = df[df["method"] != "stylized+synced"]
     assert (unsynced.groupby(["gesture", "gait"])["loop_violation_frac"].nunique() == 1).all()
     for name in ("walktalk_eval_summary.csv", "walktalk_peak_phase.png", "walktalk_elbow.png",

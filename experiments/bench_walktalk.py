@@ -6,7 +6,11 @@ Reported (goals from issue #12, never asserted):
     figures included), in-process, after imports;
   * the demo: 2 characters x 60 s per gait (walk and jog), task time after start-up (speech
     annotation, library loading and synthesis included);
-  * an ablation of the stylization constant c on joint-limit violations (subset of gestures).
+  * an ablation of the stylization constant c on joint-limit violations and the per-gait elbow
+    correlation (subset of gestures, 3 loops per gait);
+  * the elbow-tracking study: every walk and run clip as a loop (24 + 52), every 6th single-peak
+    gesture, naive / stylized / stylized+synced: per gait, the correlation over loops of the
+    stroke's elbow bend with the loop's, per gesture.
 Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results/bench_walktalk.json.
 
     python experiments/bench_walktalk.py [--skip-ablation]
@@ -58,7 +62,8 @@ def bench_eval(data_dir: Path) -> dict:
         s = run_task(cfg, d)
         wall = time.perf_counter() - t0
     return {"eval_s": wall, "eval_load_s": s["load_seconds"], "eval_splice_metrics_s": s["eval_seconds"],
-            "eval_splices": s["splices"], "eval_gestures": s["gestures"], "per_gait_method": s["per_gait_method"]}
+            "eval_splices": s["splices"], "eval_gestures": s["gestures"], "per_gait_method": s["per_gait_method"],
+            "limits_in_sample_violation": s["limits_in_sample_violation"], "loop_contact_frac": s["loop_contact_frac"]}
 
 
 def bench_demo(data_dir: Path) -> dict:
@@ -77,8 +82,6 @@ def bench_demo(data_dir: Path) -> dict:
 
 
 def bench_ablation(data_dir: Path) -> list[dict]:
-    import pandas as pd
-
     from convsynth_jax.walktalk.evaluate import (
         EvalParams,
         load_library,
@@ -98,18 +101,28 @@ def bench_ablation(data_dir: Path) -> list[dict]:
             if r["gait"] != "all":
                 rows.append({"c": c, "gait": r["gait"], "method": r["method"],
                              "violation_frac_mean": r["violation_frac_mean"],
+                             "loop_violation_frac_mean": r["loop_violation_frac_mean"],
                              "max_jerk_ratio_median": r["max_jerk_ratio_median"],
-                             "elbow_corr_all_loops": None})
-        allr = {r["method"]: r for r in summarize(df) if r["gait"] == "all"}
-        for r in rows[-4:]:
-            r["elbow_corr_all_loops"] = allr[r["method"]]["elbow_corr_per_gesture_mean"]
-    pd.DataFrame(rows)  # shape check
+                             "elbow_corr_per_gesture_mean": r["elbow_corr_per_gesture_mean"]})
     return rows
+
+
+def bench_elbow(data_dir: Path) -> dict:
+    from convsynth_jax.walktalk.evaluate import elbow_tracking, elbow_tracking_summary, load_library
+    from convsynth_jax.walktalk.params import WalkTalkParams
+
+    p = WalkTalkParams()
+    t0 = time.perf_counter()
+    lib = load_library(p, data_dir, 10_000, single_peak_only=True)   # every walk and run clip as a loop
+    df = elbow_tracking(lib, p, gestures=lib.gestures[::6])
+    return {"seconds": time.perf_counter() - t0, "skipped_clips": lib.skipped,
+            "per_gait_method": elbow_tracking_summary(df)}
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
+    ap.add_argument("--skip-elbow", action="store_true")
     a = ap.parse_args()
     data_dir = SHARED / "bandai2" / "bvh"
     if not data_dir.is_dir():
@@ -124,13 +137,19 @@ def main():
     result["demo"] = bench_demo(data_dir)
     if not a.skip_ablation:
         result["ablation_c"] = bench_ablation(data_dir)
+    if not a.skip_elbow:
+        result["elbow_tracking"] = bench_elbow(data_dir)
     result["met"] = {"splice": result["splice_warm_ms"] < GOALS["splice_warm_ms"],
                      "eval": result["eval_s"] < GOALS["eval_s"],
                      "demo": all(v["demo_s"] < GOALS["demo_s"] for v in result["demo"].values())}
     RESULTS.mkdir(parents=True, exist_ok=True)
     write_json_atomic(RESULTS / "bench_walktalk.json", result)
-    print(json.dumps({k: v for k, v in result.items() if k not in ("per_gait_method", "ablation_c")}, indent=2,
-                     default=float))
+    print(json.dumps({k: v for k, v in result.items() if k not in ("per_gait_method", "ablation_c", "elbow_tracking")},
+                     indent=2, default=float))
+    for r in result["per_gait_method"]:
+        print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
+    for r in result.get("elbow_tracking", {}).get("per_gait_method", []):
+        print(r)
     if "ablation_c" in result:
         for r in result["ablation_c"]:
             print(r)

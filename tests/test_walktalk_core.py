@@ -375,3 +375,55 @@ def test_smootherstep_ease_and_transition_pad():
     assert gp.phases.peaks == (g.phases.peaks[0] + 5,)
     np.testing.assert_array_equal(gp.motion.rotations[:5], np.repeat(g.motion.rotations[:1], 5, 0))
     np.testing.assert_array_equal(gp.motion.rotations[5:75], g.motion.rotations)
+
+
+def test_stylize_respects_joint_limits_planted():
+    """Planted: B_L = 2 with std 1 and c 3 allows 2 - 3 = -1, but the range of motion ends at 0.5
+    (ref 2, lo -1.5, hi 10): the deviation (0 .. -10) is rescaled linearly by 1.5 / 10 so the DOF
+    ends on 0.5, not clipped and not at the paper's -1; the other side keeps the c-sigma band."""
+    from convsynth_jax.walktalk.splice import JointLimits, LoopStats, stylize_bands
+
+    ge = np.zeros((3, 1, 3))
+    ge[:, 0, 0] = [0.0, -5.0, -10.0]
+    ge[:, 0, 1] = [0.0, 5.0, 10.0]
+    stats = LoopStats(np.full((1, 3), 2.0), np.ones((1, 3)))
+    lim = JointLimits((7,), np.full((1, 3), 2.0), np.full((1, 3), -1.5), np.full((1, 3), 10.0))
+    down, up = stylize_bands(stats, 3.0, lim, (7,))
+    np.testing.assert_allclose(down[0], 1.5)
+    np.testing.assert_allclose(up[0], 3.0)
+    got = stylize(ge, stats, np.zeros((1, 3)), 3.0, lim, (7,))
+    np.testing.assert_allclose(got[:, 0, 0], [2.0, 1.25, 0.5], atol=1e-6)
+    np.testing.assert_allclose(got[:, 0, 1], [2.0, 3.5, 5.0], atol=1e-6)
+    loose = JointLimits((7,), lim.ref, lim.lo - 1e-6, lim.hi + 1e-6)   # float32 kernel on the limit
+    assert not loose.violations(got, (7,)).any()
+    paper = stylize(ge, stats, np.zeros((1, 3)), 3.0)             # the paper's band alone
+    np.testing.assert_allclose(paper[:, 0, 0], [2.0, 0.5, -1.0], atol=1e-6)
+    assert loose.violations(paper, (7,))[:, 0, 0].tolist() == [False, False, True]
+    # limits are wrapped offsets from the reference: a DOF near +-pi is measured across the seam
+    lim_pi = JointLimits((7,), np.full((1, 3), np.pi), np.full((1, 3), -0.1), np.full((1, 3), 0.1))
+    x = np.array([[[np.pi - 0.05, -np.pi + 0.05, np.pi - 0.2]]]).reshape(1, 1, 3)
+    assert lim_pi.violations(x, (7,)).tolist() == [[[False, False, True]]]
+
+
+def test_stylize_kernel_with_bands_vs_reference():
+    """The banded kernel against a loop: one factor per DOF, min over the two sides."""
+    from convsynth_jax.walktalk.splice import JointLimits, LoopStats, stylize_bands
+
+    rng = np.random.default_rng(3)
+    ge = rng.normal(0, 1.0, (17, 4, 3))
+    b_l, sd, b_g = rng.normal(0, 0.3, (4, 3)), rng.uniform(0.05, 0.6, (4, 3)), rng.normal(0, 0.3, (4, 3))
+    lim = JointLimits(tuple(range(4)), np.zeros((4, 3)), rng.uniform(-1.5, -0.4, (4, 3)), rng.uniform(0.4, 1.5, (4, 3)))
+    got = stylize(ge, LoopStats(b_l, sd), b_g, 3.0, lim, tuple(range(4)))
+    down, up = stylize_bands(LoopStats(b_l, sd), 3.0, lim, tuple(range(4)))
+    for a in range(4):
+        for d in range(3):
+            dev = ge[:, a, d] - b_g[a, d]
+            s = 1.0
+            if -dev.min() > down[a, d]:
+                s = min(s, down[a, d] / -dev.min())
+            if dev.max() > up[a, d]:
+                s = min(s, up[a, d] / dev.max())
+            np.testing.assert_allclose(got[:, a, d], b_l[a, d] + s * dev, atol=1e-5)
+    loose = JointLimits(lim.joints, lim.ref, lim.lo - 1e-5, lim.hi + 1e-5)
+    assert not loose.violations(got, tuple(range(4))).any()
+    assert np.all(np.abs(got - b_l) <= 3.0 * sd + 1e-5)

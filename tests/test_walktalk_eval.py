@@ -75,6 +75,11 @@ def test_walktalk_eval_on_fixtures(tmp_path):
     assert (df["stroke_peak_s"] <= df["utterance_peak_s"]).all()
     assert (df["foot_slide_cm"] <= 2.0).all()
     assert (df.loc[df["method"] != "naive", "dof_within_csigma"]).all()
+    # the loop-alone baseline covers the same frames for the unsynchronized methods
+    assert df["loop_violation_frac"].between(0, 1).all()
+    assert (df["new_violation_frac"] <= df["joint_limit_violation_frac"] + 1e-12).all()
+    unsynced = df[df["method"] != "stylized+synced"]
+    assert (unsynced.groupby(["gesture", "gait"])["loop_violation_frac"].nunique() == 1).all()
     for name in ("walktalk_eval_summary.csv", "walktalk_peak_phase.png", "walktalk_elbow.png",
                  "walktalk_contact_sheet.png", "summary.json"):
         assert (tmp_path / name).stat().st_size > 0
@@ -176,3 +181,99 @@ def test_phase_csv_override_and_out_of_order(tmp_path):
     g = next(gc.gesture for gc in lib.gestures if Path(gc.gesture.name).stem == stem)
     assert (g.phases.pb, g.phases.pe, g.phases.sb, g.phases.se, g.phases.rb, g.phases.re) == (3, 9, 12, 30, 33, 48)
     assert g.phases.peaks == (15,) and g.handedness == "r"
+
+
+def test_stylized_strokes_stay_within_joint_limits_on_fixtures():
+    """Defect: with c = 3 the stylization band of a jog loop (elbows already flexed ~90 deg) reached
+    past any flexion in the clips, so raise-hand strokes were spliced with the elbow folded beyond
+    its limit (jog stylized violations 42% vs naive 5% on bandai2). The band is now also cut at
+    the library's range of motion; the elbow bounce is rescaled into it as well. The paper's band
+    alone (respect_joint_limits=False) still leaves the limits on the jog fixture."""
+    from convsynth_jax.walktalk.evaluate import dof_limits, load_library
+    from convsynth_jax.walktalk.pipeline import splice_gesture
+    from convsynth_jax.walktalk.splice import joint_euler
+
+    p = WalkTalkParams()
+    lib = load_library(p, FIXTURES, 1, single_peak_only=True)
+    rom, scored = dof_limits(lib), dof_limits(lib, (0.5, 99.5), 0.5)
+    paper = dataclasses.replace(p.splice, respect_joint_limits=False)
+    for gait in ("walk", "jog"):
+        lc = lib.loops[gait][0]
+        for gc in lib.gestures:
+            for method in ("stylized", "stylized+synced"):
+                r = splice_gesture(lc, gc, 4.0, 220, p.splice, method, limits=rom)
+                e = joint_euler(r.motion.slice(r.phases.sb, r.phases.se + 1), gc.joints)
+                assert not scored.violations(e, gc.joints).any(), (gait, gc.gesture.name, method)
+                # still within the paper's +- c sigma
+                st = lc.stats.mean[[lc.joints.index(j) for j in gc.joints]]
+                sd = lc.stats.std[[lc.joints.index(j) for j in gc.joints]]
+                assert np.all(np.abs(r.styled_euler - st) <= p.splice.c * sd + 1e-4)
+            if gait == "jog":
+                r = splice_gesture(lc, gc, 4.0, 220, paper, "stylized", limits=rom)
+                e = joint_euler(r.motion.slice(r.phases.sb, r.phases.se + 1), gc.joints)
+                assert scored.violations(e, gc.joints).any(axis=(1, 2)).mean() > 0.5
+
+
+def test_in_sample_violation_floor_planted():
+    """One DOF of the left arm spread evenly over 1000 frames, every other DOF constant: the
+    0.5-99.5 percentile limits leave out 5 + 5 frames, so 1% of the left arm's frames (0.5% as the
+    mean of both arms) violate in-sample; 0-100 percentiles leave none."""
+    from convsynth_jax.walktalk.evaluate import dof_limits, in_sample_violations, load_library
+
+    lib = load_library(WalkTalkParams(), FIXTURES, 1, single_peak_only=True)
+    a = len(dof_limits(lib).joints)
+    x = np.zeros((1000, a, 3))
+    x[:, 1, 2] = np.linspace(-0.5, 0.5, 1000)   # joint row 1 is in the left arm (shoulder first)
+    lib = dataclasses.replace(lib, source_euler=[x], source_kind=["walk"])
+    got = in_sample_violations(lib, dof_limits(lib, (0.5, 99.5)))
+    assert got["walk"]["frames"] == 1000
+    np.testing.assert_allclose(got["walk"]["one_arm_frac"], 0.005, atol=1e-3)
+    np.testing.assert_allclose(got["all"]["both_arms_frac"], 0.01, atol=2e-3)
+    assert in_sample_violations(lib, dof_limits(lib, (0.0, 100.0)))["all"]["both_arms_frac"] == 0.0
+
+
+def test_elbow_tracking_follows_the_loop_on_fixtures():
+    """Stylized strokes bend the elbow more on the jog loop (elbows ~90 deg) than on the walk loop;
+    naive strokes are the same on both (the gesture's own elbow)."""
+    from convsynth_jax.walktalk.evaluate import elbow_tracking, elbow_tracking_summary, load_library
+
+    p = WalkTalkParams()
+    lib = load_library(p, FIXTURES, 1, single_peak_only=True)
+    df = elbow_tracking(lib, p, methods=("naive", "stylized"))
+    assert len(df) == len(lib.gestures) * 2 * 2
+    w = df.pivot_table(index=["gesture", "method"], columns="gait", values="bend")
+    lb = df.groupby("gait")["loop_bend"].first()
+    assert lb["jog"] > lb["walk"] + 20
+    for g in df["gesture"].unique():
+        assert w.loc[(g, "stylized"), "jog"] > w.loc[(g, "stylized"), "walk"] + 10
+        assert abs(w.loc[(g, "naive"), "jog"] - w.loc[(g, "naive"), "walk"]) < 1.0
+    s = {(r["gait"], r["method"]): r for r in elbow_tracking_summary(df)}
+    assert s[("all", "stylized")]["elbow_corr_pooled"] > 0.9
+
+
+def test_walking_contact_is_the_landing_front_foot_on_fixture():
+    """Defect: the swing ankle skims the floor within near_ground_cm at ~300 cm/s after passing the
+    stance leg, and those frames counted as walking contact (~80% of a walk was contact). Contact
+    is now the front foot down, or near the ground and landing (slower than near_ground_speed_cms):
+    ~60% on bandai2, and every contact frame has a slow front foot."""
+    from convsynth_jax.walktalk.locomotion import _horizontal_speed, detect_gait
+    from convsynth_jax.walktalk.params import GaitParams
+
+    p = GaitParams()
+    m = load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh")))
+    b = find_body(m.skeleton)
+    pos = joint_positions(m)
+    g = detect_gait(m, p, b, pos)
+    assert g.gait == "walk"
+    assert 0.5 <= g.contact.mean() <= 0.7, g.contact.mean()
+    heading = pos[-1, b.joints["hips"]] - pos[0, b.joints["hips"]]
+    heading[1] = 0.0
+    fl, fr = pos[:, b.joints["foot_l"]], pos[:, b.joints["foot_r"]]
+    front_l = (fl - fr) @ heading > 0
+    speed = np.where(front_l, _horizontal_speed(fl, m.fps), _horizontal_speed(fr, m.fps))
+    assert (speed[g.contact] < p.near_ground_speed_cms).all()
+    # flight frames exist between consecutive left and right strikes (one leg passing the other)
+    for s in g.strikes_l:
+        nxt = [r for r in g.strikes_r if r > s]
+        if nxt:
+            assert not g.contact[s:nxt[0]].all()

@@ -70,6 +70,60 @@ DEFAULT_JOINTS = {
     "neck": [rf"{_NS}neck$", r"^b_neck0?$", rf"{_NS}neck_?0?1$", r"^bip\d*[ _]neck$"],
     "head": [rf"{_NS}head$", r"^b_head$", r"^bip\d*[ _]head$"],
 }
+
+
+def _body_side(side: str) -> dict:
+    """Clavicle, forearm and leg patterns of one side (roles beyond the six of DEFAULT_JOINTS, for
+    systems that need the whole body, e.g. convsynth_jax.walktalk). Same conventions as _side."""
+    full = {"l": "left", "r": "right"}[side]
+    return {
+        f"{full}_collar": [
+            rf"{_NS}{full}_?collar$",                            # SMPL / SMPL-X (its left_shoulder is the upper arm)
+            rf"{_NS}(?:{full}_?shoulder|shoulder_{side}|{side}_shoulder)$",  # CMU, BEAT, Mixamo LeftShoulder; Bandai Shoulder_L
+            rf"{_NS}(?:{full}_?clavicle|clavicle_{side}|{side}_?clavicle)$",  # Unreal clavicle_l
+            rf"^b_{side}_shoulder$",                             # GENEA b_l_shoulder (the clavicle)
+            rf"^bip\d*[ _]{side}[ _]clavicle$",                  # Biped
+        ],
+        f"{full}_elbow": [
+            rf"{_NS}{full}_?fore_?arm$",                         # CMU, BEAT, Mixamo LeftForeArm
+            rf"{_NS}(?:{full}_?lower_?arm|lower_?arm_{side}|{side}_?lower_?arm)$",  # Bandai LowerArm_L, Unreal lowerarm_l
+            rf"{_NS}{full}_?elbow$",                             # SMPL / SMPL-X left_elbow
+            rf"^b_{side}_forearm$",                              # GENEA
+            rf"^bip\d*[ _]{side}[ _]forearm$",                   # Biped
+        ],
+        f"{full}_upleg": [
+            rf"{_NS}{full}_?up_?leg$",                           # CMU, BEAT, Mixamo LeftUpLeg
+            rf"{_NS}(?:{full}_?upper_?leg|upper_?leg_{side}|{side}_?upper_?leg)$",  # Bandai UpperLeg_L
+            rf"{_NS}(?:{full}_?thigh|thigh_{side}|{side}_?thigh)$",  # Unreal thigh_l
+            rf"{_NS}{full}_?hip$",                               # SMPL / SMPL-X left_hip
+            rf"^b_{side}_upleg$",                                # GENEA
+            rf"^bip\d*[ _]{side}[ _]thigh$",                     # Biped
+        ],
+        f"{full}_foot": [
+            rf"{_NS}{full}_?ankle$",                             # SMPL / SMPL-X left_ankle (its left_foot is the toes)
+            rf"{_NS}(?:{full}_?foot|foot_{side}|{side}_?foot)$",  # CMU, BEAT, Mixamo LeftFoot; Bandai Foot_L
+            rf"^b_{side}_foot$",                                 # GENEA
+            rf"^bip\d*[ _]{side}[ _]foot$",                      # Biped
+        ],
+        f"{full}_toes": [
+            rf"{_NS}{full}_?toe_?base$",                         # CMU, BEAT, Mixamo LeftToeBase
+            rf"{_NS}(?:{full}_?toes?|toes?_{side}|{side}_?toes?|ball_{side})$",  # Bandai Toes_L, Unreal ball_l
+            rf"^bip\d*[ _]{side}[ _]toe0$",                      # Biped
+            rf"{_NS}(?-i:{full}_foot)$",                         # SMPL / SMPL-X (lower case, after the ankle)
+        ],
+    }
+
+
+# Whole-body roles on the same rigs (additive: find_joints keeps its six roles of DEFAULT_JOINTS).
+BODY_JOINTS = {
+    "hips": [rf"{_NS}hips$", rf"{_NS}pelvis$", r"^b_root$", r"^bip\d*[ _]pelvis$"],
+    "spine": [rf"{_NS}spine$", rf"{_NS}spine_?0?1$", r"^b_spine0$", r"^bip\d*[ _]spine$"],
+    **_body_side("l"),
+    **_body_side("r"),
+}
+# Every role the project recognizes by joint name: the one home for joint-name patterns.
+RIG_JOINTS = {**DEFAULT_JOINTS, **BODY_JOINTS}
+
 # Words that make a joint a plausible candidate for a role, listed when no pattern matched.
 _ROLE_HINTS = {"left_hand": r"hand|hnd|wrist|wrst", "right_hand": r"hand|hnd|wrist|wrst", "left_shoulder": r"arm|shoulder|clav|collar",
                "right_shoulder": r"arm|shoulder|clav|collar", "neck": r"neck", "head": r"head"}

@@ -15,7 +15,7 @@ from ..errors import MissingFileError, WalkTalkError
 from ..io.bvh import save_bvh
 from ..utils import atomic_path
 from ..walktalk.demo import DemoParams, Speaker, run_demo
-from ..walktalk.evaluate import load_library, resolve_data_dir
+from ..walktalk.evaluate import dof_limits, load_library, resolve_data_dir
 from ..walktalk.gaze import AAREvent
 from ..walktalk.params import params_from_dict
 
@@ -80,6 +80,7 @@ def run(cfg, out_dir: Path) -> dict:
     t2 = time.perf_counter()
     rows, aar_rows, files = [], [], []
     rng = np.random.default_rng(p.seed)
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
     for gait in t["gaits"]:
         lcs = lib.loops.get(gait) or []
         if not lcs:
@@ -87,7 +88,8 @@ def run(cfg, out_dir: Path) -> dict:
         if len(lcs) < len(speakers):  # e.g. the one-clip test fixtures: characters share a loop
             log.warning("%d characters but %d %s loops: loops are reused", len(speakers), len(lcs), gait)
             lcs = [lcs[i % len(lcs)] for i in range(len(speakers))]
-        motions, ev, aar = run_demo(_pick_loops(lcs, len(speakers)), lib.gestures, speakers, p, dp, rng, scripted)
+        motions, ev, aar = run_demo(_pick_loops(lcs, len(speakers)), lib.gestures, speakers, p, dp, rng, scripted,
+                                     rom)
         for name, m in motions.items():
             save_bvh(m, out_dir / f"{name}_{gait}.bvh")
             files.append(f"{name}_{gait}.bvh")

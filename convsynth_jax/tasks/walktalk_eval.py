@@ -7,12 +7,15 @@ from __future__ import annotations
 import time
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
 from ..utils import atomic_path
 from ..walktalk.evaluate import (
     EvalParams,
+    dof_limits,
+    in_sample_violations,
     load_library,
     resolve_data_dir,
     run_evaluation,
@@ -42,6 +45,7 @@ def run(cfg, out_dir: Path) -> dict:
     df = run_evaluation(lib, p, ep)
     t2 = time.perf_counter()
     summary = summarize(df)
+    scored = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
     with atomic_path(out_dir / "walktalk_eval.csv") as tmp:
         df.to_csv(tmp, index=False)
     with atomic_path(out_dir / "walktalk_eval_summary.csv") as tmp:
@@ -53,6 +57,8 @@ def run(cfg, out_dir: Path) -> dict:
             "loops": {g: [f"{Path(lc.loop.source).name}[{lc.loop.start}:{lc.loop.start + lc.loop.num_frames}]"
                           for lc in v] for g, v in lib.loops.items()},
             "skipped_clips": lib.skipped, "splices": len(df), "per_gait_method": summary,
+            "limits_in_sample_violation": in_sample_violations(lib, scored),
+            "loop_contact_frac": {g: float(np.mean([lc.loop.contact.mean() for lc in v])) for g, v in lib.loops.items() if v},
             "load_seconds": t1 - t0, "eval_seconds": t2 - t1, "figures": figures}
 
 
@@ -75,7 +81,8 @@ def _figures(df, lib, p, out_dir: Path) -> list[str]:
     T = fg + 2 * (lc.loop.num_frames + 30)
     u = (lc.loop.num_frames + 30 + gc.gesture.phases.peaks[0]) / p.fps + p.splice.lead_s
     loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
-    res = {m: splice_gesture(lc, gc, u, T, p.splice, m, loco=loco, contact=contact)
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
+    res = {m: splice_gesture(lc, gc, u, T, p.splice, m, loco=loco, contact=contact, limits=rom)
            for m in ("naive", "stylized+synced")}
     ph = res["stylized+synced"].phases
     frames = sorted({ph.pb, (ph.pb + ph.sb) // 2, ph.sb, *ph.peaks, ph.se, (ph.rb + ph.re) // 2, ph.re})

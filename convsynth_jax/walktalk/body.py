@@ -1,8 +1,10 @@
 """Body parts of the paper's splicing (Sec. 4.3): lower body, torso, left arm, right arm.
 
-Joints are found by name (bandai2 ``Hand_L``-style and Mixamo ``LeftHand``-style); an arm is the
-subtree under its shoulder, the lower body the root chain above the spine plus both leg subtrees,
-the torso everything else (spine, chest, neck, head).
+Joints are found by name through the project's one table of rig patterns,
+:data:`convsynth_jax.annotate.motion.RIG_JOINTS` (SMPL/SMPL-X, CMU, Mixamo, GENEA, BEAT, Bandai,
+Unreal, Biped); :data:`ROLES` maps this module's short role names onto it. An arm is the subtree
+under its clavicle, the lower body the root chain above the spine plus both leg subtrees, the
+torso everything else (spine, chest, neck, head).
 """
 from __future__ import annotations
 
@@ -10,28 +12,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
 from ..skeleton import Skeleton
 
-_PATTERNS = {
-    "hips": (r"^hips$", r"pelvis", r"hips"),
-    "spine": (r"^spine$", r"spine"),
-    "shoulder_l": (r"^shoulder_l$", r"leftshoulder", r"l_?clavicle", r"shoulder_?l"),
-    "shoulder_r": (r"^shoulder_r$", r"rightshoulder", r"r_?clavicle", r"shoulder_?r"),
-    "upperarm_l": (r"^upperarm_l$", r"leftarm$", r"upperarm_?l"),
-    "upperarm_r": (r"^upperarm_r$", r"rightarm$", r"upperarm_?r"),
-    "elbow_l": (r"^lowerarm_l$", r"leftforearm", r"lowerarm_?l"),
-    "elbow_r": (r"^lowerarm_r$", r"rightforearm", r"lowerarm_?r"),
-    "hand_l": (r"^hand_l$", r"lefthand$", r"hand_?l"),
-    "hand_r": (r"^hand_r$", r"righthand$", r"hand_?r"),
-    "upleg_l": (r"^upperleg_l$", r"leftupleg", r"upperleg_?l"),
-    "upleg_r": (r"^upperleg_r$", r"rightupleg", r"upperleg_?r"),
-    "foot_l": (r"^foot_l$", r"leftfoot$", r"foot_?l"),
-    "foot_r": (r"^foot_r$", r"rightfoot$", r"foot_?r"),
-    "toes_l": (r"^toes_l$", r"lefttoe", r"toes?_?l"),
-    "toes_r": (r"^toes_r$", r"righttoe", r"toes?_?r"),
-    "neck": (r"^neck$", r"neck"),
-    "head": (r"^head$", r"head"),
+# walktalk role -> role of the shared rig table (its "shoulder" role is the upper arm)
+ROLES = {
+    "hips": "hips", "spine": "spine", "neck": "neck", "head": "head",
+    **{f"{k}_{s}": f"{full}_{v}" for s, full in (("l", "left"), ("r", "right"))
+       for k, v in (("shoulder", "collar"), ("upperarm", "shoulder"), ("elbow", "elbow"), ("hand", "hand"),
+                    ("upleg", "upleg"), ("foot", "foot"), ("toes", "toes"))},
 }
 
 
@@ -58,15 +48,19 @@ def _subtree(skel: Skeleton, j: int) -> list[int]:
 
 
 def find_body(skel: Skeleton, path: str | None = None) -> Body:
-    """Locate the parts of ``skel``; a :class:`WalkTalkError` lists every joint not found."""
+    """Locate the parts of ``skel``; a :class:`WalkTalkError` lists every joint not found. A rig
+    without toe joints uses its ankles as toes (foot contacts then come from the ankle alone)."""
     joints, missing = {}, []
-    for key, pats in _PATTERNS.items():
-        j = skel.find(*pats)
+    for key, role in ROLES.items():
+        j = skel.find(*RIG_JOINTS[role])
+        if j is None and key.startswith("toes_"):   # no toe joint (GENEA): contacts from the ankle alone
+            j = joints.get(f"foot_{key[-1]}")
         if j is None:
-            missing.append(key)
+            missing.append(f"{key} ({role})")
         joints[key] = j
     if missing:
-        raise WalkTalkError(f"skeleton lacks joints {missing}; joints are {list(skel.names)}", path)
+        raise WalkTalkError(f"skeleton lacks joints {missing} (patterns in convsynth_jax.annotate.motion.RIG_JOINTS); "
+                            f"joints are {list(skel.names)}", path)
     arm_l = tuple(_subtree(skel, joints["shoulder_l"]))
     arm_r = tuple(_subtree(skel, joints["shoulder_r"]))
     legs = set(_subtree(skel, joints["upleg_l"])) | set(_subtree(skel, joints["upleg_r"]))

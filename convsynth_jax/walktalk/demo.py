@@ -14,6 +14,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
 from ..skeleton import Motion
 from .gaze import (
@@ -26,6 +27,7 @@ from .gaze import (
 from .locomotion import tile_contact, tile_loop
 from .params import WalkTalkParams
 from .pipeline import METHODS, GestureContext, LoopContext, splice_gesture
+from .splice import JointLimits
 
 
 @dataclass(frozen=True)
@@ -67,8 +69,10 @@ def place_character(m: Motion, advance: np.ndarray, lateral_cm: float) -> Motion
 
 
 def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers: list[Speaker], p: WalkTalkParams,
-             dp: DemoParams, rng: np.random.Generator, scripted: list[AAREvent] | None = None):
-    """Returns (motions: name -> Motion, events: list of dict rows, aar: list[AAREvent])."""
+             dp: DemoParams, rng: np.random.Generator, scripted: list[AAREvent] | None = None,
+             limits: JointLimits | None = None):
+    """Returns (motions: name -> Motion, events: list of dict rows, aar: list[AAREvent]).
+    ``limits``: the library's range of motion for the stylization (``splice.respect_joint_limits``)."""
     fps = p.fps
     T = round(dp.duration_s * fps)
     if len(loops) < len(speakers):
@@ -100,7 +104,7 @@ def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers:
                 n0 - g.phases.peaks[0] + g.motion.num_frames <= T
             if not (start_ok and fits) or n0 < 0:
                 continue
-            r = splice_gesture(lc, gc, u, T, p.splice, method, loco=cur, contact=contact)
+            r = splice_gesture(lc, gc, u, T, p.splice, method, loco=cur, contact=contact, limits=limits)
             cur = r.motion
             busy_until = r.phases.re
             rows.append({"character": sp.name, "gesture": Path(g.name).stem, "gait": lc.loop.gait,
@@ -115,7 +119,7 @@ def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers:
 
     roots = {}
     for n, m in motions.items():
-        hips = m.skeleton.find(r"^hips$", r"hips")
+        hips = m.skeleton.find(*RIG_JOINTS["hips"])
         roots[n] = joint_positions(m)[:, hips]
     if dp.aar == "scripted":
         aar = list(scripted or [])

@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
 from ..skeleton import Motion
 from .body import joint_positions, quat_to_matrix_np
@@ -158,7 +159,7 @@ def apply_gaze(motion: Motion, character: str, events: list[AAREvent], others: d
     T = motion.num_frames
     t = np.arange(T) / motion.fps
     pos = joint_positions(motion)
-    hips = sk.find(r"^hips$", r"hips")
+    hips = sk.find(*RIG_JOINTS["hips"])
     me = pos[:, hips]
     heading = heading_of(me, motion.fps)
     yaw = np.zeros(T)

@@ -3,7 +3,8 @@
 A foot is *down* when its ankle or toe is within ``height_tol_cm`` of that point's lowest height
 in the clip and moves slower than ``speed_tol_cms`` horizontally; a heel strike is the first frame
 of a down run. Contact phases follow the paper's annotation: walking contact = the front foot on or
-near the ground (flight = one leg passing the other); jogging contact = at least one foot down
+near the ground and landing (slower than ``near_ground_speed_cms``; flight = one leg passing the
+other, until the swing foot lands); jogging contact = at least one foot down
 (flight = both feet in the air). The root altitude (rises in flight, falls in contact) is kept for
 diagnostics and for the elbow bounce of Sec. 4.2.
 
@@ -118,7 +119,11 @@ def detect_gait(motion: Motion, p: GaitParams, body: Body | None = None,
         front_h = np.where(front_is_l, fl[:, 1], fr[:, 1])
         ground = min(fl[:, 1].min(), fr[:, 1].min())
         front_down = np.where(front_is_l, downs["l"], downs["r"])
-        contact = front_down | (front_h - ground < p.near_ground_cm)
+        # "near the ground" is a landing foot: low *and* slowing down. The swing ankle skims the
+        # floor within near_ground_cm for several frames at ~300 cm/s after passing the stance leg;
+        # counting those made ~80% of a walk "contact" (flight was only the passing frames).
+        front_speed = np.where(front_is_l, _horizontal_speed(fl, fps), _horizontal_speed(fr, fps))
+        contact = front_down | ((front_h - ground < p.near_ground_cm) & (front_speed < p.near_ground_speed_cms))
     strikes = {s: tuple(a for a, _ in _runs(downs[s], p.min_down_frames) if a > 0) for s in ("l", "r")}
     return GaitInfo(downs["l"], downs["r"], contact, strikes["l"], strikes["r"], gait,
                     pos[:, body.joints["hips"], 1].copy())

@@ -18,7 +18,8 @@ class GaitParams:
 
     height_tol_cm: float = 3.0        # a foot is down when ankle or toe is this close to its lowest height
     speed_tol_cms: float = 50.0       # ... and that point moves slower than this horizontally
-    near_ground_cm: float = 2.0       # walking contact: the front foot down, or its ankle this close to the ground
+    near_ground_cm: float = 2.0       # walking contact: the front foot down, or its ankle this close to the ground ...
+    near_ground_speed_cms: float = 100.0  # ... and landing: slower than this horizontally (ours)
     min_down_frames: int = 2          # shorter down runs are noise
     jog_flight_frac: float = 0.05     # a clip with this fraction of frames with both feet up is a jog
     max_root_travel_cm: float = 20.0  # a gesture clip whose root moves farther than this is not standing
@@ -47,6 +48,10 @@ class SpliceParams:
     stylize_deictic: bool = False     # (paper) deictic gestures are not stylized
     ease: str = "smootherstep"        # blend ramp: "linear" = Eq. 2 as printed; smootherstep is ours
     transition_pad_s: float = 0.25    # hold the gesture's rest pose this long before/after and blend over it (ours)
+    # (ours) the c-sigma band is also cut at the range of motion of the clip library: per-DOF
+    # percentiles of every loaded clip's arm DOFs (the same table the evaluation scores against)
+    respect_joint_limits: bool = True
+    joint_limit_percentiles: tuple = (0.5, 99.5)
 
     def __post_init__(self):
         if not self.c > 0:

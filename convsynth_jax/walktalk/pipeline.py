@@ -15,6 +15,7 @@ from .gestures import Gesture, Phases
 from .locomotion import Loop, tile_contact, tile_loop
 from .params import SpliceParams
 from .splice import (
+    JointLimits,
     LoopStats,
     arm_joints,
     elbow_dof,
@@ -110,9 +111,10 @@ class SpliceResult:
 
 def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float, num_frames: int,
                    p: SpliceParams, method: Method | str, loco: Motion | None = None,
-                   contact: np.ndarray | None = None) -> SpliceResult:
+                   contact: np.ndarray | None = None, limits: JointLimits | None = None) -> SpliceResult:
     """Splice one gesture into ``num_frames`` frames of the tiled loop so its stroke peak serves
-    the stress peak at ``utterance_peak_s`` (seconds on the timeline)."""
+    the stress peak at ``utterance_peak_s`` (seconds on the timeline). ``limits``: the library's
+    range of motion, used by the stylization when ``p.respect_joint_limits``."""
     m = METHODS[method] if isinstance(method, str) else method
     g = gc.gesture
     fps = lc.loop.motion.fps
@@ -124,9 +126,11 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
     offset = peak - g.phases.peaks[0]
     idx = [lc.joints.index(j) for j in gc.joints]
     e = gc.euler
+    st, lim = None, None
     if m.stylize and (g.kind != "deictic" or p.stylize_deictic):
         st = LoopStats(lc.stats.mean[idx], lc.stats.std[idx])
-        e = stylize(e, st, gc.rest, p.c)
+        lim = limits if p.respect_joint_limits else None
+        e = stylize(e, st, gc.rest, p.c, lim, gc.joints)
     styled = e
     if m.bounce and p.k_bounce != 0.0:
         from .splice import check_placement
@@ -138,6 +142,10 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
         for s in g.sides:
             a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
             e[:, a, lc.elbow_dof[s]] += np.radians(p.k_bounce * d_h)   # R' = R + k dH_root (Sec. 4.2)
+        if lim is not None:
+            # (ours) the bounce must not push an elbow the stylization brought to its limit past
+            # it: the bounced deviation is rescaled once more into the same bands (B_D = 0 now)
+            e = stylize(e, st, st.mean, p.c, lim, gc.joints)
     gest_q = place_gesture_arms(loco, g, e, gc.joints, offset)
     ph = g.phases.shifted(offset)
     w = splice_weights(num_frames, ph, p.ease)

@@ -5,8 +5,9 @@ arms (shoulder, upper arm, forearm, hand), unwrapped over time.
 
 * Stylization (Sec. 4.1): B_L = mean arm pose of the loop, B_G = rest pose of the gesture (mean of
   its frames outside t_Pb..t_Re), M'_G = M_G + (B_L - B_G). Each DOF's deviation from B_L is then
-  rescaled linearly (not clipped) so that its largest excursion over the clip is at most c * STD_L.
-  Deictic gestures are left alone.
+  rescaled linearly (not clipped) so that its largest excursion over the clip is at most c * STD_L;
+  optionally (ours, on by default) also no farther than the library's range of motion
+  (:class:`JointLimits`, :func:`stylize_bands`). Deictic gestures are left alone.
 * Elbow bounce (Sec. 4.2): R'_elbow = R_elbow + k * dH_root, dH_root = loop root height minus its
   mean (cm), on the forearm DOF that varies most in the loop, over the whole gesture.
 * Splicing (Sec. 4.3): lower body and torso from the locomotion (Eq. 1); arms from the loop
@@ -74,28 +75,88 @@ def rest_pose(gesture_euler: np.ndarray, ph: Phases) -> np.ndarray:
     return gesture_euler[keep].mean(axis=0) if keep.size else gesture_euler[0]
 
 
-def stylize(gesture_euler, stats: LoopStats, b_g, c: float) -> np.ndarray:
-    """:func:`stylize_kernel` padded to a bucket length (edge frames repeat, so maxima do not change)."""
+def wrap_angle(x):
+    """Angles (radians) wrapped into [-pi, pi)."""
+    return (np.asarray(x) + np.pi) % (2 * np.pi) - np.pi
+
+
+@dataclass(frozen=True)
+class JointLimits:
+    """Range of motion of the arm DOFs seen in a clip library: per DOF (A, 3), the limits are
+    ``ref + lo`` .. ``ref + hi`` with ``ref`` the DOF's circular mean over all frames and ``lo``,
+    ``hi`` percentiles of the wrapped offsets from it (so no limit straddles the +-pi seam).
+    ``joints`` are the skeleton indices the A rows belong to."""
+
+    joints: tuple
+    ref: np.ndarray
+    lo: np.ndarray
+    hi: np.ndarray
+
+    def rows(self, joints) -> list[int]:
+        return [self.joints.index(j) for j in joints]
+
+    def violations(self, euler: np.ndarray, joints) -> np.ndarray:
+        """euler (F, len(joints), 3) -> (F, len(joints), 3) bool: DOF outside its limits."""
+        idx = self.rows(joints)
+        d = wrap_angle(euler - self.ref[idx])
+        return (d < self.lo[idx]) | (d > self.hi[idx])
+
+
+def joint_limits(eulers, joints, percentiles=(0.5, 99.5), tolerance_deg: float = 0.0) -> JointLimits:
+    """:class:`JointLimits` from a list of per-clip arm DOFs (F_i, A, 3) (every frame pooled),
+    widened by ``tolerance_deg`` on both sides."""
+    x = np.concatenate(list(eulers))
+    ref = np.angle(np.exp(1j * x).mean(axis=0))
+    d = wrap_angle(x - ref)
+    tol = np.radians(tolerance_deg)
+    return JointLimits(tuple(joints), ref, np.percentile(d, percentiles[0], axis=0) - tol,
+                       np.percentile(d, percentiles[1], axis=0) + tol)
+
+
+def stylize_bands(stats: LoopStats, c: float, limits: JointLimits | None = None, joints=None):
+    """Allowed deviation below and above B_L per DOF, (A, 3) each, >= 0.
+
+    The paper's band is +- c std of the loop (Sec. 4.1). With ``limits`` (ours) each side is also
+    cut where it would leave the range of motion of the clip library: with c = 3 the band of a jog
+    loop, whose elbows are already flexed ~90 deg, reaches ~140 deg of flexion (no clip goes past
+    ~120), so a raise-hand gesture was spliced with the elbow folded beyond its limit."""
+    down = up = c * np.asarray(stats.std, dtype=np.float64)
+    if limits is not None:
+        idx = limits.rows(joints)
+        off = wrap_angle(np.asarray(stats.mean) - limits.ref[idx])   # B_L inside the limit frame
+        down = np.minimum(down, np.maximum(off - limits.lo[idx], 0.0))
+        up = np.minimum(up, np.maximum(limits.hi[idx] - off, 0.0))
+    return down, up
+
+
+def stylize(gesture_euler, stats: LoopStats, b_g, c: float, limits: JointLimits | None = None,
+            joints=None) -> np.ndarray:
+    """:func:`stylize_kernel` padded to a bucket length (edge frames repeat, so maxima do not change);
+    ``limits`` (with the ``joints`` of the A rows) narrows the band, see :func:`stylize_bands`."""
     f = gesture_euler.shape[0]
     p = bucket(f)
     x = np.pad(gesture_euler, ((0, p - f), (0, 0), (0, 0)), mode="edge")
-    return np.asarray(stylize_kernel(jnp.asarray(x, jnp.float32), jnp.asarray(stats.mean, jnp.float32),
-                                     jnp.asarray(stats.std, jnp.float32), jnp.asarray(b_g, jnp.float32),
-                                     jnp.float32(c)), dtype=np.float64)[:f]
+    down, up = stylize_bands(stats, c, limits, joints)
+    f32 = partial(jnp.asarray, dtype=jnp.float32)
+    return np.asarray(stylize_kernel(f32(x), f32(stats.mean), f32(down), f32(up), f32(b_g)),
+                      dtype=np.float64)[:f]
 
 
 @jax.jit
-def stylize_kernel(gesture_euler, b_l, std_l, b_g, c):
-    """Sec. 4.1. gesture_euler: (F, A, 3); b_l, std_l, b_g: (A, 3); c: scalar > 0 -> (F, A, 3).
+def stylize_kernel(gesture_euler, b_l, down, up, b_g):
+    """Sec. 4.1. gesture_euler: (F, A, 3); b_l, down, up, b_g: (A, 3) -> (F, A, 3).
 
-    M'_G = M_G + (B_L - B_G); deviation D = M'_G - B_L; per DOF, s = min(1, c std / max_t |D|);
-    result B_L + s D (linear rescaling of the deviation, so every DOF stays within B_L +- c std).
+    M'_G = M_G + (B_L - B_G); deviation D = M'_G - B_L; per DOF one factor
+    s = min(1, down / max_t(-D), up / max_t D) (down = up = c std in the paper), result B_L + s D:
+    a linear rescaling of the deviation (not clipping), so every DOF stays within B_L - down ..
+    B_L + up.
     """
     dev = gesture_euler + (b_l - b_g) - b_l
-    peak = jnp.max(jnp.abs(dev), axis=0)
-    lim = c * std_l
-    scale = jnp.where(peak > lim, lim / jnp.where(peak > 0, peak, 1.0), 1.0)
-    return b_l + dev * scale
+    below = jnp.max(-dev, axis=0)
+    above = jnp.max(dev, axis=0)
+    s_lo = jnp.where(below > down, down / jnp.where(below > 0, below, 1.0), 1.0)
+    s_hi = jnp.where(above > up, up / jnp.where(above > 0, above, 1.0), 1.0)
+    return b_l + dev * jnp.minimum(s_lo, s_hi)
 
 
 def splice_weights(num_frames: int, ph: Phases, ease: str = "linear") -> np.ndarray:

@@ -8,6 +8,10 @@ from typing import List, Optional
 @dataclass(frozen=True)
 class SearchParams:
     method: str = "beam"          # beam (JAX, ours) | dfs (the paper's depth-first stochastic greedy search)
+    # paper: each input segment (PC, LR, partner HP) is matched by ONE whole source segment of its kind
+    # whose start, F0 peak (PC) and end lie within ``tolerance`` of the input's, short segments
+    # included; labels (ours, relaxed): the path's per-frame labels match, see search/constraints.py
+    matching: str = "paper"
     tolerance: float = 0.1        # seconds, for start/peak/end matching
     use_constraints: bool = True  # False: no audio constraint at all (graph quality only)
     use_lr: bool = True           # listener-response constraints

@@ -155,6 +155,7 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
             "speed_hellinger": metrics.speed_histogram_distance(pos, gt_pos, fps),
             "max_jump": float(metrics.max_frame_jump(pos).max(initial=0.0)),
             "num_synthetic_transitions": len(res.synthetic_at) if res.synthetic_at is not None else np.nan,
+            "seam_ratio": metrics.seam_ratio(pos, gt_pos, fps, res.synthetic_at or []),
         })
     return row, (res.motion if res.success else None)
 

@@ -93,7 +93,7 @@ def test_kernel_equals_reference(seed, beam, max_candidates, temperature, matchi
     g, audio = hub_graph(rng)
     own, par = input_from_clip(audio, f"c{seed % 5}", 40)
     cfg = SearchParams(tolerance=0.1, beam_size=beam, max_candidates=max_candidates, max_degree=24,
-                      temperature=temperature, retry_temperatures=[], matching=matching)
+                      temperature=temperature, retry_temperatures=[], retry_beam_size=0, matching=matching)
     cons = build_constraints(own, par, 40, FPS, cfg)
     ref = reference_beam_search(g, cons, cfg, seed=seed, temperature=temperature)
     res = beam_search(g, cons, cfg, seed=seed)
@@ -115,7 +115,7 @@ def test_no_duplicate_states_in_the_beam_and_impossible_input_fails_at_the_same_
     rng = np.random.default_rng(7)
     g, audio = hub_graph(rng)
     own = pd.DataFrame([("LR", 1.0, np.nan, 1.6)], columns=["kind", "start", "peak", "end"])
-    cfg = SearchParams(beam_size=16, max_candidates=64, retry_temperatures=[])
+    cfg = SearchParams(beam_size=16, max_candidates=64, retry_temperatures=[], retry_beam_size=0)
     # no state is an HP on its own channel, so requiring one is impossible
     cons = build_constraints(own, None, 30, FPS, cfg)
     cons.own_req[12:15] = HP

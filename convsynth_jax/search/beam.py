@@ -32,6 +32,7 @@ loops and the same noise; tests require identical paths.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from functools import partial
 from typing import NamedTuple
@@ -242,11 +243,18 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
 def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
     """Beam search at ``search.temperature``; if no path survives, retry at each of
     ``search.retry_temperatures`` (hotter sampling: more diverse, at the price of more synthetic
-    transitions). The result reports the time of all attempts."""
+    transitions), then at every temperature again with ``search.retry_beam_size`` paths and
+    ``search.retry_max_candidates`` slots (0: no wide retry). The result reports the time of all
+    attempts."""
     t0 = time.perf_counter()
     temps = [float(params.temperature)] + [float(t) for t in (params.retry_temperatures or [])]
-    for k, temp in enumerate(temps):
-        res = _beam_search_once(graph, constraints, params, seed + 1000 * k, temp)
+    attempts = [(params, t) for t in temps]
+    if int(params.retry_beam_size) > 0:
+        wide = dataclasses.replace(params, beam_size=int(params.retry_beam_size),
+                                   max_candidates=max(int(params.retry_max_candidates), int(params.max_candidates)))
+        attempts += [(wide, t) for t in temps]
+    for k, (p, temp) in enumerate(attempts):
+        res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp)
         if res.success:
             break
     res.seconds = time.perf_counter() - t0

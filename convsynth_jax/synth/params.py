@@ -6,4 +6,6 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class SynthParams:
-    blend_frames: int = 6   # cosine blend length after a synthetic transition
+    # cosine blend length after a synthetic transition (the paper gives none; ours: 12 frames = 0.4 s at
+    # 30 fps keeps the seam metric under the ground truth's largest acceleration far more often than 6)
+    blend_frames: int = 12

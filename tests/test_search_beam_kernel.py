@@ -168,3 +168,20 @@ def test_reported_synthetic_transitions_match_the_path():
         assert res.synthetic_at == jumps and res.num_synthetic_transitions == len(jumps) > 0
         total, costs, at = path_stats(g, res.path)
         assert at == jumps and res.cost == pytest.approx(total, rel=1e-6)
+
+
+def test_wide_retry_finds_what_a_narrow_beam_misses():
+    """search.retry_beam_size: when every ordinary attempt dies, one more attempt per temperature with a
+    wider beam; its path satisfies the paper checker."""
+    g, audio = hub_graph(np.random.default_rng(1))
+    own, par = input_from_clip(audio, "c1", 40)
+    narrow = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=0)
+    cons = build_constraints(own, par, 40, FPS, narrow)
+    assert not beam_search(g, cons, narrow, seed=1).success
+    wide = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=64,
+                        retry_max_candidates=1024)
+    res = beam_search(g, cons, wide, seed=1)
+    assert res.success
+    rep = check_path([g.clip_names[g.clip[s]] for s in res.path], [int(g.frame[s]) for s in res.path], audio, own,
+                     par, FPS, 0.1)
+    assert rep["met"] == rep["total"] and any(d["kind"] in ("PC", "LR") for d in rep["details"])

@@ -137,7 +137,8 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
         # every audio constraint of the window (whatever the condition), by the independent checker
         chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, own, partner, fps,
                          float(params.search.tolerance), matching=params.search.matching)
-        row.update({"all_constraints_total": chk["total"], "all_constraints_met": chk["met"]})
+        row.update({"all_constraints_total": chk["total"], "all_constraints_met": chk["met"],
+                    "checker_matching": params.search.matching})
         for kind in ("PC", "LR", "PH", "idle"):
             d = [x["met"] for x in chk["details"] if x["kind"] == kind]
             row[f"checker_{kind}_met"], row[f"checker_{kind}_total"] = int(sum(d)), len(d)

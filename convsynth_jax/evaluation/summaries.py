@@ -110,7 +110,7 @@ def quality_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
     if ok.empty:
         return pd.DataFrame({"condition": []})
     out = ok.groupby(_group_keys(ok, "condition"))[metric_cols].mean().reset_index()
-    if "seam_ratio" in ok:  # the seam goal (<= 1) holds for every window: show the worst one too
+    if "seam_ratio" in ok:  # the seam goal (<= 1) is per window: show the worst one too
         worst = ok.groupby(_group_keys(ok, "condition"))["seam_ratio"].max().rename("seam_ratio_max")
         out = out.merge(worst.reset_index(), on=_group_keys(ok, "condition"), how="left")
     return _ordered(out)

@@ -193,6 +193,27 @@ def quat_multiply_np(a, b) -> np.ndarray:
                      aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], axis=-1)
 
 
+def quat_slerp_np(q0, q1, t) -> np.ndarray:
+    """Spherical linear interpolation along the shorter arc (NumPy float64). q0, q1: (..., 4); t: (...)."""
+    q0, q1 = np.asarray(q0, dtype=np.float64), np.asarray(q1, dtype=np.float64)
+    t = np.asarray(t, dtype=np.float64)[..., None]
+    dot = np.sum(q0 * q1, axis=-1, keepdims=True)
+    q1 = np.where(dot < 0, -q1, q1)
+    dot = np.clip(np.abs(dot), 0.0, 1.0)
+    theta = np.arccos(dot)
+    sin = np.sin(theta)
+    small = sin < 1e-6
+    w0 = np.where(small, 1.0 - t, np.sin((1.0 - t) * theta) / np.where(small, 1.0, sin))
+    w1 = np.where(small, t, np.sin(t * theta) / np.where(small, 1.0, sin))
+    q = w0 * q0 + w1 * q1
+    return q / np.linalg.norm(q, axis=-1, keepdims=True)
+
+
+def quat_conjugate_np(q) -> np.ndarray:
+    """Inverse of (..., 4) unit quaternions (NumPy)."""
+    return np.asarray(q, dtype=np.float64) * np.array([1.0, -1.0, -1.0, -1.0])
+
+
 def yaw_angle_np(q) -> np.ndarray:
     """Heading about +Y (radians) of (..., 4) quaternions: the angle of their swing-twist yaw."""
     q = np.asarray(q, dtype=np.float64)

@@ -37,7 +37,7 @@ if __name__ == "__main__":
     args = ap.parse_args()
     params = default_params([f"cache_dir={args.cache}", "progress=false", *args.overrides])
     cfg = params.search
-    first_only = dataclasses.replace(cfg, retry_temperatures=[])
+    first_only = dataclasses.replace(cfg, retry_temperatures=[], retry_beam_size=0)
     corpus, ann = annotated_corpus(params)
     held = corpus.sessions[0].name
     models = fit_fold(make_system(params, params.system), ann, held, "all", cache_dir(params))

@@ -55,3 +55,35 @@ def test_summaries_success_and_timing():
     md = summaries.to_markdown(t.reset_index())
     assert md.count("\n") == 4 and "| synthesis (search) |" in md
     assert "\\bottomrule" in summaries.to_latex(t.reset_index())
+
+
+def _slow_seam_ratio(pos, gt, fps, synthetic_at, radius=3):
+    """The obvious version: loop over frames and joints."""
+    def acc(p, u, j):  # central second difference at frame u, relative to joint 0
+        r = [np.asarray(p[v, j], float) - np.asarray(p[v, 0], float) for v in (u - 1, u, u + 1)]
+        return float(np.sqrt(sum(((r[2][k] - 2 * r[1][k] + r[0][k]) * fps * fps) ** 2 for k in range(3))))
+
+    F, J = pos.shape[:2]
+    gmax = max(acc(gt, u, j) for u in range(1, len(gt) - 1) for j in range(J))
+    best = None
+    for t in synthetic_at:
+        for u in range(t - radius, t + radius + 1):
+            if 1 <= u <= F - 2:
+                for j in range(J):
+                    a = acc(pos, u, j)
+                    best = a if best is None else max(best, a)
+    return float("nan") if best is None else best / gmax
+
+
+def test_seam_ratio_equals_the_slow_loop():
+    from convsynth_jax.evaluation.metrics import seam_ratio
+
+    rng = np.random.default_rng(3)
+    pos = np.cumsum(rng.normal(0, 1, (30, 5, 3)), axis=0)
+    gt = np.cumsum(rng.normal(0, 1, (30, 5, 3)), axis=0)
+    pos[17:, 3] += 8.0  # a pop near the transition at 16
+    for at in ([16], [0, 29], [2, 3, 27], [10, 11]):
+        assert seam_ratio(pos, gt, 30.0, at) == pytest.approx(_slow_seam_ratio(pos, gt, 30.0, at), rel=1e-12)
+    assert np.isnan(seam_ratio(pos, gt, 30.0, []))
+    # the pop dominates: a seam around frame 16 is sharper than anything in the ground truth
+    assert seam_ratio(pos, gt, 30.0, [16]) > 1.0

@@ -58,3 +58,68 @@ def test_root_integration_equals_the_per_frame_loop():
     pos[:, 1] = [motions[c].translations[f, 0, 1] for c, f in zip(clips, frames)]
     np.testing.assert_allclose(m.translations[:, 0], pos, atol=1e-9)
     np.testing.assert_allclose(np.abs(np.sum(m.rotations[:, 0] * rot, -1)), 1.0, atol=1e-9)
+
+
+def _angle(a, b):
+    """Angle (radians) between unit quaternions, (..., 4)."""
+    return 2.0 * np.arccos(np.clip(np.abs(np.sum(a * b, axis=-1)), 0.0, 1.0))
+
+
+def _still_clip(skel, name, euler_deg, height, tilt_deg, n=40):
+    """A motionless clip: every joint below the root at one rotation, the root at one height and tilt."""
+    J = skel.num_joints
+    rot = np.zeros((n, J, 4))
+    rot[:, 1:] = Rotation.from_euler("XYZ", euler_deg, degrees=True).as_quat()[[3, 0, 1, 2]]
+    rot[:, 0] = Rotation.from_euler("X", tilt_deg, degrees=True).as_quat()[[3, 0, 1, 2]]
+    trans = np.broadcast_to(skel.offsets, (n, J, 3)).copy()
+    trans[:, 0, 1] = height
+    return Motion(skel, rot, trans, 30.0, name)
+
+
+def test_back_to_back_transitions_do_not_pop():
+    """Two synthetic transitions in consecutive frames (a -> b at 20, b -> c at 21): the displayed
+    pose, the root's tilt and its height must move smoothly from a to c, no frame-to-frame step
+    larger than a single cosine blend's steepest step (before: the second blend started from b's raw
+    pose, so the joints jumped by the whole a-b difference in one frame, and tilt and height were
+    not blended at all)."""
+    skel = seated_skeleton()
+    motions = {"a": _still_clip(skel, "a", (0, 0, 0), 90.0, 0.0), "b": _still_clip(skel, "b", (60, 0, 0), 80.0, 20.0),
+               "c": _still_clip(skel, "c", (0, 0, 60), 100.0, -20.0)}
+    clips = ["a"] * 20 + ["b"] + ["c"] * 19
+    frames = list(range(20)) + [5] + list(range(5, 24))
+    n = 6
+    m = realize(clips, frames, motions, [20, 21], blend_frames=n)
+    steepest = max(0.5 * np.pi / (n + 1) * np.sin(np.pi * x / (n + 1)) for x in np.linspace(0, n + 1, 200)) * 1.2
+    joint_step = _angle(m.rotations[1:, 1:], m.rotations[:-1, 1:]).max()
+    a_to_c = _angle(motions["a"].rotations[0, 1:], motions["c"].rotations[0, 1:]).max()
+    assert joint_step <= steepest * a_to_c + 1e-9, (joint_step, steepest * a_to_c)
+    tilt_step = _angle(m.rotations[1:, 0], m.rotations[:-1, 0]).max()
+    assert tilt_step <= steepest * np.deg2rad(20.0) + 1e-9, np.rad2deg(tilt_step)
+    height_step = np.abs(np.diff(m.translations[:, 0, 1])).max()
+    assert height_step <= steepest * 10.0 + 1e-9, height_step
+    # the blend ends on the new source: from frame 21 + n on the displayed pose is c's
+    np.testing.assert_allclose(np.abs(np.sum(m.rotations[21 + n:, 1:] * motions["c"].rotations[0, 1:], -1)), 1.0,
+                               atol=1e-9)
+    np.testing.assert_allclose(m.translations[21 + n:, 0, 1], 100.0)
+
+
+def test_a_single_transition_is_the_plain_cross_fade():
+    """One transition: the previous clip's continuation slerped into the new source with cosine weights."""
+    from convsynth_jax.rotations import quat_slerp_np
+    from convsynth_jax.synth.realize import blend_weight
+
+    rng = np.random.default_rng(1)
+    skel = seated_skeleton()
+    J = skel.num_joints
+    motions = {}
+    for name in ("a", "b"):
+        r = Rotation.from_rotvec(rng.normal(0, 0.3, (40 * J, 3))).as_quat()[:, [3, 0, 1, 2]].reshape(40, J, 4)
+        motions[name] = Motion(skel, r, np.broadcast_to(skel.offsets, (40, J, 3)).copy(), 30.0, name)
+    clips, frames = ["a"] * 10 + ["b"] * 15, list(range(10)) + list(range(20, 35))
+    m = realize(clips, frames, motions, [10], blend_frames=4)
+    for k in range(4):
+        want = quat_slerp_np(motions["a"].rotations[10 + k, 1:], motions["b"].rotations[20 + k, 1:],
+                             np.full(J - 1, blend_weight(k, 4)))
+        np.testing.assert_allclose(np.abs(np.sum(m.rotations[10 + k, 1:] * want, -1)), 1.0, atol=1e-9)
+    np.testing.assert_allclose(np.abs(np.sum(m.rotations[14:, 1:] * motions["b"].rotations[24:35, 1:], -1)), 1.0,
+                               atol=1e-9)

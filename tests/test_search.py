@@ -56,15 +56,18 @@ def small_graph(rng, n_clips=4, frames=60, extra_edges=3):
 def _check(g, audio, res, own, cfg):
     clips = [g.clip_names[g.clip[s]] for s in res.path]
     frames = [int(g.frame[s]) for s in res.path]
-    return check_path(clips, frames, audio, own, None, FPS, 0.1)
+    return check_path(clips, frames, audio, own, None, FPS, 0.1, matching=cfg.matching)
 
 
 CFG = SearchParams(tolerance=0.1, beam_size=64, n_start=40, n_save=100, max_paths_per_start=50,
                    max_expansions=400000, temperature=0.05)
 
 
+@pytest.mark.parametrize("matching", ["paper", "labels"])
 @pytest.mark.parametrize("seed", range(6))
-def test_beam_and_dfs_satisfy_constraints_and_beam_is_no_worse(seed):
+def test_beam_and_dfs_satisfy_constraints_and_beam_is_no_worse(seed, matching):
+    # paper matching must land on one whole source clause: a beam as wide as the graph (240 states)
+    cfg = dataclasses.replace(CFG, matching=matching, beam_size=256 if matching == "paper" else CFG.beam_size)
     rng = np.random.default_rng(seed)
     g, audio = small_graph(rng)
     # the input: one clause copied from a database clip, shifted in time
@@ -75,48 +78,102 @@ def test_beam_and_dfs_satisfy_constraints_and_beam_is_no_worse(seed):
     shift = int(rng.integers(3, 10))
     T = 45
     own = seg([("PC", (s - s + shift) / FPS, (p - s + shift) / FPS, (e - s + shift) / FPS)])
-    cons = build_constraints(own, None, T, FPS, CFG)
-    rb = beam_search(g, cons, CFG, seed=seed)
-    rd = stochastic_greedy_search(g, cons, CFG, seed=seed)
+    cons = build_constraints(own, None, T, FPS, cfg)
+    rb = beam_search(g, cons, cfg, seed=seed)
+    rd = stochastic_greedy_search(g, cons, cfg, seed=seed)
     assert rb.success, rb.failed_segment
-    rep = _check(g, audio, rb, own, CFG)
+    rep = _check(g, audio, rb, own, cfg)
     assert rep["met"] == rep["total"], rep
     assert len(rb.path) == T
     if rd.success:
-        rep = _check(g, audio, rd, own, CFG)
+        rep = _check(g, audio, rd, own, cfg)
         assert rep["met"] == rep["total"]
         # deterministic mode (no sampling noise, wide beam): never worse than the depth-first search
-        greedy = dataclasses.replace(CFG, temperature=1e-9, beam_size=1024)
+        greedy = dataclasses.replace(cfg, temperature=1e-9, beam_size=1024)
         rg = beam_search(g, cons, greedy, seed=seed)
         assert rg.success and rg.cost <= rd.cost + 1e-5
 
 
-def test_impossible_constraint_is_reported_not_raised():
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_impossible_constraint_is_reported_not_raised(matching):
     rng = np.random.default_rng(0)
     g, audio = small_graph(rng)
+    cfg = dataclasses.replace(CFG, matching=matching)
     own = seg([("LR", 1.0, 1.2, 1.5)])  # no state is a listener response
-    cons = build_constraints(own, None, 30, FPS, CFG)
+    cons = build_constraints(own, None, 30, FPS, cfg)
     for fn in (beam_search, stochastic_greedy_search):
-        r = fn(g, cons, CFG, seed=0)
+        r = fn(g, cons, cfg, seed=0)
         assert not r.success and r.path is None
         assert r.failed_segment["kind"] == "LR"
+        assert "LR constraint" in r.failure and matching in r.failure
     cfg_none = dataclasses.replace(CFG, use_constraints=False)
     assert beam_search(g, build_constraints(own, None, 30, FPS, cfg_none), cfg_none).success
 
 
-def test_ablation_switches_change_the_constraints():
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_ablation_switches_change_the_constraints(matching):
     own = seg([("PC", 0.5, 0.8, 1.5), ("LR", 2.0, 2.1, 2.4)])
     par = seg([("HP", 3.0, 3.1, 3.6)])
-    full = build_constraints(own, par, 50, FPS, CFG)
+    full = build_constraints(own, par, 50, FPS, dataclasses.replace(CFG, matching=matching))
     assert {s["kind"] for s in full.segments} == {"PC", "LR", "PH", "idle"}
-    no_lr = build_constraints(own, par, 50, FPS, SearchParams(use_lr=False))
+    no_lr = build_constraints(own, par, 50, FPS, SearchParams(use_lr=False, matching=matching))
     assert "LR" not in {s["kind"] for s in no_lr.segments} and (no_lr.own_req[20:24] == -1).all()
-    no_hp = build_constraints(own, par, 50, FPS, SearchParams(use_hp=False))
+    no_hp = build_constraints(own, par, 50, FPS, SearchParams(use_hp=False, matching=matching))
     assert "PH" not in {s["kind"] for s in no_hp.segments} and (no_hp.partner_req == -1).all()
-    none = build_constraints(own, par, 50, FPS, SearchParams(use_constraints=False))
+    none = build_constraints(own, par, 50, FPS, SearchParams(use_constraints=False, matching=matching))
     assert none.total == 0 and (none.own_req == -1).all()
-    # PC core: [s + tol, e - tol); peak window [p - tol, p + tol]
-    assert (full.own_req[6:14] == 1).all() and full.own_req[5] == -1 and full.peak_reset[7] and full.peak_check[9]
+    # PC core: [s + tol, e - tol)
+    assert (full.own_req[6:14] == 1).all() and full.own_req[5] == -1
+    if matching == "labels":  # peak window [p - tol, p + tol]
+        assert full.peak_reset[7] and full.peak_check[9]
+    else:  # entry windows [s - tol, s + tol] of PC (4..6), LR (19..21) and partner HP (29..31)
+        pa = full.paper
+        assert (pa.own_kind[4:7] == 1).all() and pa.own_kind[3] == -1 and pa.own_kind[7] == -1
+        assert (pa.own_kind[19:22] == 2).all() and pa.own_reset[19] and pa.own_check[21]
+        assert (pa.par_kind[29:32] == 3).all() and pa.par_check[31] and pa.own_peak[5] == 8
+        assert (pa.own_free[19:22] == False).all() and no_lr.paper.own_free[20]  # noqa: E712
+
+
+def test_short_segments_are_constraints_only_in_paper_mode():
+    own = seg([("PC", 1.0, 1.1, 1.2), ("LR", 2.0, np.nan, 2.1)])  # 0.2 s and 0.1 s
+    kinds = {m: [s["kind"] for s in build_constraints(own, None, 40, FPS, dataclasses.replace(CFG, matching=m))
+                 .segments] for m in ("paper", "labels")}
+    assert kinds["paper"].count("PC") == 1 and kinds["paper"].count("LR") == 1
+    assert "PC" not in kinds["labels"] and "LR" not in kinds["labels"]
+
+
+def test_unknown_matching_mode_is_a_config_error():
+    from convsynth_jax.errors import ConfigError
+
+    with pytest.raises(ConfigError, match="search.matching"):
+        build_constraints(seg([]), None, 10, FPS, SearchParams(matching="exact"))
+
+
+def test_paper_checker_rejects_a_clause_stitched_from_two_source_clauses():
+    """A path whose associated audio has the right run of PC labels (labels mode: met) but plays the
+    first half of one source clause and the second half of another (paper: not met); and the same
+    input matched by one whole source clause, which both modes accept."""
+    n = 40
+    lab_a, lab_b = np.zeros(n, np.int8), np.zeros(n, np.int8)
+    lab_a[10:20], lab_b[10:20] = 1, 1
+    st, en, pk = np.where(lab_a > 0, 10, -1), np.where(lab_a > 0, 20, -1), np.where(lab_a > 0, 15, -1)
+    fa = lambda lab: FrameAudio(lab, *(x.astype(np.int32) for x in (st, en, pk)))  # noqa: E731
+    idle = FrameAudio(np.zeros(n, np.int8), *(np.full(n, -1, np.int32),) * 3)
+    audio = {"a": (fa(lab_a), idle), "b": (fa(lab_b), idle)}
+    own = seg([("PC", 1.0, 1.5, 2.0)])
+    whole = (["a"] * 30, list(range(30)))
+    stitched = (["a"] * 15 + ["b"] * 15, list(range(15)) + list(range(15, 30)))
+    late = (["a"] * 30, list(range(8)) + list(range(10, 30)) + [30, 31])  # starts 2 frames late, ends 2 late
+    for clips, frames in (whole, stitched, late):
+        assert len(clips) == len(frames) == 30
+    verdict = {}
+    for name, (clips, frames) in {"whole": whole, "stitched": stitched}.items():
+        for m in ("paper", "labels"):
+            rep = check_path(clips, frames, audio, own, None, FPS, 0.1, matching=m)
+            pc = [d for d in rep["details"] if d["kind"] == "PC"]
+            verdict[name, m] = pc[0]["met"]
+    assert verdict == {("whole", "paper"): True, ("whole", "labels"): True,
+                       ("stitched", "paper"): False, ("stitched", "labels"): True}
 
 
 def test_blinks_follow_the_rules():

@@ -17,7 +17,7 @@ FPS = 10.0
 def hub_graph(rng, n_clips=5, frames=50):
     """Clips of random PC / LR / idle runs (partner: random HP runs); original chains, a few hub states
     with many synthetic edges and the rest with 0-3, so path degrees vary a lot."""
-    own, par, clip, frame, start, end, peak = [], [], [], [], [], [], []
+    own, par, clip, frame, start, end, peak, pstart, pend = ([] for _ in range(9))
     for c in range(n_clips):
         lab = np.zeros(frames, np.int8)
         st, en, pk = (np.full(frames, -1, np.int32) for _ in range(3))
@@ -34,8 +34,12 @@ def hub_graph(rng, n_clips=5, frames=50):
         p = np.zeros(frames, np.int8)
         for _ in range(2):
             a = int(rng.integers(0, frames - 5)); p[a:a + int(rng.integers(2, 5))] = HP
+        pst, pen = (np.full(frames, -1, np.int32) for _ in range(2))
+        d = np.flatnonzero(np.diff(np.concatenate([[0], (p == HP).astype(np.int8), [0]])))
+        for a, b in zip(d[::2], d[1::2]):
+            pst[a:b], pen[a:b] = a, b
         own.append(lab); par.append(p); clip.append(np.full(frames, c)); frame.append(np.arange(frames))
-        start.append(st); end.append(en); peak.append(pk)
+        start.append(st); end.append(en); peak.append(pk); pstart.append(pst); pend.append(pen)
     S = n_clips * frames
     rows, cols, cost, syn = [], [], [], []
     hubs = set(rng.choice(S, S // 10, replace=False).tolist())
@@ -53,12 +57,11 @@ def hub_graph(rng, n_clips=5, frames=50):
     rows, cols, cost, syn = rows[o], cols[o], cost[o], syn[o]
     indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=S))])
     cat = lambda x: np.concatenate(x).astype(np.int32)  # noqa: E731
-    z = np.zeros(S, np.int32)
     g = MotionGraph(tuple(f"c{c}" for c in range(n_clips)), FPS, cat(clip), cat(frame), cat(own), cat(start),
-                    cat(end), cat(peak), cat(par), z - 1, z - 1, np.ones(S, bool), indptr, cols,
+                    cat(end), cat(peak), cat(par), cat(pstart), cat(pend), np.ones(S, bool), indptr, cols,
                     cost.astype(np.float32), syn, {})
     audio = {f"c{c}": (FrameAudio(own[c], start[c], end[c], peak[c]),
-                       FrameAudio(par[c], *(np.full(frames, -1, np.int32),) * 3)) for c in range(n_clips)}
+                       FrameAudio(par[c], pstart[c], pend[c], np.full(frames, -1, np.int32))) for c in range(n_clips)}
     return g, audio
 
 
@@ -81,15 +84,16 @@ def input_from_clip(audio, name, T):
     return own, par
 
 
+@pytest.mark.parametrize("matching", ["paper", "labels"])
 @pytest.mark.parametrize("seed", range(4))
 @pytest.mark.parametrize("beam,max_candidates", [(32, 4096), (32, 48), (8, 8)])
 @pytest.mark.parametrize("temperature", [0.05, 1.0])
-def test_kernel_equals_reference(seed, beam, max_candidates, temperature):
+def test_kernel_equals_reference(seed, beam, max_candidates, temperature, matching):
     rng = np.random.default_rng(seed)
     g, audio = hub_graph(rng)
     own, par = input_from_clip(audio, f"c{seed % 5}", 40)
     cfg = SearchParams(tolerance=0.1, beam_size=beam, max_candidates=max_candidates, max_degree=24,
-                      temperature=temperature, retry_temperatures=[])
+                      temperature=temperature, retry_temperatures=[], retry_beam_size=0, matching=matching)
     cons = build_constraints(own, par, 40, FPS, cfg)
     ref = reference_beam_search(g, cons, cfg, seed=seed, temperature=temperature)
     res = beam_search(g, cons, cfg, seed=seed)
@@ -98,7 +102,7 @@ def test_kernel_equals_reference(seed, beam, max_candidates, temperature):
         np.testing.assert_array_equal(res.path, ref.path)
         assert res.cost == pytest.approx(ref.cost, rel=1e-5, abs=1e-4)
         rep = check_path([g.clip_names[g.clip[s]] for s in res.path], [int(g.frame[s]) for s in res.path],
-                         audio, own, par, FPS, 0.1)
+                         audio, own, par, FPS, 0.1, matching=matching)
         assert rep["met"] == rep["total"], rep
     else:
         assert res.failed_frame == ref.failed_frame
@@ -111,7 +115,7 @@ def test_no_duplicate_states_in_the_beam_and_impossible_input_fails_at_the_same_
     rng = np.random.default_rng(7)
     g, audio = hub_graph(rng)
     own = pd.DataFrame([("LR", 1.0, np.nan, 1.6)], columns=["kind", "start", "peak", "end"])
-    cfg = SearchParams(beam_size=16, max_candidates=64, retry_temperatures=[])
+    cfg = SearchParams(beam_size=16, max_candidates=64, retry_temperatures=[], retry_beam_size=0)
     # no state is an HP on its own channel, so requiring one is impossible
     cons = build_constraints(own, None, 30, FPS, cfg)
     cons.own_req[12:15] = HP
@@ -164,3 +168,20 @@ def test_reported_synthetic_transitions_match_the_path():
         assert res.synthetic_at == jumps and res.num_synthetic_transitions == len(jumps) > 0
         total, costs, at = path_stats(g, res.path)
         assert at == jumps and res.cost == pytest.approx(total, rel=1e-6)
+
+
+def test_wide_retry_finds_what_a_narrow_beam_misses():
+    """search.retry_beam_size: when every ordinary attempt dies, one more attempt per temperature with a
+    wider beam; its path satisfies the paper checker."""
+    g, audio = hub_graph(np.random.default_rng(1))
+    own, par = input_from_clip(audio, "c1", 40)
+    narrow = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=0)
+    cons = build_constraints(own, par, 40, FPS, narrow)
+    assert not beam_search(g, cons, narrow, seed=1).success
+    wide = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=64,
+                        retry_max_candidates=1024)
+    res = beam_search(g, cons, wide, seed=1)
+    assert res.success
+    rep = check_path([g.clip_names[g.clip[s]] for s in res.path], [int(g.frame[s]) for s in res.path], audio, own,
+                     par, FPS, 0.1)
+    assert rep["met"] == rep["total"] and any(d["kind"] in ("PC", "LR") for d in rep["details"])

@@ -195,8 +195,9 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
     if res.success and res.source_clip is not None and all(c in clip_audio for c in res.source_clip):
         # every audio constraint of the window (whatever the condition), by the independent checker
         chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, own, partner, fps,
-                         float(params.search.tolerance))
-        row.update({"all_constraints_total": chk["total"], "all_constraints_met": chk["met"]})
+                         float(params.search.tolerance), matching=params.search.matching)
+        row.update({"all_constraints_total": chk["total"], "all_constraints_met": chk["met"],
+                    "checker_matching": params.search.matching})
         for kind in ("PC", "LR", "PH", "idle"):
             d = [x["met"] for x in chk["details"] if x["kind"] == kind]
             row[f"checker_{kind}_met"], row[f"checker_{kind}_total"] = int(sum(d)), len(d)
@@ -213,6 +214,7 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
             "speed_hellinger": metrics.speed_histogram_distance(pos, gt_pos, fps),
             "max_jump": float(metrics.max_frame_jump(pos).max(initial=0.0)),
             "num_synthetic_transitions": len(res.synthetic_at) if res.synthetic_at is not None else np.nan,
+            "seam_ratio": metrics.seam_ratio(pos, gt_pos, fps, res.synthetic_at or []),
         })
     return row, (res.motion if res.success else None)
 

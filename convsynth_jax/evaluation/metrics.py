@@ -85,3 +85,28 @@ def max_frame_jump(positions: np.ndarray) -> np.ndarray:
     """(F-1,) largest per-joint position change between consecutive frames."""
     d = np.linalg.norm(np.diff(np.asarray(positions, dtype=np.float64), axis=0), axis=-1)
     return d.max(axis=1) if d.size else np.zeros(0)
+
+
+def root_relative_acceleration(positions: np.ndarray, fps: float) -> np.ndarray:
+    """(F-2, J) joint acceleration magnitudes of positions relative to the root joint (joint 0's
+    position subtracted; heading not undone); row i is output frame i + 1 (central difference)."""
+    p = np.asarray(positions, dtype=np.float64)
+    return np.linalg.norm(derivative(p - p[:, :1], fps, 2), axis=-1)
+
+
+SEAM_RADIUS = 3  # frames either side of a synthetic transition that count as its seam
+
+
+def seam_ratio(positions: np.ndarray, gt_positions: np.ndarray, fps: float, synthetic_at,
+               radius: int = SEAM_RADIUS) -> float:
+    """Largest root-relative joint acceleration within ``radius`` frames of a synthetic transition
+    (output frames u with |u - t| <= radius for a transition arriving at t), divided by the largest
+    root-relative acceleration of the ground-truth window anywhere. NaN without transitions (no
+    seam to measure) or without ground-truth motion. Goal: <= 1 (a seam no sharper than real motion)."""
+    acc = root_relative_acceleration(positions, fps)
+    gt = root_relative_acceleration(gt_positions, fps)
+    centres = {u for t in synthetic_at for u in range(int(t) - radius, int(t) + radius + 1)}
+    rows = np.array(sorted(u - 1 for u in centres if 0 <= u - 1 < acc.shape[0]), dtype=np.int64)
+    if rows.size == 0 or gt.size == 0 or gt.max() <= 0:
+        return float("nan")
+    return float(acc[rows].max() / gt.max())

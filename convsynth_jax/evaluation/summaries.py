@@ -119,11 +119,14 @@ def quality_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
     """Motion-quality metrics of successful cases per condition (means)."""
     metric_cols = [c for c in ("jerk", "gt_jerk", "acceleration", "gt_acceleration", "speed_hellinger",
                                "diag_mean_transition_cost", "num_synthetic_transitions", "max_jump", "gt_max_jump",
-                               "diag_cost", "diversity") if c in cases]
+                               "diag_cost", "diversity", "seam_ratio") if c in cases]
     ok = cases[cases["success"].fillna(False).astype(bool)]
     if ok.empty:
         return pd.DataFrame({"condition": []})
     out = ok.groupby(_group_keys(ok, "condition"))[metric_cols].mean().reset_index()
+    if "seam_ratio" in ok:  # the seam goal (<= 1) is per window: show the worst one too
+        worst = ok.groupby(_group_keys(ok, "condition"))["seam_ratio"].max().rename("seam_ratio_max")
+        out = out.merge(worst.reset_index(), on=_group_keys(ok, "condition"), how="left")
     return _ordered(out)
 
 

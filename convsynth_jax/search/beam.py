@@ -32,6 +32,7 @@ loops and the same noise; tests require identical paths.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 from functools import partial
 from typing import NamedTuple
@@ -41,8 +42,9 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError, GraphError, LabelError
-from .constraints import Constraints, is_peak_state, label_ok, median_synthetic_cost, requirement_arrays
-from .result import SearchResult, failed_segment_at
+from .constraints import (Constraints, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
+                          requirement_arrays, segment_info)
+from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
 
 FRAME_BUCKET = 16
@@ -96,6 +98,7 @@ class _Prepared(NamedTuple):
     adj_syn: np.ndarray
     median_syn: float        # median synthetic edge cost: the temperature's unit
     device: tuple            # (packed targets+labels, costs, degrees, state codes), padded to STATE_BUCKET
+    paper_device: tuple      # (synthetic flags (S, D), segment info (S, 5)) for search.matching=paper
 
 
 _CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)
@@ -116,32 +119,56 @@ def _prepare(graph, max_degree) -> _Prepared:
     def padrows(x, v):
         return jnp.asarray(np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]))
 
+    info = segment_info(graph)
     prep = _Prepared(cost, syn, median_synthetic_cost(graph),
-                     (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)))
+                     (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)),
+                     (padrows(syn, False), padrows(info, 0)))
     _CACHE.append((graph, max_degree, prep))
     del _CACHE[:-4]
     return prep
 
 
-def sizes(num_states: int, beam: int, max_degree: int, max_candidates: int):
-    """(B, M, N, H): beam, candidate slots, noise pool size, dedup table size (a power of two)."""
+def sizes(num_states: int, beam: int, max_degree: int, max_candidates: int, keys_per_state: int = 2):
+    """(B, M, N, H): beam, candidate slots, noise pool size, dedup table size (a power of two; exact
+    when keys_per_state * S <= H: 2 keys per state (peak flag) for ``labels``, 4 (two entry flags)
+    for ``paper``)."""
     B = int(min(beam, num_states))
     M = max(int(min(max_candidates, B * max_degree)), B)
     N = 4 * M
-    H = 1 << int(np.ceil(np.log2(max(min(2 * num_states, max(4 * M, 1 << 14)), 2))))
+    H = 1 << int(np.ceil(np.log2(max(min(keys_per_state * num_states, max(4 * M, 1 << 14)), 2))))
     return B, M, N, H
 
 
-@partial(jax.jit, static_argnames=("beam", "M", "H"))
+def _paper_step(label_x, info_x, own_y, par_y, info_y, syn, first, t, flag, own_t, par_t, codes, tol):
+    """Both channels' ``paper`` rules (constraints.paper_channel_step); flag bit 0 own, bit 1 partner."""
+    own_x, par_x = label_x
+    ok_o, fo = paper_channel_step(own_x, info_x[..., 0], info_x[..., 1], own_y, info_y[..., 0], info_y[..., 1],
+                                  info_y[..., 2], syn, first, t, (flag & 1) == 1, own_t, codes[0], tol)
+    ok_p, fp = paper_channel_step(par_x, info_x[..., 3], info_x[..., 4], par_y, info_y[..., 3], info_y[..., 4],
+                                  -1, syn, first, t, (flag & 2) == 2, par_t, codes[1], tol)
+    return ok_o & ok_p, fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
+
+
+@partial(jax.jit, static_argnames=("beam", "M", "H", "paper"))
 def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, reqs, pw, reset, check, temp,
-                 num_frames, num_states, beam: int, M: int, H: int):
-    """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,))."""
+                 num_frames, num_states, paper_dev, paper_arrs, beam: int, M: int, H: int, paper: bool = False):
+    """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,)).
+    ``paper``: paper_dev = (synthetic (S, D), segment info (S, 5)), paper_arrs = (own per-frame arrays
+    (7 x (Tp,)), partner per-frame arrays, (own codes, partner codes), tol); else both unused."""
     S, D = packed.shape
     B = beam
     flat_packed, flat_cost = packed.reshape(-1), adj_cost.reshape(-1)
     own0, par0, peak0 = unpack_code(state_code)
-    flag0 = pw[0] & peak0
-    valid0 = label_ok(own0, par0, tuple(r[0] for r in reqs)) & jnp.where(check[0], flag0, True)
+    valid0 = label_ok(own0, par0, tuple(r[0] for r in reqs))
+    if paper:
+        flat_syn, info = paper_dev[0].reshape(-1), paper_dev[1]
+        own_a, par_a, codes, tol = paper_arrs
+        ok0, flag0 = _paper_step((own0, par0), info, own0, par0, info, jnp.zeros(S, bool), jnp.ones(S, bool), 0, jnp.zeros(S, jnp.int32),
+                                 tuple(a[0] for a in own_a), tuple(a[0] for a in par_a), codes, tol)
+        valid0 &= ok0
+    else:
+        flag0 = pw[0] & peak0
+        valid0 &= jnp.where(check[0], flag0, True)
     valid0 &= jnp.arange(S) < num_states
     top0, states0 = jax.lax.top_k(jnp.where(valid0, init_noise, -jnp.inf), B)
     alive0 = jnp.isfinite(top0)
@@ -150,7 +177,7 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
 
     def step(carry, xs):
         states, cost, flag, alive = carry
-        req_t, pw_t, reset_t, check_t, off_t = xs
+        req_t, pw_t, reset_t, check_t, off_t, t, own_t, par_t = xs
         # candidate layout: path by path (beam order), each path's e_b cheapest edges; e_b = min(deg, r*)
         d = jnp.where(alive, deg[states], 0)
         hist = jnp.zeros(D + 1, jnp.int32).at[d].add(1)
@@ -166,12 +193,22 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
         cand = pk >> CODE_BITS
         own, par, peak = unpack_code(pk)
         c = cost[row] + flat_cost[flat]
-        f_new = jnp.where(reset_t, False, flag[row]) | (pw_t & peak)
-        valid = (j < e[row]) & label_ok(own, par, req_t) & jnp.where(check_t, f_new, True)
+        valid = (j < e[row]) & label_ok(own, par, req_t)
+        if paper:
+            x = states[row]
+            own_x, par_x, _ = unpack_code(state_code[x])
+            ok, f_new = _paper_step((own_x, par_x), info[x], own, par, info[cand], flat_syn[flat], jnp.zeros(M, bool), t,
+                                    flag[row], own_t, par_t, codes, tol)
+            valid &= ok
+            key = cand * 4 + f_new
+        else:
+            f_new = jnp.where(reset_t, False, flag[row]) | (pw_t & peak)
+            valid &= jnp.where(check_t, f_new, True)
+            key = cand * 2 + f_new.astype(jnp.int32)
         noise = jax.lax.dynamic_slice(pool, (off_t,), (M,))
         score = jnp.where(valid, -c / temp + noise, -jnp.inf)
-        # keep only the best candidate per (state, peak flag): same future, so the rest is redundant
-        h = (cand * 2 + f_new.astype(jnp.int32)) & (H - 1)
+        # keep only the best candidate per (state, flags): same future, so the rest is redundant
+        h = key & (H - 1)
         best = jnp.full((H,), -jnp.inf, score.dtype).at[h].max(score)
         score = jnp.where(score >= best[h], score, -jnp.inf)
         top, idx = jax.lax.top_k(score, B)
@@ -180,8 +217,14 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
 
     init = (states0, jnp.zeros(B, jnp.float32), flag0[states0], alive0)
     rest = tuple(x[1:] for x in reqs)
+    Tp = pw.shape[0]
+    if paper:
+        own_rest, par_rest = tuple(a[1:] for a in own_a), tuple(a[1:] for a in par_a)
+    else:
+        own_rest = par_rest = jnp.zeros(Tp - 1, bool)
     _, (parents, ranks, states, costs, alives) = jax.lax.scan(
-        step, init, (rest, pw[1:], reset[1:], check[1:], offsets[1:]))
+        step, init, (rest, pw[1:], reset[1:], check[1:], offsets[1:], jnp.arange(1, Tp, dtype=jnp.int32),
+                     own_rest, par_rest))
     # trace back the cheapest live path of the true last frame (the frames after it are padding)
     last = jnp.maximum(num_frames - 2, 0)
     b_last = jnp.argmin(jnp.where(alives[last], costs[last], jnp.inf)).astype(jnp.int32)
@@ -200,11 +243,18 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
 def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
     """Beam search at ``search.temperature``; if no path survives, retry at each of
     ``search.retry_temperatures`` (hotter sampling: more diverse, at the price of more synthetic
-    transitions). The result reports the time of all attempts."""
+    transitions), then at every temperature again with ``search.retry_beam_size`` paths and
+    ``search.retry_max_candidates`` slots (0: no wide retry). The result reports the time of all
+    attempts."""
     t0 = time.perf_counter()
     temps = [float(params.temperature)] + [float(t) for t in (params.retry_temperatures or [])]
-    for k, temp in enumerate(temps):
-        res = _beam_search_once(graph, constraints, params, seed + 1000 * k, temp)
+    attempts = [(params, t) for t in temps]
+    if int(params.retry_beam_size) > 0:
+        wide = dataclasses.replace(params, beam_size=int(params.retry_beam_size),
+                                   max_candidates=max(int(params.retry_max_candidates), int(params.max_candidates)))
+        attempts += [(wide, t) for t in temps]
+    for k, (p, temp) in enumerate(attempts):
+        res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp)
         if res.success:
             break
     res.seconds = time.perf_counter() - t0
@@ -220,9 +270,10 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
                           f"(got {max_deg}, {beam}, {budget})")
     prep = _prepare(graph, max_deg)
     dev = prep.device
-    B, M, N, H = sizes(graph.num_states, beam, prep.adj_cost.shape[1], budget)
-    temp = max(temperature * prep.median_syn, 1e-6)
     c = constraints
+    paper = c.paper is not None
+    B, M, N, H = sizes(graph.num_states, beam, prep.adj_cost.shape[1], budget, 4 if paper else 2)
+    temp = max(temperature * prep.median_syn, 1e-6)
     T = c.num_frames
     Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
     S_pad = dev[0].shape[0]
@@ -233,14 +284,23 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
         return np.concatenate([x, np.full((Tp - T,) + x.shape[1:], v, x.dtype)])
 
     reqs = tuple(padb(r, -1) for r in requirement_arrays(c))
+    if paper:
+        pa = c.paper
+        # padding frames: no window, free entries, no flag check
+        own_a = tuple(padb(a, v) for a, v in zip(pa.own(), (-1, 0, 0, 0, True, False, False)))
+        par_a = tuple(padb(a, v) for a, v in zip(pa.partner(), (-1, 0, 0, 0, True, False, False)))
+        paper_arrs = (own_a, par_a, (np.int32(pa.own_codes), np.int32(pa.par_codes)), np.int32(c.tol))
+        paper_dev = prep.paper_device
+    else:
+        paper_arrs = paper_dev = None
     out = _beam_kernel(init_noise, pool, offsets, *dev, reqs, padb(c.peak_window, False), padb(c.peak_reset, False),
                        padb(c.peak_check, False), np.float32(temp), np.int32(T), np.int32(graph.num_states),
-                       beam=B, M=M, H=H)
+                       paper_dev, paper_arrs, beam=B, M=M, H=H, paper=paper)
     path, rank, alive_any = (np.asarray(x)[:T] for x in out)
     if not alive_any.all():
         fail = int(np.argmin(alive_any))
         return SearchResult(False, None, float("inf"), 0, c.total, 0, fail, failed_segment_at(c, fail),
-                            time.perf_counter() - t0, "beam")
+                            time.perf_counter() - t0, "beam", failure=failure_reason(c, fail, "beam"))
     path = path.astype(np.int64)
     src, rk = path[:-1], rank[1:]
     edge_cost = prep.adj_cost[src, rk].astype(np.float64)

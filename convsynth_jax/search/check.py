@@ -1,12 +1,22 @@
 """Independent constraint checker: recomputes every constraint of a synthesized path from the
-source (clip, frame) of each output frame and the database annotations (per-clip FrameAudio), as
-runs of labels — a different code path from the per-frame masks the searches use."""
+source (clip, frame) of each output frame and the database annotations (per-clip FrameAudio) — a
+different code path from the per-frame masks and entry windows the searches use.
+
+``matching="labels"`` (ours, relaxed) checks runs of labels in the path's associated audio.
+``matching="paper"`` checks the paper's rule: the path's source frames are cut into *instances*
+(maximal runs of consecutive frames of one clip inside one annotated source segment); an instance
+is whole when it starts at its segment's first frame (or at output frame 0) and ends at its last
+(or at the window's end), and it places its segment on the output timeline (start, end and F0
+peak); each input segment must be matched, one to one, by a whole instance of its kind placed
+within the tolerance.
+"""
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
 from ..annotate.types import HP, IDLE, LR, PC
+from ..errors import ConfigError
 
 
 def _runs(labels: np.ndarray, code: int):
@@ -14,14 +24,98 @@ def _runs(labels: np.ndarray, code: int):
     return list(zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)))
 
 
+def _instances(source_clip, source_frame, fa_of, code) -> list[dict]:
+    """Whole-or-cut played instances of source segments labelled ``code`` (fa_of(clip) -> FrameAudio):
+    dicts with output frames [u, v), placement start/end/peak on the output timeline, whole flag."""
+    T = len(source_frame)
+    out, cur = [], None
+    for t in range(T):
+        c, f = source_clip[t], int(source_frame[t])
+        fa = fa_of(c)
+        a = int(fa.seg_start[f])
+        if int(fa.label[f]) != code or a < 0:
+            cur = None
+            continue
+        if cur is not None and cur["clip"] == c and cur["a"] == a and f == cur["last"] + 1:
+            cur["last"], cur["v"] = f, t + 1
+            continue
+        b, pk = int(fa.seg_end[f]), int(fa.seg_peak[f])
+        cur = {"clip": c, "a": a, "b": b, "first": f, "last": f, "u": t, "v": t + 1, "peak_src": pk}
+        out.append(cur)
+    for x in out:
+        st = x["u"] - (x["first"] - x["a"])
+        x["whole"] = (x["first"] == x["a"] or x["u"] == 0) and (x["last"] == x["b"] - 1 or x["v"] == T)
+        x["start"], x["end"] = st, st + x["b"] - x["a"]
+        x["peak"] = st + x["peak_src"] - x["a"] if x["peak_src"] >= 0 else None
+    return out
+
+
+def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_segments, fps, tolerance,
+                 use_lr, use_hp) -> dict:
+    T = len(source_frame)
+    tol = tolerance * fps + 1e-9
+    details = []
+
+    def fr(x):
+        return int(round(x * fps))
+
+    def counted(s, e):
+        return 0 <= s + tol < T or (s + tol < 0 and min(T, e - tol) > 0)
+
+    def match(kind, code, channel, segs):
+        inst = [x for x in _instances(source_clip, source_frame, lambda c: clip_audio[c][channel], code)
+                if x["whole"]]
+        used = set()
+        for s, e, p in sorted(segs):
+            if not counted(s, e):
+                continue
+            ok = False
+            for i, x in enumerate(inst):
+                if i in used or abs(x["start"] - s) > tol or abs(x["end"] - e) > tol:
+                    continue
+                if p is not None and (x["peak"] is None or abs(x["peak"] - p) > tol):
+                    continue
+                used.add(i)
+                ok = True
+                break
+            details.append({"kind": kind, "start": s, "end": e, "peak": p, "met": ok})
+
+    own_mask = np.zeros(T, bool)
+    pcs, lrs, hps = [], [], []
+    for r in own_segments.itertuples(index=False):
+        s, e = fr(r.start), fr(r.end)
+        own_mask[max(0, int(s - tol)):max(0, min(T, int(np.ceil(e + tol))))] = True
+        if r.kind == "PC":
+            pcs.append((s, e, fr(r.peak) if np.isfinite(r.peak) else None))
+        elif r.kind == "LR" and use_lr:
+            lrs.append((s, e, None))
+    match("PC", PC, 0, pcs)
+    match("LR", LR, 0, lrs)
+    if use_hp and partner_segments is not None:
+        hps = [(fr(r.start), fr(r.end), None) for r in partner_segments.itertuples(index=False) if r.kind == "HP"]
+        match("PH", HP, 1, hps)
+    own = np.array([clip_audio[c][0].label[f] for c, f in zip(source_clip, source_frame)], np.int32)
+    d = np.diff(np.concatenate([[0], (~own_mask).astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
+        details.append({"kind": "idle", "start": int(a), "end": int(b), "peak": None,
+                        "met": bool(np.all(own[a:b] == IDLE))})
+    return {"total": len(details), "met": int(sum(x["met"] for x in details)), "details": details}
+
+
 def check_path(source_clip, source_frame, clip_audio: dict, own_segments: pd.DataFrame,
                partner_segments: pd.DataFrame, fps: float, tolerance: float = 0.1, use_lr: bool = True,
-               use_hp: bool = True) -> dict:
+               use_hp: bool = True, matching: str = "paper") -> dict:
     """source_clip: (T,) clip names; source_frame: (T,) frames; clip_audio: name -> (own FrameAudio,
     partner FrameAudio) of the database clips. Returns {"total", "met", "details": [...]}: for every
     input PC (and LR, partner HP when enabled) whether a run of that label in the path's associated
     audio starts and ends within ``tolerance`` of it (PC: and has its source F0-peak frame within
-    tolerance of the input peak), and whether the own label is idle wherever the input is idle."""
+    tolerance of the input peak), and whether the own label is idle wherever the input is idle
+    (``matching="labels"``); ``matching="paper"``: see the module docstring."""
+    if matching == "paper":
+        return _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_segments, fps, tolerance,
+                            use_lr, use_hp)
+    if matching != "labels":
+        raise ConfigError(f"matching must be 'paper' or 'labels', got {matching!r}")
     T = len(source_frame)
     tol = tolerance * fps + 1e-9
     own = np.array([clip_audio[c][0].label[f] for c, f in zip(source_clip, source_frame)], np.int32)

@@ -14,6 +14,41 @@ window; segments crossing a window edge keep their true times) with tolerance to
 Listener responses (LR) constrain the own channel; partner hesitations (HP on the partner channel)
 constrain the partner label the same way. Own hesitations are unconstrained. Switches:
 ``use_constraints=False`` (no audio constraint at all), ``use_lr``, ``use_hp``.
+
+Two matching modes (``search.matching``):
+
+* ``labels`` (ours, relaxed; the rules above): one input clause may be stitched from several
+  source clauses, the peak rule only asks for some source peak frame within tol, and segments of
+  2 tol or less (no core frames) are unconstrained.
+* ``paper`` (default; Section 7.2 as the paper states it): each input segment (own PC, own LR,
+  partner HP) is matched by ONE source segment of the same kind, played whole, whose start, F0
+  peak (PC) and end, placed on the output timeline, lie within tol of the input's. Short segments
+  are constrained like all others; idle stays idle.
+
+Encoding of ``paper`` (:class:`PaperArrays`; all per-frame arrays have fixed size T, so the beam
+kernel needs no variable-size bookkeeping). Every graph state carries its offset o in its own
+source segment, the segment's length L and its peak offset q (and the partner segment's offset
+and length), from the database annotation. A path is *in* a source segment instance of a
+constrained kind (own PC, own LR when use_lr, partner HP when use_hp):
+
+* contiguity: a synthetic transition may neither leave a source segment of a constrained kind
+  before its last frame (o < L - 1) nor enter one after its first frame (o > 0), so every
+  instance is played whole, and its placement on the output timeline is fixed when it is entered:
+  start t - o, end t - o + L, peak t - o + q (t: the output frame; o = 0 except at frame 0);
+* entry windows: an input segment [s, e) opens an entry window [s - tol, s + tol] (windows of
+  consecutive segments of one channel that would overlap are split at the midpoint of their
+  starts: a restriction of ours, sound but not complete). Entering an instance of kind K is
+  allowed only in a window of kind K whose segment it matches (start, end and peak within tol),
+  at most once per window (a per-path flag, reset when the window opens), or in a *free* frame
+  (inside the range of an input segment that is not a constraint, e.g. LR when use_lr is off);
+  the flag must be set when the window closes;
+* the label masks of ``labels`` stay (core frames need the kind, idle frames need idle), the
+  "forbidden just outside" labels do not (the placement check replaces them).
+
+Segments crossing the window start are matched by the frame-0 state's placement (its offset may be
+> 0); a segment counts as a constraint when its entry window closes inside the window, or it began
+before the window and its core reaches into it. :mod:`convsynth_jax.search.check` re-verifies the
+rule from the path's source frames and the database segments, without this encoding.
 """
 from __future__ import annotations
 
@@ -23,9 +58,47 @@ import numpy as np
 import pandas as pd
 
 from ..annotate.types import HP, IDLE, LR, PC
+from ..errors import ConfigError
 from .params import SearchParams
 
 FREE = -1
+NO_PEAK = -(1 << 20)   # PaperArrays.own_peak where the input segment has no F0 peak
+MATCHING_MODES = ("paper", "labels")
+
+
+@dataclass
+class PaperArrays:
+    """Per-frame arrays of ``search.matching=paper`` (T frames; see the module docstring).
+
+    own_kind/par_kind: (T,) label code of the entry window covering the frame, FREE for none;
+    own_start/own_end/own_peak, par_start/par_end: (T,) that window's input segment (frames on the
+    output timeline, NO_PEAK for no peak); own_free/par_free: (T,) bool, entries of any kind allowed;
+    own_reset/own_check, par_reset/par_check: (T,) bool, an entry window opens / closes (the flag must
+    be set); own_codes/par_codes: bit masks of the constrained label codes (bit k: code k)."""
+
+    own_kind: np.ndarray
+    own_start: np.ndarray
+    own_end: np.ndarray
+    own_peak: np.ndarray
+    own_free: np.ndarray
+    own_reset: np.ndarray
+    own_check: np.ndarray
+    par_kind: np.ndarray
+    par_start: np.ndarray
+    par_end: np.ndarray
+    par_free: np.ndarray
+    par_reset: np.ndarray
+    par_check: np.ndarray
+    own_codes: int
+    par_codes: int
+
+    def own(self):
+        return (self.own_kind, self.own_start, self.own_end, self.own_peak, self.own_free, self.own_reset,
+                self.own_check)
+
+    def partner(self):
+        nopk = np.full_like(self.par_start, NO_PEAK)
+        return (self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset, self.par_check)
 
 
 @dataclass
@@ -45,6 +118,7 @@ class Constraints:
     segments: list = field(default_factory=list)
     own_not: np.ndarray | None = None      # (T,) label forbidden on the own channel (FREE: none)
     partner_not: np.ndarray | None = None  # (T,) label forbidden on the partner channel
+    paper: PaperArrays | None = None       # search.matching=paper: the entry windows (else None)
 
     @property
     def total(self) -> int:
@@ -53,6 +127,10 @@ class Constraints:
 
 def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame, num_frames: int, fps: float,
                       params: SearchParams) -> Constraints:
+    if params.matching not in MATCHING_MODES:
+        raise ConfigError(f"search.matching must be one of {list(MATCHING_MODES)}, got {params.matching!r}")
+    if params.matching == "paper":
+        return _build_paper(own_segments, partner_segments, num_frames, fps, params)
     T = int(num_frames)
     tol = int(round(float(params.tolerance) * fps))
     use_c, use_lr, use_hp = bool(params.use_constraints), bool(params.use_lr), bool(params.use_hp)
@@ -113,6 +191,149 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
     idle_runs = _runs(own == IDLE)
     segs += [{"kind": "idle", "channel": "own", "start": a, "end": b, "peak": None} for a, b in idle_runs]
     return Constraints(T, fps, tol, own, par, pw, reset, check, segs, own_not, par_not)
+
+
+def _seg_frames(r, fps):
+    pk = getattr(r, "peak", np.nan)
+    pk = int(round(pk * fps)) if pk is not None and np.isfinite(pk) else None
+    return int(round(r.start * fps)), int(round(r.end * fps)), pk
+
+
+def _build_paper(own_segments, partner_segments, num_frames, fps, params) -> Constraints:
+    """``search.matching=paper``: label masks plus entry windows (module docstring)."""
+    T = int(num_frames)
+    tol = int(round(float(params.tolerance) * fps))
+    use_c, use_lr, use_hp = bool(params.use_constraints), bool(params.use_lr), bool(params.use_hp)
+    own = np.full(T, IDLE if use_c else FREE, np.int32)
+    par = np.full(T, FREE, np.int32)
+    zeros = np.zeros(T, bool)
+    segs = []
+
+    def channel():
+        return dict(kind=np.full(T, FREE, np.int32), start=np.zeros(T, np.int32), end=np.zeros(T, np.int32),
+                    peak=np.full(T, NO_PEAK, np.int32), free=np.zeros(T, bool), reset=np.zeros(T, bool),
+                    check=np.zeros(T, bool))
+
+    ch = {"own": channel(), "partner": channel()}
+    if not use_c:
+        pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak")), np.ones(T, bool), zeros, zeros,
+                         *(ch["partner"][k] for k in ("kind", "start", "end")), np.ones(T, bool), zeros, zeros, 0, 0)
+        return Constraints(T, fps, tol, own, par, zeros, zeros, zeros, segs, np.full(T, FREE, np.int32),
+                           np.full(T, FREE, np.int32), pa)
+    own_codes = (1 << PC) | ((1 << LR) if use_lr else 0)
+    par_codes = (1 << HP) if use_hp else 0
+    counted = {"own": [], "partner": []}   # (code, s, e, peak, kind name) of the constraints
+    free_ranges = {"own": [], "partner": []}
+    own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end"])
+    for r in own_segments.itertuples(index=False):
+        s, e, p = _seg_frames(r, fps)
+        lo, hi = max(0, s - tol), min(T, e + tol)
+        if hi <= 0 or lo >= T:
+            continue
+        own[lo:hi] = FREE
+        code = {"PC": PC, "LR": LR}.get(r.kind)
+        if code is None or not (own_codes >> code) & 1:
+            free_ranges["own"].append((lo, hi))
+            continue
+        c = s + tol
+        a, b = max(0, s + tol), min(T, e - tol)
+        if 0 <= c < T or (c < 0 and b > a):
+            counted["own"].append((code, s, e, p if code == PC else None, r.kind))
+        else:
+            free_ranges["own"].append((lo, hi))
+        if b > a:
+            own[a:b] = code
+    if use_hp and partner_segments is not None:
+        for r in partner_segments.itertuples(index=False):
+            if r.kind != "HP":
+                continue
+            s, e, _ = _seg_frames(r, fps)
+            c = s + tol
+            a, b = max(0, s + tol), min(T, e - tol)
+            if 0 <= c < T or (c < 0 and b > a):
+                counted["partner"].append((HP, s, e, None, "PH"))
+            elif max(0, s - tol) < min(T, e + tol):
+                free_ranges["partner"].append((max(0, s - tol), min(T, e + tol)))
+            if b > a:
+                par[a:b] = HP
+    # the partner channel has no idle rule: a partner HP may be entered anywhere outside the range
+    # [s - tol, e + tol) of an input HP; the own channel's free frames are those of input segments
+    # that are no constraint (outside them own_req already asks for idle or the core's kind)
+    ch["partner"]["free"][:] = True
+    for name in ("own", "partner"):
+        arr = ch[name]
+        for lo, hi in free_ranges[name]:
+            arr["free"][lo:hi] = True
+        items = sorted(counted[name], key=lambda x: x[1])
+        for i, (code, s, e, p, kind) in enumerate(items):
+            lo, hi = s - tol, s + tol                      # entry window [lo, hi]
+            if i > 0 and items[i - 1][1] + tol >= lo:      # overlaps the previous window: split (ours)
+                lo = (items[i - 1][1] + s) // 2 + 1
+            if i + 1 < len(items) and items[i + 1][1] - tol <= hi:
+                hi = (s + items[i + 1][1]) // 2
+            if hi < 0:                                     # began before the window: frame 0 carries it
+                lo = hi = 0
+            lo, hi_c = max(0, lo), min(T - 1, hi)
+            if hi_c >= lo:
+                arr["kind"][lo:hi_c + 1] = code
+                arr["start"][lo:hi_c + 1], arr["end"][lo:hi_c + 1] = s, e
+                arr["peak"][lo:hi_c + 1] = NO_PEAK if p is None else p
+                arr["reset"][lo] = True
+                if s + tol >= 0 and hi_c == hi:
+                    arr["check"][hi] = True
+            arr["free"][max(0, s - tol):max(0, min(T, e + tol))] = False
+            segs.append({"kind": kind, "channel": name, "start": s, "end": e, "peak": p})
+        arr["free"] &= arr["kind"] < 0
+    idle_runs = _runs(own == IDLE)
+    segs += [{"kind": "idle", "channel": "own", "start": a, "end": b, "peak": None} for a, b in idle_runs]
+    pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak", "free", "reset", "check")),
+                     *(ch["partner"][k] for k in ("kind", "start", "end", "free", "reset", "check")),
+                     own_codes, par_codes)
+    return Constraints(T, fps, tol, own, par, zeros.copy(), zeros.copy(), zeros.copy(), segs,
+                       np.full(T, FREE, np.int32), np.full(T, FREE, np.int32), pa)
+
+
+def segment_info(graph) -> np.ndarray:
+    """(S, 5) int32 per state: own offset in its source segment, own segment length, own peak offset
+    (-1: none), partner offset, partner segment length (offsets -1 and lengths 0 where idle)."""
+    own_on = (graph.own_label != IDLE) & (graph.own_start >= 0)
+    par_on = (graph.partner_label != IDLE) & (graph.partner_start >= 0)
+    f = graph.frame.astype(np.int64)
+    out = np.stack([np.where(own_on, f - graph.own_start, -1), np.where(own_on, graph.own_end - graph.own_start, 0),
+                    np.where(own_on & (graph.own_peak >= 0), graph.own_peak - graph.own_start, -1),
+                    np.where(par_on, f - graph.partner_start, -1),
+                    np.where(par_on, graph.partner_end - graph.partner_start, 0)], axis=1)
+    return out.astype(np.int32)
+
+
+def placement_ok(label, offset, length, peak_off, t, win, tol):
+    """Does a source segment instance (label, offset of the state, length, peak offset) at output frame
+    t match the entry window ``win`` = (kind, start, end, peak) of that frame? Operators only, so it
+    works on NumPy and JAX arrays alike."""
+    kind, s, e, p = win
+    st = t - offset
+    ok = (label == kind) & (st - s <= tol) & (s - st <= tol) & (st + length - e <= tol) & (e - st - length <= tol)
+    pk = st + peak_off - p
+    return ok & ((p == NO_PEAK) | ((peak_off >= 0) & (pk <= tol) & (-pk <= tol)))
+
+
+def paper_channel_step(label_x, off_x, len_x, label_y, off_y, len_y, peak_y, synthetic, first, t, flag, arrs,
+                       codes, tol):
+    """One channel's ``paper`` rule for a transition x -> y arriving at output frame t (``first``: t is
+    frame 0 and y the start state; x and synthetic are then ignored). arrs: that frame's
+    (kind, start, end, peak, free, reset, check). Returns (ok, new flag). Operators only (NumPy/JAX)."""
+    kind, s, e, p, free, reset, check = arrs
+    cons_x = ((codes >> label_x) & 1) == 1
+    cons_y = ((codes >> label_y) & 1) == 1
+    mid_x = cons_x & (off_x < len_x - 1)
+    mid_y = cons_y & (off_y > 0)
+    contiguous = first | ~synthetic | ~(mid_x | mid_y)
+    entry = cons_y & (first | (off_y == 0))
+    f0 = flag & ~reset
+    matched = entry & placement_ok(label_y, off_y, len_y, peak_y, t, (kind, s, e, p), tol) & ~f0
+    ok = contiguous & (~entry | free | matched)
+    f1 = f0 | matched
+    return ok & (~check | f1), f1
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:

@@ -7,6 +7,10 @@ window closes; at most ``max_paths_per_start`` complete block paths are kept per
 ``max_expansions`` bound the work. Of all block paths found, ``n_save`` are sampled (cheaper ones
 likelier: Gumbel top-k on -cost / temperature); their end states start the next block. The best
 complete path is returned; if no path survives a block the search reports which one.
+
+With ``search.matching=paper`` each step also applies the paper's whole-segment rule (entry windows,
+contiguity, placement; :func:`convsynth_jax.search.constraints.paper_channel_step`, the same rule
+as the beam kernel's) and a candidate carries the two entry flags instead of the peak flag.
 """
 from __future__ import annotations
 
@@ -14,8 +18,9 @@ import time
 
 import numpy as np
 
-from .constraints import Constraints, is_peak_state, median_synthetic_cost, state_ok_matrix
-from .result import SearchResult, failed_segment_at, path_stats
+from .constraints import (Constraints, is_peak_state, median_synthetic_cost, paper_channel_step, segment_info,
+                          state_ok_matrix)
+from .result import SearchResult, failed_segment_at, failure_reason, path_stats
 from .params import SearchParams
 
 
@@ -29,6 +34,25 @@ def _blocks(c: Constraints) -> list[tuple[int, int]]:
                     cuts.add(int(x))
     cuts = sorted(cuts)
     return list(zip(cuts[:-1], cuts[1:]))
+
+
+def _paper_rule(graph, c: Constraints):
+    """step(t, x, y, synthetic, flags, first) -> (ok, flags) of ``matching=paper`` for scalars."""
+    info = segment_info(graph)
+    own_l, par_l = graph.own_label.astype(np.int32), graph.partner_label.astype(np.int32)
+    pa = c.paper
+    own_a, par_a = pa.own(), pa.partner()
+
+    def step(t, x, y, synthetic, flags, first):
+        ix, iy = info[x], info[y]
+        syn, fst = np.bool_(synthetic), np.bool_(first)
+        ok_o, fo = paper_channel_step(own_l[x], ix[0], ix[1], own_l[y], iy[0], iy[1], iy[2], syn, fst, t,
+                                      np.bool_(flags[0]), tuple(a[t] for a in own_a), pa.own_codes, c.tol)
+        ok_p, fp = paper_channel_step(par_l[x], ix[3], ix[4], par_l[y], iy[3], iy[4], -1, syn, fst, t,
+                                      np.bool_(flags[1]), tuple(a[t] for a in par_a), pa.par_codes, c.tol)
+        return bool(ok_o and ok_p), (bool(fo), bool(fp))
+
+    return step
 
 
 def stochastic_greedy_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
@@ -48,21 +72,34 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
 
     max_deg = int(params.max_degree)
 
+    syn_all = graph.synthetic
+    paper = _paper_rule(graph, c) if c.paper is not None else None
+
     def edges(s):
         if s not in order:
             a, b = indptr[s], indptr[s + 1]
             k = np.argsort(costs[a:b], kind="stable")[:max_deg]
-            order[s] = (indices[a:b][k], costs[a:b][k])
+            order[s] = (indices[a:b][k], costs[a:b][k], syn_all[a:b][k])
         return order[s]
 
-    first = np.flatnonzero(ok[0])
+    def fail(frame):
+        return SearchResult(False, None, float("inf"), 0, c.total, 0, frame, failed_segment_at(c, frame),
+                            time.perf_counter() - t_begin, "dfs", failure=failure_reason(c, frame, "dfs"))
+
+    if paper is not None:
+        first = np.array([s for s in np.flatnonzero(ok[0]) if paper(0, s, s, False, (False, False), True)[0]],
+                         np.int64)
+    else:
+        first = np.flatnonzero(ok[0])
     if first.size == 0:
-        return SearchResult(False, None, float("inf"), 0, c.total, 0, 0, failed_segment_at(c, 0),
-                            time.perf_counter() - t_begin, "dfs")
+        return fail(0)
     starts = rng.choice(first, size=min(n_start, first.size), replace=False)
-    # a candidate: (path list, cost, peak flag)
-    frontier = [([int(s)], 0.0, bool(c.peak_window[0] and peak[s])) for s in starts]
-    frontier = [f for f in frontier if not (c.peak_check[0] and not f[2])]
+    # a candidate: (path list, cost, flag): the peak flag, or (own, partner) entry flags with paper
+    if paper is not None:
+        frontier = [([int(s)], 0.0, paper(0, int(s), int(s), False, (False, False), True)[1]) for s in starts]
+    else:
+        frontier = [([int(s)], 0.0, bool(c.peak_window[0] and peak[s])) for s in starts]
+        frontier = [f for f in frontier if not (c.peak_check[0] and not f[2])]
     for (b0, b1) in _blocks(c):
         if b0 == 0:
             b0 = 1
@@ -80,19 +117,23 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
                     found.append((path + seg, cst, fl))
                     kept += 1
                     continue
-                tg, cc = edges(s)
-                for u, w in zip(tg[::-1], cc[::-1]):  # push expensive first: cheapest popped first
+                tg, cc, sy = edges(s)
+                for u, w, y in zip(tg[::-1], cc[::-1], sy[::-1]):  # push expensive first: cheapest popped first
                     u = int(u)
                     if not ok[t, u]:
                         continue
-                    f2 = (False if c.peak_reset[t] else fl) or bool(c.peak_window[t] and peak[u])
-                    if c.peak_check[t] and not f2:
-                        continue
+                    if paper is not None:
+                        good, f2 = paper(t, s, u, y, fl, False)
+                        if not good:
+                            continue
+                    else:
+                        f2 = (False if c.peak_reset[t] else fl) or bool(c.peak_window[t] and peak[u])
+                        if c.peak_check[t] and not f2:
+                            continue
                     expansions += 1
                     stack.append((u, t + 1, cst + float(w), f2, seg + [u]))
         if not found:
-            return SearchResult(False, None, float("inf"), 0, c.total, 0, b0, failed_segment_at(c, b0),
-                                time.perf_counter() - t_begin, "dfs")
+            return fail(b0)
         cost_arr = np.array([f[1] for f in found])
         score = -cost_arr / temp + rng.gumbel(size=cost_arr.size)
         keep = np.argsort(-score)[:n_save]

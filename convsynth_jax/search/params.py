@@ -8,6 +8,10 @@ from typing import List, Optional
 @dataclass(frozen=True)
 class SearchParams:
     method: str = "beam"          # beam (JAX, ours) | dfs (the paper's depth-first stochastic greedy search)
+    # paper: each input segment (PC, LR, partner HP) is matched by ONE whole source segment of its kind
+    # whose start, F0 peak (PC) and end lie within ``tolerance`` of the input's, short segments
+    # included; labels (ours, relaxed): the path's per-frame labels match, see search/constraints.py
+    matching: str = "paper"
     tolerance: float = 0.1        # seconds, for start/peak/end matching
     use_constraints: bool = True  # False: no audio constraint at all (graph quality only)
     use_lr: bool = True           # listener-response constraints
@@ -18,6 +22,11 @@ class SearchParams:
     temperature: float = 0.05     # sampling temperature, relative to the median synthetic edge cost
     # beam: retry hotter (more diverse, more synthetic transitions) when no path survives
     retry_temperatures: List[float] = field(default_factory=lambda: [1.0])
+    # beam: then retry once more at every temperature with this wider beam and candidate budget (0: off);
+    # paper matching often needs it: a path must be positioned to enter one of the few source clauses
+    # of the right length at the right frame
+    retry_beam_size: int = 2048
+    retry_max_candidates: int = 16384
     n_start: int = 50             # DFS: random start states (our bound; the paper gives none)
     n_save: int = 200             # DFS: candidates kept per segment (paper: 200)
     max_paths_per_start: int = 20  # DFS: our bound

@@ -12,7 +12,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from .beam import FRAME_BUCKET, STATE_BUCKET, noise, sizes
-from .constraints import Constraints, is_peak_state, median_synthetic_cost, requirement_arrays
+from .constraints import NO_PEAK, Constraints, is_peak_state, median_synthetic_cost, requirement_arrays
 from .params import SearchParams
 
 
@@ -38,6 +38,33 @@ def _requirement_ok(own, par, req):
     return True
 
 
+def _paper_channel(c, t, frame_arrs, codes, x_seg, y_seg, synthetic, first, flag):
+    """``search.matching=paper`` for one channel, written out: x_seg/y_seg = (label, offset, length,
+    peak offset) of the previous and the new state. Returns (ok, new flag)."""
+    kind, s, e, p, free, reset, check = (a[t] for a in frame_arrs)
+    lx, ox, Lx, _ = x_seg
+    ly, oy, Ly, qy = y_seg
+    x_cons, y_cons = bool(codes >> int(lx) & 1), bool(codes >> int(ly) & 1)
+    if not first and synthetic:
+        if x_cons and ox < Lx - 1:      # leaves a source segment before its last frame
+            return False, flag
+        if y_cons and oy > 0:           # enters a source segment after its first frame
+            return False, flag
+    if reset:
+        flag = False
+    if y_cons and (first or oy == 0):   # a source segment is entered here: where does it lie?
+        st = t - oy
+        placed = (int(ly) == int(kind) and abs(st - s) <= c.tol and abs(st + Ly - e) <= c.tol
+                  and (p == NO_PEAK or (qy >= 0 and abs(st + qy - p) <= c.tol)))
+        if placed and not flag:
+            flag = True
+        elif not free:
+            return False, flag
+    if check and not flag:
+        return False, flag
+    return True, flag
+
+
 def reference_beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0,
                           temperature: float | None = None) -> ReferenceBeamResult:
     """One attempt at ``temperature`` (default ``search.temperature``), as ``beam._beam_search_once``."""
@@ -53,10 +80,41 @@ def reference_beam_search(graph, constraints: Constraints, params: SearchParams,
         edges.append([(int(t[k]), np.float32(c[k])) for k in o])
     D = max(1, min(max(len(e) for e in edges), max_deg))
     edges = [e[:D] for e in edges]
-    B, M, N, H = sizes(S, int(params.beam_size), D, int(params.max_candidates))
-    if 2 * S > H:
+    c = constraints
+    paper = c.paper is not None
+    keys = 4 if paper else 2
+    B, M, N, H = sizes(S, int(params.beam_size), D, int(params.max_candidates), keys)
+    if keys * S > H:
         raise ValueError(f"the reference deduplicates exactly; the kernel's table ({H} slots) is only exact "
-                         f"for graphs of at most {H // 2} states, this one has {S}")
+                         f"for graphs of at most {H // keys} states, this one has {S}")
+    syn_of = {}
+    for s_ in range(S):
+        t_, c_, y_ = graph.out_edges(s_)
+        for k in range(len(t_)):
+            syn_of.setdefault((s_, int(t_[k])), bool(y_[k]))
+
+    def seg(s_, channel):
+        if channel == "own":
+            on = own_l[s_] != 0 and graph.own_start[s_] >= 0
+            if not on:
+                return (int(own_l[s_]), -1, 0, -1)
+            a = int(graph.own_start[s_])
+            q = int(graph.own_peak[s_]) - a if graph.own_peak[s_] >= 0 else -1
+            return (int(own_l[s_]), int(graph.frame[s_]) - a, int(graph.own_end[s_]) - a, q)
+        on = par_l[s_] != 0 and graph.partner_start[s_] >= 0
+        if not on:
+            return (int(par_l[s_]), -1, 0, -1)
+        a = int(graph.partner_start[s_])
+        return (int(par_l[s_]), int(graph.frame[s_]) - a, int(graph.partner_end[s_]) - a, -1)
+
+    def paper_step(t, x, y, flags, first):
+        """(ok, flags) of both channels; flags = (own, partner)."""
+        syn = False if first else syn_of[(x, y)]
+        ok_o, fo = _paper_channel(c, t, c.paper.own(), c.paper.own_codes, seg(x, "own"), seg(y, "own"), syn,
+                                  first, flags[0])
+        ok_p, fp = _paper_channel(c, t, c.paper.partner(), c.paper.par_codes, seg(x, "par"), seg(y, "par"), syn,
+                                  first, flags[1])
+        return ok_o and ok_p, (fo, fp)
     temp = np.float32(max(temperature * median_synthetic_cost(graph), 1e-6))
     T = constraints.num_frames
     Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
@@ -64,15 +122,20 @@ def reference_beam_search(graph, constraints: Constraints, params: SearchParams,
     init_noise, pool, offsets = (np.asarray(x) for x in noise(seed, S_pad, N, M, Tp))
     own_l, par_l = np.asarray(graph.own_label), np.asarray(graph.partner_label)
     peak = is_peak_state(graph)
-    c = constraints
     req_arrays = requirement_arrays(c)
 
     def req(t):
         return tuple(int(a[t]) for a in req_arrays)
 
     # frame 0: the B valid states with the largest noise, in descending order (ties: lower state first)
-    flag0 = [bool(c.peak_window[0] and peak[s]) for s in range(S)]
-    valid0 = [s for s in range(S) if _requirement_ok(own_l[s], par_l[s], req(0)) and (not c.peak_check[0] or flag0[s])]
+    if paper:
+        first = [paper_step(0, s, s, (False, False), True) for s in range(S)]
+        flag0 = [f for _, f in first]
+        valid0 = [s for s in range(S) if _requirement_ok(own_l[s], par_l[s], req(0)) and first[s][0]]
+    else:
+        flag0 = [bool(c.peak_window[0] and peak[s]) for s in range(S)]
+        valid0 = [s for s in range(S) if _requirement_ok(own_l[s], par_l[s], req(0))
+                  and (not c.peak_check[0] or flag0[s])]
     valid0.sort(key=lambda s: (-float(init_noise[s]), s))
     # beam entries: (state, cost, flag, index of the parent entry in the previous frame's beam)
     beam = [(s, np.float32(0.0), flag0[s], -1) for s in valid0[:B]]
@@ -89,8 +152,12 @@ def reference_beam_search(graph, constraints: Constraints, params: SearchParams,
         for b, (s, cost, flag, _) in enumerate(beam):
             for target, ec in edges[s][:min(degrees[b], rstar)]:
                 cc = np.float32(cost + ec)
-                f = (False if c.peak_reset[t] else flag) or bool(c.peak_window[t] and peak[target])
-                ok = _requirement_ok(own_l[target], par_l[target], req(t)) and (f or not c.peak_check[t])
+                if paper:
+                    ok, f = paper_step(t, s, target, flag, False)
+                    ok = ok and _requirement_ok(own_l[target], par_l[target], req(t))
+                else:
+                    f = (False if c.peak_reset[t] else flag) or bool(c.peak_window[t] and peak[target])
+                    ok = _requirement_ok(own_l[target], par_l[target], req(t)) and (f or not c.peak_check[t])
                 score = np.float32(np.float32(-cc) / temp) + np.float32(pool[offsets[t] + slot])
                 if ok:
                     cands.append((float(score), slot, target, cc, f, b))

@@ -20,6 +20,7 @@ class SearchResult:
     method: str = ""
     transition_costs: list | None = None
     synthetic_at: list | None = None  # output frames t whose transition t-1 -> t is synthetic
+    failure: str | None = None        # why no path was found (None on success)
 
 
 def path_stats(graph, path):
@@ -46,3 +47,11 @@ def failed_segment_at(constraints, frame):
         if s["start"] - constraints.tol <= frame < s["end"] + constraints.tol:
             return dict(s)
     return {"kind": "frame", "start": int(frame)}
+
+
+def failure_reason(constraints, frame, method: str) -> str:
+    """A sentence naming the constraint (kind, frames) at which every candidate path died."""
+    seg = failed_segment_at(constraints, frame) or {}
+    mode = "paper" if getattr(constraints, "paper", None) is not None else "labels"
+    return (f"{method} search ({mode} matching): no path satisfies the {seg.get('kind', '?')} constraint at "
+            f"output frames {seg.get('start')}-{seg.get('end', '?')} (every candidate died at frame {frame})")

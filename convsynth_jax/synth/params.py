@@ -6,4 +6,6 @@ from dataclasses import dataclass
 
 @dataclass(frozen=True)
 class SynthParams:
-    blend_frames: int = 6   # cosine blend length after a synthetic transition
+    # cosine blend length after a synthetic transition (the paper gives none; ours: 12 frames = 0.4 s at
+    # 30 fps; on leave-one-out fold 0 the largest seam_ratio was 1.87 with 6 frames, 0.84 with 12)
+    blend_frames: int = 12

@@ -54,7 +54,8 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     res = SEARCHES[method](graph, cons, search, seed=seed)
     if not res.success:
         seg = res.failed_segment or {}
-        why = f"no path satisfies the {seg.get('kind', '?')} constraint at frames {seg.get('start')}-{seg.get('end')}"
+        why = res.failure or (f"no path satisfies the {seg.get('kind', '?')} constraint at frames "
+                              f"{seg.get('start')}-{seg.get('end')}")
         return SynthesisResult(False, constraints_total=cons.total, search_seconds=res.seconds, failure=why,
                                method=method)
     path = res.path

@@ -308,3 +308,40 @@ def test_figures_draw_wilson_error_bars():
     bars = [c for c in ax.containers if getattr(c, "errorbar", None) is not None]
     segs = [tuple(np.round(s[:, 1], 6)) for c in bars for s in c.errorbar.lines[2][0].get_segments()]
     assert segs == [(50.0, 70.0), (60.0, 80.0), (45.0, 55.0), (20.0, 40.0)]
+
+
+def test_head_only_system_is_measured_on_the_head(annotations, tiny_params):
+    """A head-only system (no hands) animates the head on a still body: its quality metrics are
+    computed on the head point (in the ground truth too), not on every joint, where a still body
+    scored zero jerk and acceleration whatever the head did (the CDBN rows of a sweep)."""
+    from convsynth_jax.evaluation.loo import evaluate_window, fold_thresholds, session_windows, window_input
+    from convsynth_jax.skeleton import Motion
+    from convsynth_jax.systems.base import SynthesisSystem, SystemParams, WindowResult
+
+    session = list(annotations)[0]
+    held = annotations[session]
+    role = list(held)[0]
+    gt_th, synth_th = fold_thresholds(annotations, session, AP)
+    w = session_windows(held, 30.0, 15.0, 14.0)[0]
+    win = window_input(held, role, w, 30.0, 0)
+    gt = held[role].motion.slice(win.start_frame, win.start_frame + win.num_frames)
+    head = gt.skeleton.names.index("Head")
+
+    class StillBodyMovingHead(SynthesisSystem):
+        produces_hands = False
+
+        def fit(self, clips, character, condition, cache_dir=None):
+            return None
+
+        def synthesize(self, model, window, condition):
+            rot = np.broadcast_to(np.asarray(gt.rotations[:1], np.float64), gt.rotations.shape).copy()
+            rot[:, head] = np.asarray(gt.rotations[:, head])  # only the head moves, as the ground truth's
+            trans = np.broadcast_to(np.asarray(gt.translations[:1]), gt.translations.shape).copy()
+            return WindowResult(True, Motion(gt.skeleton, rot, trans, gt.fps, "head"))
+
+    system = StillBodyMovingHead(tiny_params, SystemParams("head", "x:y", {"none": {}}))
+    row, _ = evaluate_window(system, None, win, "none", gt, {}, tiny_params, gt_thresholds=gt_th[role],
+                             synth_thresholds=synth_th[held[role].character])
+    assert row["metric_scope"] == "head"
+    assert row["jerk"] > 0 and row["acceleration"] > 0 and row["max_jump"] > 0
+    assert row["gt_jerk"] > 0

@@ -204,16 +204,30 @@ def joint_speeds(motion: Motion, params: AnnotateParams) -> dict:
         rel = np.asarray(quat_rotate(inv, pos[:, j[hand]] - pos[:, j[sh]]))
         out[key] = _speed(rel, fps)
     head, neck = j["head"], j["neck"]
-    ends = [off for parent, off in skel.end_sites if parent == head]
-    point = pos[:, head]
-    if ends:
-        point = point + np.asarray(quat_rotate(rot[:, head], np.broadcast_to(np.asarray(ends[0], float), point.shape)))
+    point = _head_point(skel, pos, rot, head)
     frame_j = skel.parents[neck] if skel.parents[neck] >= 0 else neck
     inv = rot[:, frame_j] * np.array([1, -1, -1, -1])
     rel = np.asarray(quat_rotate(inv, point - pos[:, neck]))
     up = int(params.up_axis)
     out["Nod"] = _speed(rel[:, up:up + 1], fps)
     return out
+
+
+def _head_point(skel, pos: np.ndarray, rot: np.ndarray, head: int) -> np.ndarray:
+    """(F, 3) global position of the head point: the End Site above the head joint, else the joint."""
+    ends = [off for parent, off in skel.end_sites if parent == head]
+    point = pos[:, head]
+    if ends:
+        point = point + np.asarray(quat_rotate(rot[:, head], np.broadcast_to(np.asarray(ends[0], float), point.shape)))
+    return point
+
+
+def head_point(motion: Motion, params: AnnotateParams) -> np.ndarray:
+    """(F, 3) float64 global position of the head point (see ``joint_speeds``), for metrics of
+    systems that animate the head only."""
+    j = find_joints(motion.skeleton, dict(params.joints or {}))
+    pos, rot = global_transforms(motion)
+    return _head_point(motion.skeleton, np.asarray(pos, np.float64), np.asarray(rot, np.float64), j["head"])
 
 
 def _speed(x: np.ndarray, fps: float) -> np.ndarray:

@@ -171,13 +171,24 @@ def window_cooccurrence(motion, own_segments, partner_segments, thresholds: dict
     return out
 
 
+def _metric_points(motion, head_only: bool, params) -> np.ndarray:
+    """(F, P, 3) float64 points the quality metrics are computed on: every joint (forward
+    kinematics), or the head point only (``annotate.motion.head_point``)."""
+    if head_only:
+        from ..annotate.motion import head_point
+
+        return head_point(motion, params.annotate)[:, None, :]
+    from ..kinematics import forward_kinematics
+
+    return np.asarray(forward_kinematics(motion), dtype=np.float64)
+
+
 def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition: str, gt_motion, clip_audio: dict,
                     params, *, gt_thresholds: dict, synth_thresholds: dict) -> tuple[dict, object]:
     """One row (generic fields + metrics) and the synthesized Motion (None on failure).
 
     gt_thresholds: Eq. 1's θ_S per kind of the held-out recording (its whole clip); synth_thresholds:
     those for the character's synthesized motion (``fold_thresholds``)."""
-    from ..kinematics import forward_kinematics
     from ..search.check import check_path
     from . import metrics
 
@@ -201,12 +212,17 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
         for kind in ("PC", "LR", "PH", "idle"):
             d = [x["met"] for x in chk["details"] if x["kind"] == kind]
             row[f"checker_{kind}_met"], row[f"checker_{kind}_total"] = int(sum(d)), len(d)
-    gt_pos = np.asarray(forward_kinematics(gt_motion), dtype=np.float64)
+    # Motion-quality metrics over every joint, or for a head-only system (no hands) over the head
+    # point alone, in both the ground truth and the synthesis: a still body would otherwise score
+    # zero jerk and hide what the system does (metric_scope says which).
+    head_only = not system.produces_hands
+    gt_pos = _metric_points(gt_motion, head_only, params)
+    row["metric_scope"] = "head" if head_only else "body"
     row.update(window_cooccurrence(gt_motion, own, partner, gt_thresholds, params, "gt"))
     row.update({"gt_jerk": metrics.mean_jerk(gt_pos, fps), "gt_acceleration": metrics.mean_acceleration(gt_pos, fps),
                 "gt_max_jump": float(metrics.max_frame_jump(gt_pos).max(initial=0.0))})
     if res.success and res.motion is not None:
-        pos = np.asarray(forward_kinematics(res.motion), dtype=np.float64)
+        pos = _metric_points(res.motion, head_only, params)
         row.update(window_cooccurrence(res.motion, own, partner, synth_thresholds, params, "synth",
                                        hands=system.produces_hands))
         row.update({
@@ -214,7 +230,7 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
             "speed_hellinger": metrics.speed_histogram_distance(pos, gt_pos, fps),
             "max_jump": float(metrics.max_frame_jump(pos).max(initial=0.0)),
             "num_synthetic_transitions": len(res.synthetic_at) if res.synthetic_at is not None else np.nan,
-            "seam_ratio": metrics.seam_ratio(pos, gt_pos, fps, res.synthetic_at or []),
+            "seam_ratio": metrics.seam_ratio(pos, gt_pos, fps, [] if res.synthetic_at is None else list(res.synthetic_at)),
         })
     return row, (res.motion if res.success else None)
 

@@ -127,6 +127,9 @@ def quality_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
     if "seam_ratio" in ok:  # the seam goal (<= 1) is per window: show the worst one too
         worst = ok.groupby(_group_keys(ok, "condition"))["seam_ratio"].max().rename("seam_ratio_max")
         out = out.merge(worst.reset_index(), on=_group_keys(ok, "condition"), how="left")
+    if "metric_scope" in ok:  # "body" (every joint) or "head" (head-only systems): what the means are over
+        scope = ok.groupby(_group_keys(ok, "condition"))["metric_scope"].first().rename("metric_scope")
+        out = out.merge(scope.reset_index(), on=_group_keys(ok, "condition"), how="left")
     return _ordered(out)
 
 

@@ -8,8 +8,9 @@ and are drawn in an orthographic view: vertical = the up axis (+Y), horizontal =
 along which the drawn roots spread the most (the axis joining two seated characters; X for one).
 Matplotlib is used through its object-oriented API only (no pyplot state, no backend switching).
 
-Speed: frames are subsampled to ``render_fps`` (default 10 fps: a 15 s window is 150 frames) and
-every body is one LineCollection whose segments are replaced per frame.
+Speed: frames are subsampled to ``render_fps`` (default 10 fps: a 15 s window is 150 frames), every
+body is one LineCollection whose segments are replaced per frame, and GIF frames are blitted (the
+static axes and timeline drawn once) and mapped onto one palette.
 """
 from __future__ import annotations
 
@@ -111,7 +112,7 @@ class _Scene:
         rows = max(1, len(timelines)) + sum(bool(t.transitions) for p in panels[:1] for t in p.tracks)
         self.fig = Figure(figsize=(width * len(self.panels), width * min(aspect, 1.4) + 0.28 * rows + 0.6), dpi=dpi)
         gs = self.fig.add_gridspec(2, len(self.panels), height_ratios=[width * min(aspect, 1.4), 0.28 * rows + 0.25],
-                                   hspace=0.25, wspace=0.05, left=0.04, right=0.98, top=0.93, bottom=0.08)
+                                   hspace=0.25, wspace=0.05, left=0.13, right=0.98, top=0.93, bottom=0.08)
         self.lines = []
         for i, p in enumerate(self.panels):
             ax = self.fig.add_subplot(gs[0, i])
@@ -161,13 +162,42 @@ class _Scene:
         return [lc for _, lc, _ in self.lines] + [self.cursor, self.time_text]
 
 
+def _gif_frames(scene: "_Scene", frames) -> list:
+    """Draw ``frames`` by blitting: the static parts (axes, timeline) are rendered once, then per
+    frame only the bodies, the cursor and the clock (Agg canvas; no pyplot)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+    from PIL import Image
+
+    canvas = FigureCanvasAgg(scene.fig)
+    dynamic = scene.draw(frames[0])
+    for a in dynamic:
+        a.set_animated(True)
+    canvas.draw()
+    background = canvas.copy_from_bbox(scene.fig.bbox)
+    images, palette = [], None
+    for f in frames:
+        canvas.restore_region(background)
+        for a in scene.draw(f):
+            a.axes.draw_artist(a) if a.axes is not None else scene.fig.draw_artist(a)
+        rgb = np.asarray(canvas.buffer_rgba())[..., :3]
+        if palette is None:  # one palette for all frames: the first frame plus every colour a body can take
+            from matplotlib.colors import to_rgb
+
+            swatch = np.array([[int(255 * c) for c in to_rgb(x)] for x in (*BODY_COLORS, TRANSITION_COLOR)], np.uint8)
+            strip = np.repeat(swatch[None], 8, axis=0).repeat(8, axis=1)
+            pad = np.full((strip.shape[0], rgb.shape[1], 3), 255, np.uint8)
+            pad[:, :strip.shape[1]] = strip[:, :rgb.shape[1]]
+            palette = Image.fromarray(np.concatenate([rgb, pad])).quantize(colors=96, method=Image.Quantize.MEDIANCUT)
+        images.append(Image.fromarray(rgb.copy()).quantize(palette=palette, dither=Image.Dither.NONE))
+    return images
+
+
 def render_animation(panels, timelines, fps: float, path: str | Path, render_fps: float = 10.0, dpi: int = 80,
                      width: float = 3.2) -> Path:
-    """Animate ``panels`` to ``path``: ``.gif`` (PillowWriter) or ``.mp4`` (ffmpeg; when ffmpeg is
-    not installed, a GIF is written beside it instead and its path returned). Every
+    """Animate ``panels`` to ``path``: ``.gif`` (frames blitted on an Agg canvas and written with
+    Pillow, matplotlib's own image dependency) or ``.mp4`` (matplotlib's FFMpegWriter; when ffmpeg
+    is not installed, a GIF is written beside it instead and its path returned). Every
     ``round(fps / render_fps)``-th frame is drawn."""
-    from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
-
     path = Path(path)
     scene = _Scene(panels, timelines, fps, width=width, dpi=dpi)
     step = max(1, int(round(fps / render_fps)))
@@ -176,11 +206,18 @@ def render_animation(panels, timelines, fps: float, path: str | Path, render_fps
     if path.suffix.lower() == ".mp4" and shutil.which("ffmpeg") is None:
         log.warning("ffmpeg not found: writing a GIF instead of %s", path)
         path = path.with_suffix(".gif")
-    writer = FFMpegWriter(fps=out_fps) if path.suffix.lower() == ".mp4" else PillowWriter(fps=out_fps)
-    anim = FuncAnimation(scene.fig, scene.draw, frames=frames, blit=False)
     path.parent.mkdir(parents=True, exist_ok=True)
+    if path.suffix.lower() == ".mp4":
+        from matplotlib.animation import FFMpegWriter, FuncAnimation
+
+        anim = FuncAnimation(scene.fig, scene.draw, frames=frames, blit=False)
+        with atomic_path(path) as tmp:
+            anim.save(str(tmp), writer=FFMpegWriter(fps=out_fps), dpi=dpi)
+        return path
+    images = _gif_frames(scene, frames)
     with atomic_path(path) as tmp:
-        anim.save(str(tmp), writer=writer, dpi=dpi)
+        images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], loop=0,
+                       duration=int(round(1000 / out_fps)))
     return path
 
 

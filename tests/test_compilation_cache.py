@@ -34,3 +34,22 @@ def test_compilation_cache_can_be_moved_and_disabled(tmp_path):
     assert not (tmp_path / "cache" / "jax_cache").exists()
     _run(tmp_path / "off", "jax_cache.dir=null")
     assert not (tmp_path / "off" / "cache" / "jax_cache").exists()
+
+
+def test_enable_and_disable_within_one_process(tmp_path):
+    import jax
+    import jax.numpy as jnp
+
+    from convsynth_jax.config import compose
+    from convsynth_jax.tasks.common import enable_compilation_cache
+
+    try:
+        assert enable_compilation_cache(compose([f"cache_dir={tmp_path}"])) == (tmp_path / "jax_cache").resolve()
+        jax.jit(lambda x: x * 3.5 + 1.25)(jnp.ones(7)).block_until_ready()  # a kernel no other test compiles
+        n = len(_entries(tmp_path / "jax_cache"))
+        assert n > 0
+        assert enable_compilation_cache(compose([f"cache_dir={tmp_path}", "jax_cache.dir=null"])) is None
+        jax.jit(lambda x: x * 5.5 - 2.25)(jnp.ones(9)).block_until_ready()
+        assert len(_entries(tmp_path / "jax_cache")) == n
+    finally:
+        enable_compilation_cache(compose(["jax_cache.dir=null"]))

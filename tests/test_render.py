@@ -47,7 +47,7 @@ def test_mp4_without_ffmpeg_falls_back_to_gif(tmp_path, monkeypatch):
 
 
 def _cfg(*o):
-    return compose(["task=render", "progress=false", *o])
+    return compose(["task=render", "progress=false", "jax_cache.dir=null", *o])
 
 
 def test_render_task_on_a_file_and_a_synthesize_folder(tmp_path):

@@ -23,6 +23,7 @@ def enable_compilation_cache(cfg) -> Path | None:
     node = cfg.get("jax_cache") if hasattr(cfg, "get") else None
     path = node.get("dir") if node is not None else None
     if not path:
+        _set_cache_dir(jax, None)  # off, also when an earlier task of this process turned it on
         return None
     path = Path(str(path)).expanduser().resolve()
     try:
@@ -31,16 +32,21 @@ def enable_compilation_cache(cfg) -> Path | None:
         raise ConfigError(f"jax_cache.dir={path}: cannot create the compilation cache directory ({e})") from None
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(node.get("min_compile_time_s", 0.0)))
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", int(node.get("min_entry_size_bytes", 0)))
-    if jax.config.jax_compilation_cache_dir != str(path):
-        jax.config.update("jax_compilation_cache_dir", str(path))
-        try:  # a process that already compiled with another (or no) directory: re-read the setting
-            from jax._src import compilation_cache
-
-            compilation_cache.reset_cache()
-        except (ImportError, AttributeError):  # pragma: no cover - private API moved
-            log.debug("jax compilation cache: reset_cache unavailable")
+    _set_cache_dir(jax, str(path))
     log.debug("jax compilation cache: %s", path)
     return path
+
+
+def _set_cache_dir(jax, path: str | None) -> None:
+    if jax.config.jax_compilation_cache_dir == path:
+        return
+    jax.config.update("jax_compilation_cache_dir", path)
+    try:  # a process that already compiled with another (or no) directory: re-read the setting
+        from jax._src import compilation_cache
+
+        compilation_cache.reset_cache()
+    except (ImportError, AttributeError):  # pragma: no cover - private API moved
+        log.debug("jax compilation cache: reset_cache unavailable")
 
 
 def params_of(cfg):

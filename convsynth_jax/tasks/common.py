@@ -44,7 +44,8 @@ def _set_cache_dir(jax, path: str | None) -> None:
     try:  # a process that already compiled with another (or no) directory: re-read the setting
         from jax._src import compilation_cache
 
-        compilation_cache.reset_cache()
+        if compilation_cache._cache_checked or compilation_cache._cache_initialized:
+            compilation_cache.reset_cache()
     except (ImportError, AttributeError):  # pragma: no cover - private API moved
         log.debug("jax compilation cache: reset_cache unavailable")
 

@@ -292,7 +292,10 @@ def _render_window(cfg, system, annotations, fold, condition, fitted, params, ou
     held_out = list(annotations)[fold]
     held = annotations[held_out]
     fps = float(params.fps)
-    w = session_windows(held, fps, params.loo.window, params.loo.hop, 1)[0]
+    windows = session_windows(held, fps, params.loo.window, params.loo.hop, 1)
+    if not windows:
+        return []
+    w = windows[0]
     f0 = int(round(w.start * fps))
     synth, truth, lines = [], [], []
     for k, (role, ann) in enumerate(held.items()):

@@ -30,13 +30,14 @@ GOALS = {"search_s_per_character": 0.1, "bandai2_construction_s": 1.5}
 def run_task(overrides, cache: Path, out: Path) -> dict:
     env = dict(os.environ, CONVSYNTH_CACHE=str(cache), PYTHONPATH=str(REPO))
     cmd = [sys.executable, "-m", "convsynth_jax.config", *overrides, "progress=false", f"hydra.run.dir={out}"]
+    load = os.getloadavg()[0]
     t = time.perf_counter()
     r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
     wall = time.perf_counter() - t
     if r.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}")
     summary = json.loads((out / "summary.json").read_text())
-    return {"process_s": wall, "summary": summary}
+    return {"process_s": wall, "summary": summary, "load_avg_1min": [load, os.getloadavg()[0]]}
 
 
 def cache_stats(cache: Path) -> dict:
@@ -49,7 +50,8 @@ def bench(name, overrides, figure, tmp: Path) -> dict:
     res = {"command": "convsynth " + " ".join(overrides)}
     for run, extra in (("cold", []), ("warm", []), ("control_no_jax_cache", ["jax_cache.dir=null"])):
         r = run_task(overrides + extra, cache, tmp / f"out_{name}_{run}")
-        res[run] = {"process_s": r["process_s"], "task_s": r["summary"].get("task_seconds"), **figure(r["summary"])}
+        res[run] = {"process_s": r["process_s"], "task_s": r["summary"].get("task_seconds"),
+                    "load_avg_1min": r["load_avg_1min"], **figure(r["summary"])}
         if run == "cold":
             res[run].update(cache_stats(cache))
         print(name, run, json.dumps(res[run], default=float), flush=True)
@@ -79,9 +81,12 @@ def main():
         out["met"]["bandai2_construction_s"] = (out["bandai2_build_graph"]["warm"]["construction_s"]
                                                 <= GOALS["bandai2_construction_s"])
     write("bench_startup", out)
+    loads = [x for b in ("synthesize", "bandai2_build_graph") if b in out for r in out[b].values()
+             if isinstance(r, dict) for x in r.get("load_avg_1min", [])]
     lines = ["# Start-up with the persistent compilation cache", "",
              f"{os.cpu_count()} CPUs; each run a fresh process; cold = empty cache dir, warm = second run, "
-             "control = second run with `jax_cache.dir=null`.", "",
+             "control = second run with `jax_cache.dir=null`. The machine's 1-minute load average during the "
+             f"runs: {min(loads):.1f}-{max(loads):.1f}.", "",
              "| command | figure | cold | warm | control (no jax cache) | goal |", "|---|---|---|---|---|---|"]
     s = out["synthesize"]
     for char in warm:

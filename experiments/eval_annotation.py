@@ -6,12 +6,19 @@
    against chance (chi-square and permutation).
 2. Negative controls on the same corpus: audio of each session with the motion of the next session,
    and each participant's motion circularly shifted by a third of the clip.
-3. Real speech (../shared/data/speech, if present): segment counts, fillers labelled HP, F0 range,
-   peaks inside their segments.
+3. Audio segmentation against the planted audio segments (events.csv PC/LR/HP rows): phonemic
+   clause boundaries (every clause start and end; a boundary is matched by one within
+   CLAUSE_TOL = 0.15 s), the words-per-clause distribution against the planted one, LR and HP
+   precision/recall (a segment is matched by an overlapping segment of the same kind).
+4. Fluent synthetic speech (convsynth_jax/data/fluent.py: clauses joined without any pause, F0
+   resets and final lengthening only; ``--fluent N`` passages of 7 clauses): clause-start precision
+   and recall within CLAUSE_TOL, words per clause, for the configured clause method and for ``pause``.
+5. Real speech (../shared/data/speech, if present): words per clause, fillers labelled HP, HP on
+   words outside the hesitation list, F0 median and peak range, suspicious (octave-jump) peaks.
 
 Writes experiments/results/eval_annotation.json and .md.
 
-    python experiments/eval_annotation.py [--cache DIR] [--sessions N]
+    python experiments/eval_annotation.py [--cache DIR] [--fluent N]
 """
 import argparse
 import dataclasses
@@ -30,6 +37,7 @@ from convsynth_jax.tasks.common import open_corpus
 
 SPEC = {"PC-LH": ("PC", ["LH"], "own"), "PC-RH": ("PC", ["RH"], "own"), "PC-LH/RH": ("PC", ["LH", "RH"], "own"),
         "LR-Nod": ("LR", ["Nod"], "own"), "PH-Nod": ("HP", ["Nod"], "partner")}
+CLAUSE_TOL = 0.15  # s: clause boundary matching tolerance
 CONFIG_KEY = {"PC-LH": "p_pc_lh", "PC-RH": "p_pc_rh", "PC-LH/RH": "p_pc_either", "LR-Nod": "p_lr_nod",
               "PH-Nod": "p_ph_nod"}
 
@@ -81,26 +89,114 @@ def control(ann, how):
     return out
 
 
-def real_speech():
+def _near(a, b, tol):
+    """For each value of a: is there a value of b within tol."""
+    a, b = np.asarray(a, float), np.sort(np.asarray(b, float))
+    if not b.size:
+        return np.zeros(a.size, bool)
+    i = np.clip(np.searchsorted(b, a), 1, b.size) - 1
+    j = np.clip(i + 1, 0, b.size - 1)
+    return np.minimum(np.abs(a - b[i]), np.abs(a - b[j])) <= tol
+
+
+def words_stats(n_words) -> dict:
+    n = np.asarray(n_words, int)
+    if not n.size:
+        return {"clauses": 0}
+    return {"clauses": int(n.size), "mean": float(n.mean()), "sd": float(n.std()), "median": float(np.median(n)),
+            "max": int(n.max()), "over_15": int((n > 15).sum()),
+            "histogram": {int(k): int(v) for k, v in zip(*np.unique(n, return_counts=True))}}
+
+
+def audio_scores(ann, ev):
+    """Clause boundary precision/recall (start and end of every clause, matched within CLAUSE_TOL),
+    words per clause detected vs planted, LR/HP overlap precision/recall."""
+    hits = {k: np.zeros(4) for k in ("PC", "LR", "HP")}
+    det_words, pl_words = [], []
+    for s, parts in ann.items():
+        for role, a in parts.items():
+            pl = ev[(ev.session == s) & (ev.participant == role)]
+            seg = a.segments
+            p_pc, d_pc = pl[pl.kind == "PC"], seg[seg.kind == "PC"]
+            pb = np.concatenate([p_pc.start, p_pc.end])
+            db = np.concatenate([d_pc.start, d_pc.end])
+            hits["PC"] += (_near(pb, db, CLAUSE_TOL).sum(), pb.size, _near(db, pb, CLAUSE_TOL).sum(), db.size)
+            det_words += d_pc.text.str.split().str.len().tolist()
+            pl_words += p_pc.text.str.split().str.len().tolist()
+            for k in ("LR", "HP"):
+                hits[k] += overlap_counts(pl[pl.kind == k], seg[seg.kind == k])
+    out = {k: {"recall": v[0] / max(v[1], 1), "precision": v[2] / max(v[3], 1), "planted": int(v[1]),
+               "detected": int(v[3])} for k, v in hits.items()}
+    out["PC"]["tolerance_s"] = CLAUSE_TOL
+    out["words_per_clause"] = {"detected": words_stats(det_words), "planted": words_stats(pl_words)}
+    return out
+
+
+def fluent_scores(n_passages, base_params):
+    """Clause starts (all but the first of a passage) on fluent synthetic speech (module docstring)."""
     from convsynth_jax.annotate.audio import annotate_audio
-    from convsynth_jax.annotate.params import AnnotateParams
+    from convsynth_jax.data.fluent import fluent_speech
+
+    out = {}
+    for method in (base_params.clause_method, "pause"):
+        p = dataclasses.replace(base_params, clause_method=method)
+        hp = n_p = hd = n_d = 0
+        nw, peak_err = [], []
+        for k in range(n_passages):
+            rng = np.random.default_rng(1000 + k)
+            sizes = [int(np.clip(round(rng.normal(4.1, 2.0)), 1, 10)) for _ in range(7)]
+            audio, w, segs = fluent_speech(2000 + k, sizes, f0_base=(210.0, 118.0)[k % 2])
+            seg = annotate_audio(w, audio, p)
+            pc = seg[seg.kind == "PC"]
+            truth, det = np.array([x.start for x in segs[1:]]), pc.start.to_numpy()[1:]
+            hp += int(_near(truth, det, CLAUSE_TOL).sum())
+            n_p += truth.size
+            hd += int(_near(det, truth, CLAUSE_TOL).sum())
+            n_d += det.size
+            nw += pc.text.str.split().str.len().tolist()
+            for x in segs:
+                same = pc[(np.abs(pc.start - x.start) < CLAUSE_TOL) & (np.abs(pc.end - x.end) < CLAUSE_TOL)]
+                if len(same):
+                    peak_err.append(abs(float(same.peak.iloc[0]) - x.peak))
+        out[method] = {"passages": n_passages, "boundary_recall": hp / max(n_p, 1),
+                       "boundary_precision": hd / max(n_d, 1), "planted_boundaries": n_p, "detected_boundaries": n_d,
+                       "words_per_clause": words_stats(nw),
+                       "peak_within_0.1s_of_planted": float(np.mean(np.array(peak_err) < 0.1)) if peak_err else None}
+    return out
+
+
+def real_speech(params):
+    from convsynth_jax.annotate.audio import annotate_audio, f0_track, load_word_corpus, normalize_word
+    from convsynth_jax.annotate.clauses import guard_f0
     from convsynth_jax.io import load_audio, load_transcript
 
     d = SHARED / "speech"
     if not d.is_dir():
         return {"skipped": f"{d} not found"}
+    hesitation = set(load_word_corpus()["hesitation"])
     out = {}
     for name in ("acoustic_corpus", "cold_corpus"):
         w = load_transcript(d / f"{name}.TextGrid")
-        seg = annotate_audio(w, load_audio(d / f"{name}.wav"), AnnotateParams())
+        audio = load_audio(d / f"{name}.wav")
+        seg = annotate_audio(w, audio, params)
         fillers = w[w["word"].str.lower().isin(["uh", "um", "yknow"])]
         hp = seg[seg.kind == "HP"]
         in_hp = sum(((hp.start <= f.start + 1e-9) & (hp.end >= f.end - 1e-9)).any() for f in fillers.itertuples())
+        hp_content = [t for t in hp.text if " ".join(normalize_word(x) for x in t.split()) not in hesitation]
+        t, f = f0_track(audio, params)
+        g = guard_f0(t, f, params)
         f0 = seg["f0_peak"].dropna()
+        pc = seg[seg.kind == "PC"]
         out[name] = {"words": int(len(w)), "segments": seg["kind"].value_counts().to_dict(),
+                     "words_per_clause": words_stats(pc.text.str.split().str.len()),
+                     "clauses": pc.text.tolist(),
                      "fillers": int(len(fillers)), "fillers_labelled_hp": int(in_hp),
+                     "hp_on_words_outside_the_hesitation_list": hp_content,
+                     "f0_median_hz": g.median, "f0_frames_dropped_by_guard": int(g.dropped.sum()),
+                     "f0_raw_max_hz": float(np.nanmax(g.raw)),
                      "f0_peak_hz_min": float(f0.min()), "f0_peak_hz_median": float(f0.median()),
                      "f0_peak_hz_max": float(f0.max()), "voiced_segments": int(len(f0)),
+                     "suspicious_peaks": int(seg["f0_suspect"].sum()),
                      "peaks_inside_segments": bool(((seg.peak >= seg.start) & (seg.peak <= seg.end)).all())}
     return out
 
@@ -108,6 +204,7 @@ def real_speech():
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
     ap.add_argument("--cache", default=str(REPO / "data_cache"))
+    ap.add_argument("--fluent", type=int, default=20, help="fluent synthetic passages (0: skip)")
     args = ap.parse_args()
     t0 = time.perf_counter()
     params = default_params([f"cache_dir={args.cache}", "progress=false"])
@@ -118,6 +215,7 @@ if __name__ == "__main__":
     t_ann = time.perf_counter() - t1
     ev = pd.read_csv(Path(corpus.root) / "events.csv")
     det = detection_scores(ann, ev)
+    aud = audio_scores(ann, ev)
     t1 = time.perf_counter()
     table = cooccurrence_table(ann, params.annotate, params.stats, params.seed)
     t_table = time.perf_counter() - t1
@@ -143,13 +241,20 @@ if __name__ == "__main__":
                        "p_permutation"]].to_dict(orient="records")}
     res = {"corpus": str(corpus.root), "sessions": len(ann),
            "seconds": {"total": time.perf_counter() - t0, "annotation": t_ann, "table": t_table},
-           "detection": det,
+           "detection": det, "audio_segmentation": aud, "clause_method": params.annotate.clause_method,
+           "fluent_speech": fluent_scores(args.fluent, params.annotate) if args.fluent else None,
            "max_abs_rate_error_pp": float(comp["measured_minus_planted_pp"].abs().max()),
            "all_rows_significant_p_lt_0.01": bool((comp["p_chi2"] < 0.01).all() and (comp["p_permutation"] < 0.01).all()),
-           "rows": comp.to_dict(orient="records"), "negative_controls": controls, "real_speech": real_speech()}
+           "rows": comp.to_dict(orient="records"), "negative_controls": controls, "real_speech": real_speech(params.annotate)}
     md = ["# Annotation evidence (synthetic default corpus)", "",
           f"Motion events: precision {det['precision']:.3f}, recall {det['recall']:.3f} "
           f"({det['planted_caused']} planted audio-caused movements, {det['detected']} detected).", "",
+          f"Audio segmentation (clause method {params.annotate.clause_method}): clause boundaries (starts and ends, "
+          f"within {CLAUSE_TOL} s) precision {aud['PC']['precision']:.3f}, recall {aud['PC']['recall']:.3f}; "
+          f"LR precision {aud['LR']['precision']:.3f}, recall {aud['LR']['recall']:.3f}; "
+          f"HP precision {aud['HP']['precision']:.3f}, recall {aud['HP']['recall']:.3f}.", "",
+          f"Words per clause: detected {aud['words_per_clause']['detected']}, planted "
+          f"{aud['words_per_clause']['planted']}.", "",
           f"Largest |measured - planted| rate: {res['max_abs_rate_error_pp']:.2f} percentage points; every row "
           f"significant at p < 0.01 (both tests): {res['all_rows_significant_p_lt_0.01']}.", "",
           to_markdown(comp), ""]
@@ -157,7 +262,28 @@ if __name__ == "__main__":
         md += [f"## Negative control: {how}", "",
                f"Any row above chance at p < 0.01: {c['any_above_chance_p_lt_0.01']} "
                f"(smallest permutation p {c['min_p_permutation']:.3g}).", "", to_markdown(pd.DataFrame(c["rows"])), ""]
-    md += ["## Real speech", "", "```", str(res["real_speech"]), "```", ""]
+    if res["fluent_speech"]:
+        md += ["## Fluent synthetic speech (no pauses between clauses)", ""]
+        for method, f in res["fluent_speech"].items():
+            md += [f"- {method}: clause-start precision {f['boundary_precision']:.3f}, recall {f['boundary_recall']:.3f} "
+                   f"({f['planted_boundaries']} planted, {f['detected_boundaries']} detected); words per clause "
+                   f"mean {f['words_per_clause']['mean']:.2f}, max {f['words_per_clause']['max']}; peak within 0.1 s "
+                   f"of the planted stressed word: {f['peak_within_0.1s_of_planted']}"]
+        md += [""]
+    md += ["## Real speech", ""]
+    for name, r in res["real_speech"].items():
+        if not isinstance(r, dict):
+            md += [f"- {name}: {r}"]
+            continue
+        wpc = r["words_per_clause"]
+        md += [f"- {name}: {wpc['clauses']} clauses, words per clause mean {wpc['mean']:.2f}, sd {wpc['sd']:.2f}, "
+               f"max {wpc['max']} (histogram {wpc['histogram']}); fillers labelled HP {r['fillers_labelled_hp']}/"
+               f"{r['fillers']}; HP on other words {r['hp_on_words_outside_the_hesitation_list']}; F0 median "
+               f"{r['f0_median_hz']:.0f} Hz, segment peaks {r['f0_peak_hz_min']:.0f}-{r['f0_peak_hz_max']:.0f} Hz "
+               f"(raw track max {r['f0_raw_max_hz']:.0f} Hz, {r['f0_frames_dropped_by_guard']} frames dropped by "
+               f"the octave guard), suspicious peaks {r['suspicious_peaks']}",
+               "  clauses: " + " | ".join(r["clauses"])]
+    md += [""]
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "eval_annotation.md").write_text("\n".join(md))
     write("eval_annotation", res)

@@ -16,10 +16,12 @@ if __name__ == "__main__":
             name = "table1_cooccurrence.csv"
     src, out, t0 = parse(__doc__, name)
     t = read_csv(src)
-    cols = [c for c in ("character", "hypothesis", "matched", "total", "rate", "chance_rate", "chi2", "df",
-                        "p_chi2", "p_permutation") if c in t]
+    cols = [c for c in ("character", "hypothesis", "matched", "total", "rate", "ci_low", "ci_high", "chance_method",
+                        "chance_rate", "chi2", "df", "p_chi2", "p_permutation") if c in t]
     table = t[cols].copy()
-    table["rate"] = (100 * table["rate"]).round(1)
+    for c in ("rate", "ci_low", "ci_high"):
+        if c in table:
+            table[c] = (100 * table[c]).round(1)
     if "chance_rate" in table:
         table["chance_rate"] = (100 * table["chance_rate"]).round(1)
     (out / "table1.md").write_text(summaries.to_markdown(table))

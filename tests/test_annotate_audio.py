@@ -59,14 +59,15 @@ def test_word_corpus_from_hydra_config():
 
 
 # ------------------------------------------------------------------------------------ segmentation
-def test_segment_words_groups_clauses_and_labels_tokens():
+@pytest.mark.parametrize("method", ["prosodic", "pause"])
+def test_segment_words_groups_clauses_and_labels_tokens(method):
     w = words([(0.0, 0.2, "So"), (0.25, 0.5, "we"), (0.55, 0.9, "went,"),     # clause 1 (punctuation ignored)
                (1.5, 1.8, "home"),                                           # pause 0.6 > 0.3: clause 2
                (1.85, 2.1, "uh"),                                            # HP splits
                (2.15, 2.4, "and"), (2.45, 2.6, "you"), (2.6, 2.8, "know"),   # "you know" is one HP
                (3.0, 3.3, "I"), (3.3, 3.5, "see"),                           # "I see" is one LR
                (3.6, 3.8, "uh"), (3.8, 4.0, "huh")])                         # "uh huh": LR, not two HPs
-    seg = segment_words(w, load_word_corpus(), max_gap=0.3)
+    seg = segment_words(w, load_word_corpus(), max_gap=0.3, params=AnnotateParams(clause_method=method))
     assert seg["kind"].tolist() == ["PC", "PC", "HP", "PC", "HP", "LR", "LR"]
     assert seg["text"].tolist() == ["So we went,", "home", "uh", "and", "you know", "I see", "uh huh"]
     assert seg[["start", "end"]].to_numpy().tolist() == [[0.0, 0.9], [1.5, 1.8], [1.85, 2.1], [2.15, 2.4],
@@ -83,9 +84,15 @@ def test_max_gap_and_clause_length_limits():
     w = words([(0.0, 0.2, "a"), (0.3, 0.5, "b"), (0.6, 0.8, "c"), (0.9, 1.1, "d"), (1.2, 1.4, "e")])
     assert segment_words(w, max_gap=0.3)["text"].tolist() == ["a b c d e"]
     assert segment_words(w, max_gap=0.05)["text"].tolist() == ["a", "b", "c", "d", "e"]
-    assert segment_words(w, max_clause_words=2)["text"].tolist() == ["a b", "c d", "e"]
+    pause = AnnotateParams(clause_method="pause")  # the greedy limits of the pause method
+    assert segment_words(w, max_clause_words=2, params=pause)["text"].tolist() == ["a b", "c d", "e"]
     # "c" would stretch the clause to 0.8 s > 0.7 s
-    assert segment_words(w, max_clause_seconds=0.7)["text"].tolist() == ["a b", "c d", "e"]
+    assert segment_words(w, max_clause_seconds=0.7, params=pause)["text"].tolist() == ["a b", "c d", "e"]
+    # the prosodic method honours the same limits (where it cuts is its own choice)
+    for kw in ({"max_clause_words": 2}, {"max_clause_seconds": 0.7}):
+        seg = segment_words(w, **kw)
+        assert " ".join(seg["text"]) == "a b c d e"
+        assert (seg["text"].str.split().str.len() <= 2).all() and (seg["end"] - seg["start"] <= 0.7 + 1e-9).all()
     # unsorted input is put in time order first
     assert segment_words(w.iloc[::-1], max_gap=0.3)["text"].tolist() == ["a b c d e"]
 
@@ -111,7 +118,8 @@ def test_add_peaks_and_local_peaks_by_hand():
     out = add_peaks(seg, t, f0)
     assert out.loc[0, "peak"] == pytest.approx(0.30) and out.loc[0, "f0_peak"] == 150.0
     assert out.loc[1, "peak"] == pytest.approx(1.25) and np.isnan(out.loc[1, "f0_peak"])  # midpoint
-    assert list(out.columns) == ["kind", "start", "peak", "end", "text", "f0_peak"]
+    assert list(out.columns) == ["kind", "start", "peak", "end", "text", "f0_peak", "f0_suspect"]
+    assert not out["f0_suspect"].any()  # no guard information given
     np.testing.assert_allclose(local_peaks(t, f0, 0.0, 0.5), [0.30, 0.40])
     assert local_peaks(t, f0, 1.0, 1.5).size == 0
 
@@ -189,7 +197,11 @@ def test_unquoted_yaml_boolean_is_rejected(tmp_path):
 # ---------------------------------------------------------------------------- words in context (#14)
 def _kinds(rows, **kw):
     seg = segment_words(words(rows), load_word_corpus(), params=AnnotateParams(**kw))
-    return list(zip(seg["kind"], seg["text"]))
+    out = list(zip(seg["kind"], seg["text"]))
+    # these short runs are single clauses for both clause methods
+    pause = segment_words(words(rows), load_word_corpus(), params=AnnotateParams(**{**kw, "clause_method": "pause"}))
+    assert list(zip(pause["kind"], pause["text"])) == out
+    return out
 
 
 def test_like_as_a_verb_is_no_hesitation():

@@ -9,6 +9,14 @@ trimmed so it does not overlap the neighbouring audio segments of the same chann
 motion segment found. The window holds a movement if the speed exceeds the clip's idle threshold
 θ_S = min + α_S (max − min) (Eq. 1); the movement starts at the first frame above
 θ_W = min_W + α_W (max_W − min_W) (Eq. 2) and ends at the last.
+
+Eq. 1's θ_S belongs to a *recording* (the whole clip of one participant): ``recording_thresholds``
+computes it once per recording and every detector takes it precomputed, so a 15 s leave-one-out
+window or a synthesized window is judged against the same θ_S as Table 1 (computing it over the
+window instead would let small head motion in a quiet window count as a nod; issue #16). Motion
+that has no recording of its own (synthesized) uses ``character_thresholds``: the mean θ_S of the
+character's training recordings (our choice; the paper does not say). Eq. 2's θ_W stays relative
+to the window, as in the paper.
 """
 from __future__ import annotations
 
@@ -171,6 +179,33 @@ def idle_threshold(v: np.ndarray, alpha: float = 0.1) -> float:
     return lo + alpha * (hi - lo)
 
 
+def recording_thresholds(speeds: dict, alpha_s: float = 0.1) -> dict:
+    """Eq. 1 per motion kind over a whole recording: {kind: θ_S} from ``joint_speeds`` output
+    ((F,) speeds per kind of the participant's whole clip, never a window of it)."""
+    return {k: idle_threshold(v, alpha_s) for k, v in speeds.items()}
+
+
+def character_thresholds(recordings: list[dict]) -> dict:
+    """θ_S for motion without a recording of its own (synthesized for a character): the mean, per
+    kind, of the ``recording_thresholds`` of the character's training recordings. Our choice: the
+    paper computes Eq. 1 per clip and says nothing about synthesized motion."""
+    if not recordings:
+        raise ConfigError("no training recordings to take idle thresholds from", where="character_thresholds")
+    kinds = set(recordings[0])
+    for r in recordings[1:]:
+        kinds &= set(r)
+    return {k: float(np.mean([r[k] for r in recordings])) for k in sorted(kinds)}
+
+
+def check_thresholds(thresholds: dict, kinds, where: str = "thresholds") -> None:
+    """ConfigError unless ``thresholds`` has a finite θ_S for every kind in ``kinds``."""
+    if thresholds is None:
+        raise ConfigError("idle thresholds (Eq. 1) of the recording are required", where=where)
+    bad = [k for k in kinds if k not in thresholds or not np.isfinite(thresholds[k])]
+    if bad:
+        raise ConfigError(f"no finite idle threshold (Eq. 1) for {bad}; got {dict(thresholds)}", where=where)
+
+
 class Window(NamedTuple):
     start: int  # frame, inclusive
     end: int    # frame, exclusive
@@ -267,16 +302,22 @@ HYPOTHESIS_SPEC = {  # hypothesis -> (audio channel, audio kind, motion kinds)
 
 def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner_segments: pd.DataFrame | None = None,
                    params: AnnotateParams | None = None, *, alpha_s: float | None = None,
-                   alpha_w: float | None = None) -> pd.DataFrame:
+                   alpha_w: float | None = None, thresholds: dict | None = None) -> pd.DataFrame:
     """Motion events DataFrame[kind (LH|RH|Nod), start, peak, end (seconds), channel, segment] found in
     the candidate windows of the own PCs (hand gestures), own LRs and partner HPs (nods).
 
     speeds: ``joint_speeds`` output ((F,) per kind); own/partner segments: DataFrame[kind, start, end]
     (seconds); ``segment`` = index label of the audio segment (own or partner, see ``channel``) whose
     window held the movement. alpha_s / alpha_w (Eq. 1 / Eq. 2) default to ``params``.
+    ``thresholds``: Eq. 1's θ_S per kind of the recording (``recording_thresholds``); None computes
+    them from ``speeds``, which is right only when ``speeds`` is a whole recording (annotation of a
+    corpus clip), never for a window of one (pass the recording's thresholds then); given
+    thresholds make ``alpha_s`` irrelevant.
     A movement found in both an own LR window and a partner HP window is listed once per channel."""
     params = params if params is not None else AnnotateParams()
     alpha_s = float(params.alpha_s if alpha_s is None else alpha_s)
+    if thresholds is None:
+        thresholds = recording_thresholds(speeds, alpha_s)
     alpha_w = float(params.alpha_w if alpha_w is None else alpha_w)
     extend = bool(params.extend_trim)
     rows = []
@@ -290,7 +331,8 @@ def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner
         if sel.empty:
             continue
         v = speeds[kind]
-        theta_s = idle_threshold(v, alpha_s)
+        check_thresholds(thresholds, (kind,), where="segment_motion")
+        theta_s = float(thresholds[kind])
         wins = candidate_windows(sel, n, fps, neighbours=segs)
         for (idx, _), hit in zip(sel.iterrows(), segment_windows(v, wins, theta_s, alpha_w, extend_trim=extend)):
             if hit is not None:

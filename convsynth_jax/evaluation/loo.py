@@ -7,6 +7,12 @@ and synthesize both characters in each window under one ablation condition, a ke
 fields: success, timings, constraints met, the independent checker's verdict where the system
 reports per-frame provenance, co-occurrence counts of ground truth and synthesized motion, and
 motion-quality metrics; system-specific scalars come as ``diag_<key>`` columns.
+
+Co-occurrence is counted by Table 1's function (``stats.cooccurrence.hypothesis_matches``) with
+Eq. 1's idle thresholds of a recording, never of the window: the ground truth of a held-out window
+uses its recording's own thresholds, synthesized motion the mean thresholds of the character's
+training recordings (``fold_thresholds``; our choice, the paper is silent). Every system is scored
+this way; one without hand motion (``produces_hands`` False) gets NaN hand hypotheses.
 """
 from __future__ import annotations
 
@@ -55,6 +61,52 @@ def fit_fold(system: SynthesisSystem, annotations: dict, held_out: str, conditio
     return out
 
 
+_THRESHOLD_CACHE: dict = {}  # (id(motion), annotate params) -> (motion, thresholds); the motion is kept so its id stays its own
+
+
+def _recording_thresholds(motion, annotate) -> dict:
+    """Eq. 1's θ_S per kind over the whole ``motion``, memoized per Motion object: a sweep in one
+    process (17 folds x 4 conditions) would otherwise run forward kinematics over every training
+    recording again for every fold and condition."""
+    from ..annotate.motion import joint_speeds, recording_thresholds
+
+    key = (id(motion), repr(annotate))
+    hit = _THRESHOLD_CACHE.get(key)
+    if hit is not None and hit[0] is motion:
+        return dict(hit[1])
+    th = recording_thresholds(joint_speeds(motion, annotate), annotate.alpha_s)
+    if len(_THRESHOLD_CACHE) >= 256:
+        _THRESHOLD_CACHE.pop(next(iter(_THRESHOLD_CACHE)))
+    _THRESHOLD_CACHE[key] = (motion, th)
+    return dict(th)
+
+
+def recording_threshold_table(annotations: dict, annotate) -> dict:
+    """(session, role) -> Eq. 1's θ_S per motion kind over that participant's whole clip."""
+    return {(s, r): _recording_thresholds(a.motion, annotate) for s, d in annotations.items() for r, a in d.items()}
+
+
+def fold_thresholds(annotations: dict, held_out: str, annotate, table: dict | None = None) -> tuple[dict, dict]:
+    """(role -> θ_S of each held-out recording over its own whole clip, character -> mean θ_S of
+    the character's training recordings) for the fold holding out ``held_out``. ``table``: a
+    ``recording_threshold_table`` to reuse across folds (computed here when None)."""
+    from ..annotate.motion import character_thresholds
+
+    if held_out not in annotations:
+        raise ConfigError(f"no session {held_out!r}; sessions are {list(annotations)}")
+    table = recording_threshold_table(annotations, annotate) if table is None else table
+    gt = {r: table[(held_out, r)] for r in annotations[held_out]}
+    synth = {}
+    for char in characters(annotations):
+        train = [table[(s, r)] for s, d in annotations.items() if s != held_out for r, a in d.items()
+                 if a.character == char]
+        if not train:
+            raise ConfigError(f"no training recordings of {char!r} outside the held-out session {held_out!r}: "
+                              "leave-one-out needs at least two sessions")
+        synth[char] = character_thresholds(train)
+    return gt, synth
+
+
 def session_windows(held: dict, fps: float, length: float, hop: float, max_windows: int | None = None) -> list[Window]:
     duration = min(a.motion.num_frames for a in held.values()) / fps
     windows = sliding_windows(duration, length, hop)
@@ -101,13 +153,18 @@ def window_input(held: dict, role: str, w: Window, fps: float, seed: int, with_a
         chair_index=k, seed=seed)
 
 
-def _event_counts(events, own_segments, partner_segments, prefix: str, hands: bool = True) -> dict:
-    """matched/total per hypothesis for one window (motion events vs audio segments); hand
-    hypotheses are NaN ("not applicable") for motion without hand gestures."""
-    from ..stats.cooccurrence import window_matches
+def window_cooccurrence(motion, own_segments, partner_segments, thresholds: dict, params, prefix: str,
+                        hands: bool = True) -> dict:
+    """``<prefix>_<hypothesis>_matched`` / ``_total`` for one window of motion, counted by Table 1's
+    ``hypothesis_matches`` with the given recording thresholds (Eq. 1); hand hypotheses are NaN
+    ("not applicable") for motion without hand gestures."""
+    from ..annotate.motion import joint_speeds
+    from ..stats.cooccurrence import window_counts
 
+    ap = params.annotate
+    counts = window_counts(joint_speeds(motion, ap), own_segments, partner_segments, motion.fps, thresholds, ap)
     out = {}
-    for h, (matched, total) in window_matches(events, own_segments, partner_segments).items():
+    for h, (matched, total) in counts.items():
         na = not hands and h in HAND_HYPOTHESES
         out[f"{prefix}_{h}_matched"] = np.nan if na else matched
         out[f"{prefix}_{h}_total"] = np.nan if na else total
@@ -115,14 +172,16 @@ def _event_counts(events, own_segments, partner_segments, prefix: str, hands: bo
 
 
 def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition: str, gt_motion, clip_audio: dict,
-                    params) -> tuple[dict, object]:
-    """One row (generic fields + metrics) and the synthesized Motion (None on failure)."""
-    from ..annotate.motion import joint_speeds, segment_motion
+                    params, *, gt_thresholds: dict, synth_thresholds: dict) -> tuple[dict, object]:
+    """One row (generic fields + metrics) and the synthesized Motion (None on failure).
+
+    gt_thresholds: Eq. 1's θ_S per kind of the held-out recording (its whole clip); synth_thresholds:
+    those for the character's synthesized motion (``fold_thresholds``)."""
     from ..kinematics import forward_kinematics
     from ..search.check import check_path
     from . import metrics
 
-    fps, ap = win.fps, params.annotate
+    fps = win.fps
     row = {"fit_seconds": system.fit_seconds(model), "status": "ok"}
     try:
         res = system.synthesize(model, win, condition)
@@ -142,14 +201,13 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
             d = [x["met"] for x in chk["details"] if x["kind"] == kind]
             row[f"checker_{kind}_met"], row[f"checker_{kind}_total"] = int(sum(d)), len(d)
     gt_pos = np.asarray(forward_kinematics(gt_motion), dtype=np.float64)
-    gt_events = segment_motion(joint_speeds(gt_motion, ap), own, fps, partner, ap)
-    row.update(_event_counts(gt_events, own, partner, "gt"))
+    row.update(window_cooccurrence(gt_motion, own, partner, gt_thresholds, params, "gt"))
     row.update({"gt_jerk": metrics.mean_jerk(gt_pos, fps), "gt_acceleration": metrics.mean_acceleration(gt_pos, fps),
                 "gt_max_jump": float(metrics.max_frame_jump(gt_pos).max(initial=0.0))})
     if res.success and res.motion is not None:
         pos = np.asarray(forward_kinematics(res.motion), dtype=np.float64)
-        ev = segment_motion(joint_speeds(res.motion, ap), own, fps, partner, ap)
-        row.update(_event_counts(ev, own, partner, "synth", hands=system.produces_hands))
+        row.update(window_cooccurrence(res.motion, own, partner, synth_thresholds, params, "synth",
+                                       hands=system.produces_hands))
         row.update({
             "jerk": metrics.mean_jerk(pos, fps), "acceleration": metrics.mean_acceleration(pos, fps),
             "speed_hellinger": metrics.speed_histogram_distance(pos, gt_pos, fps),
@@ -178,6 +236,7 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
     fps = float(params.features.fps)
     held = annotations[held_out]
     windows = session_windows(held, fps, params.loo.window, params.loo.hop, params.loo.max_windows)
+    gt_thresholds, synth_thresholds = fold_thresholds(annotations, held_out, params.annotate)
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in annotations.items() for r, a in d.items()}
     rows, synth_windows = [], {}
     for w in windows:
@@ -187,7 +246,9 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
                                role_index=k)
             win = window_input(held, role, w, fps, seed, with_audio=with_audio)
             gt = ann.motion.slice(f0, f0 + win.num_frames)
-            row, motion = evaluate_window(system, fitted[ann.character], win, condition, gt, clip_audio, params)
+            row, motion = evaluate_window(system, fitted[ann.character], win, condition, gt, clip_audio, params,
+                                          gt_thresholds=gt_thresholds[role],
+                                          synth_thresholds=synth_thresholds[ann.character])
             rows.append({"system": system.name, "fold": fold, "session": held_out, "condition": condition,
                          "window": w.index, "window_start": w.start, "window_end": w.end,
                          "character": ann.character, "role": role, "seed": seed, **row})

@@ -63,9 +63,16 @@ def timing_table(cases: pd.DataFrame) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
-def cooccurrence_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
+def cooccurrence_by_condition(cases: pd.DataFrame, confidence: float = 0.95) -> pd.DataFrame:
     """Co-occurrence rates on synthesized motion per condition and character next to the held-out
-    ground truth, with a two-sample proportion test (continuity-corrected chi-square)."""
+    ground truth (both counted by Table 1's measure with recording thresholds, see
+    ``evaluation.loo``), each with its Wilson interval at ``confidence`` (synth: ci_low, ci_high;
+    ground truth: gt_ci_low, gt_ci_high), a two-sample proportion test (continuity-corrected
+    chi-square: chi2, p_value) and, paired by window, a Wilcoxon signed-rank test of the per-window
+    matched rates of the successful windows with audio segments of the hypothesis (n_pairs,
+    p_wilcoxon). Hypotheses a system does not produce (NaN totals) are left out."""
+    from ..stats.tests import paired_rate_test, wilson_interval
+
     rows = []
     keys = _group_keys(cases, "condition", "character")
     for key, g in cases.groupby(keys):
@@ -79,11 +86,18 @@ def cooccurrence_by_condition(cases: pd.DataFrame) -> pd.DataFrame:
             sm, st = int(sg[cols[0]].sum()), int(sg[cols[1]].sum())
             gm, gt = int(g[cols[2]].sum()), int(g[cols[3]].sum())
             res = _two_sample_test(sm, st, gm, gt) if st > 0 and gt > 0 else None
+            paired = sg[(sg[cols[1]] > 0) & (sg[cols[3]] > 0)]
+            _, p_w, n_pairs = paired_rate_test(paired[cols[0]] / paired[cols[1]], paired[cols[2]] / paired[cols[3]])
+            slo, shi = wilson_interval(sm, st, confidence)
+            glo, ghi = wilson_interval(gm, gt, confidence)
             rows.append({
                 **dict(zip(keys, key)), "hypothesis": h,
                 "synth_matched": sm, "synth_total": st, "synth_rate": sm / st if st else np.nan,
+                "ci_low": slo, "ci_high": shi,
                 "gt_matched": gm, "gt_total": gt, "gt_rate": gm / gt if gt else np.nan,
+                "gt_ci_low": glo, "gt_ci_high": ghi,
                 "chi2": res.chi2 if res else np.nan, "p_value": res.p_value if res else np.nan,
+                "n_pairs": n_pairs, "p_wilcoxon": p_w,
             })
     return _ordered(pd.DataFrame(rows)) if rows else pd.DataFrame()
 

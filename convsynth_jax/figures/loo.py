@@ -5,6 +5,8 @@ from matplotlib.figure import Figure
 import numpy as np
 import pandas as pd
 
+from .table1 import rate_errors
+
 
 def success_rate_figure(table: pd.DataFrame):
     """Bar chart of the test-case success rate per condition."""
@@ -23,7 +25,8 @@ def success_rate_figure(table: pd.DataFrame):
 
 
 def ablation_figure(co: pd.DataFrame):
-    """Grouped bars: co-occurrence rate per hypothesis, ground truth vs each condition (per character)."""
+    """Grouped bars: co-occurrence rate per hypothesis, ground truth vs each condition (per character),
+    with Wilson intervals as error bars when ``co`` has them (gt_ci_low/gt_ci_high, ci_low/ci_high)."""
     chars = sorted(co["character"].unique()) if not co.empty else []
     fig = Figure(figsize=(5.5 * max(1, len(chars)), 3.4))
     axes = fig.subplots(1, max(1, len(chars)), squeeze=False)
@@ -33,11 +36,15 @@ def ablation_figure(co: pd.DataFrame):
         conds = list(dict.fromkeys(g["condition"]))
         width = 0.8 / (len(conds) + 1)
         x = np.arange(len(hyps))
-        gt = g.groupby("hypothesis")["gt_rate"].first().reindex(hyps)
-        ax.bar(x - 0.4 + width / 2, 100 * gt.values, width, label="ground truth", color="k", alpha=0.7)
+        first = g.groupby("hypothesis").first().reindex(hyps)
+        gerr = (rate_errors(first["gt_rate"], first["gt_ci_low"], first["gt_ci_high"])
+                if {"gt_ci_low", "gt_ci_high"} <= set(g) else None)
+        ax.bar(x - 0.4 + width / 2, 100 * first["gt_rate"].values, width, yerr=gerr, capsize=2,
+               label="ground truth", color="k", alpha=0.7)
         for i, c in enumerate(conds):
-            r = g[g["condition"] == c].set_index("hypothesis")["synth_rate"].reindex(hyps)
-            ax.bar(x - 0.4 + width * (i + 1.5), 100 * r.values, width, label=c)
+            r = g[g["condition"] == c].set_index("hypothesis").reindex(hyps)
+            err = rate_errors(r["synth_rate"], r["ci_low"], r["ci_high"]) if {"ci_low", "ci_high"} <= set(r) else None
+            ax.bar(x - 0.4 + width * (i + 1.5), 100 * r["synth_rate"].values, width, yerr=err, capsize=2, label=c)
         ax.set_xticks(x, hyps, rotation=20)
         ax.set_ylabel("co-occurrence rate (%)")
         ax.set_title(char)

@@ -90,3 +90,35 @@ def permutation_test(a: np.ndarray, b: np.ndarray, n_permutations: int = 5000, s
         diff = sa / a.size - (total - sa) / b.size
         exceed += int(np.sum(diff >= observed - 1e-12))
     return float((exceed + 1) / (n_permutations + 1))
+
+
+def wilson_interval(matched, total, confidence: float = 0.95) -> tuple[float, float]:
+    """Wilson score interval of the proportion matched/total at ``confidence`` (statsmodels
+    ``proportion_confint(method="wilson")``); (nan, nan) when total is 0 or not a number."""
+    from statsmodels.stats.proportion import proportion_confint
+
+    if total is None or not np.isfinite(total) or total <= 0 or matched is None or not np.isfinite(matched):
+        return float("nan"), float("nan")
+    if matched < 0 or matched > total:
+        raise CountError("need 0 <= matched <= total", where=f"matched={matched}, total={total}")
+    lo, hi = proportion_confint(int(matched), int(total), alpha=1.0 - confidence, method="wilson")
+    return float(lo), float(hi)
+
+
+def paired_rate_test(a, b) -> tuple[float, float, int]:
+    """Wilcoxon signed-rank test (scipy, two-sided, zero differences dropped) of paired per-window
+    rates a vs b (equal-length arrays; pairs with a NaN are left out): (statistic, p, pairs used).
+    With no non-zero difference the rates agree on every pair: (0.0, 1.0, n)."""
+    a = np.asarray(a, dtype=np.float64).ravel()
+    b = np.asarray(b, dtype=np.float64).ravel()
+    if a.shape != b.shape:
+        raise CountError("paired test needs arrays of equal length", where=f"{a.size} vs {b.size}")
+    keep = np.isfinite(a) & np.isfinite(b)
+    a, b = a[keep], b[keep]
+    n = int(a.size)
+    if n == 0:
+        return float("nan"), float("nan"), 0
+    if not np.any(a != b):
+        return 0.0, 1.0, n
+    res = stats.wilcoxon(a, b, zero_method="wilcox", alternative="two-sided")
+    return float(res.statistic), float(res.pvalue), n

@@ -1,7 +1,8 @@
 """Task ``cooccurrence``: Table 1 (audio-motion co-occurrence with tests against chance).
 
-Writes ``cooccurrence.csv`` (character, hypothesis, matched, total, rate, chance_matched,
-chance_total, chance_rate, chi2, df, p_chi2, p_permutation), ``cooccurrence.md``, ``cooccurrence.tex``,
+Writes ``cooccurrence.csv`` (``stats.cooccurrence.TABLE_COLUMNS``: character, hypothesis, matched,
+total, rate with its Wilson interval ci_low/ci_high, chance_method (away | shifted | none), chance
+counts, rate and interval, chi2, df, p_chi2, p_permutation), ``cooccurrence.md``, ``cooccurrence.tex``,
 ``cooccurrence_by_session.csv``, ``events.csv`` (detected motion events), ``segments.csv`` (audio
 segments) and ``cooccurrence.png``.
 """

@@ -38,7 +38,7 @@ def test_report_has_every_paper_artifact_with_the_papers_values(main_run):
     assert sorted(map(tuple, t1[key].to_numpy().tolist())) == sorted(map(tuple, ours[key].to_numpy().tolist()))
     row = t1[(t1["character"] == "female") & (t1["hypothesis"] == "PC-LH")].iloc[0]
     assert (row["paper_matched"], row["paper_total"]) == P.TABLE1[("female", "PC-LH")]
-    assert row["rate_ci_low"] <= row["rate"] <= row["rate_ci_high"]
+    assert row["ci_low"] <= row["rate"] <= row["ci_high"]
     # Table 2 for the requested ks, with the paper's 50,568 -> 40,673 states at k = 3
     t2 = pd.read_csv(out / "table2.csv")
     assert sorted(set(t2["k"])) == [2, 3]

@@ -22,17 +22,14 @@ NOT_METRICS = {"fold", "window", "window_start", "window_end", "seed", "fit_seco
                "constraints_total", "constraints_met", "all_constraints_total", "all_constraints_met"}
 
 
-def wilson(k, n, alpha: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
-    """Wilson score interval of k successes in n trials (arrays; NaN where n == 0)."""
-    from statsmodels.stats.proportion import proportion_confint
+def wilson(k, n, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
+    """Wilson score intervals of k successes in n trials, elementwise over arrays
+    (:func:`convsynth_jax.stats.tests.wilson_interval`; NaN where n is 0)."""
+    from ..stats.tests import wilson_interval
 
-    k = np.asarray(k, dtype=np.float64)
-    n = np.asarray(n, dtype=np.float64)
-    lo, hi = np.full(k.shape, np.nan), np.full(k.shape, np.nan)
-    ok = n > 0
-    if np.any(ok):
-        lo[ok], hi[ok] = proportion_confint(k[ok], n[ok], alpha=alpha, method="wilson")
-    return lo, hi
+    k, n = np.atleast_1d(np.asarray(k, np.float64)), np.atleast_1d(np.asarray(n, np.float64))
+    ci = [wilson_interval(a, b, confidence) for a, b in zip(k, n)]
+    return np.array([c[0] for c in ci]), np.array([c[1] for c in ci])
 
 
 def _sort(df: pd.DataFrame) -> pd.DataFrame:
@@ -50,16 +47,18 @@ def _sort(df: pd.DataFrame) -> pd.DataFrame:
 
 
 def table1_beside_paper(table1: pd.DataFrame) -> pd.DataFrame:
-    """Table 1 (character, hypothesis, matched, total, rate, ...) with the rate's Wilson interval and
-    the paper's matched / total / rate (and interval) for the same character and hypothesis."""
+    """Table 1 (character, hypothesis, matched, total, rate, ...) with the rate's Wilson interval
+    (ci_low, ci_high; kept when the table has them) and the paper's matched / total / rate (and
+    interval) for the same character and hypothesis."""
     t = table1.copy()
-    t["rate_ci_low"], t["rate_ci_high"] = wilson(t["matched"], t["total"])
+    if not {"ci_low", "ci_high"} <= set(t.columns):
+        t["ci_low"], t["ci_high"] = wilson(t["matched"], t["total"])
     pm = [P.TABLE1.get((c, h), (np.nan, np.nan)) for c, h in zip(t["character"], t["hypothesis"])]
     t["paper_matched"] = [m for m, _ in pm]
     t["paper_total"] = [n for _, n in pm]
     t["paper_rate"] = t["paper_matched"] / t["paper_total"]
     t["paper_ci_low"], t["paper_ci_high"] = wilson(t["paper_matched"].fillna(0), t["paper_total"].fillna(0))
-    front = ["character", "hypothesis", "matched", "total", "rate", "rate_ci_low", "rate_ci_high", "paper_matched",
+    front = ["character", "hypothesis", "matched", "total", "rate", "ci_low", "ci_high", "paper_matched",
              "paper_total", "paper_rate", "paper_ci_low", "paper_ci_high"]
     return _sort(t[front + [c for c in t.columns if c not in front]])
 
@@ -100,13 +99,16 @@ def success_beside_paper(rates: pd.DataFrame) -> pd.DataFrame:
 
 def ablation_with_significance(co: pd.DataFrame, alpha: float) -> pd.DataFrame:
     """Co-occurrence per condition x character x hypothesis in synthesized motion vs the held-out
-    ground truth (``summaries.cooccurrence_by_condition``) with Wilson intervals on both rates and
+    ground truth (``summaries.cooccurrence_by_condition``) with Wilson intervals on both rates
+    (synthesized: ci_low, ci_high; ground truth: gt_ci_low, gt_ci_high; kept when present) and
     ``significant`` (p < alpha)."""
     if co is None or co.empty:
         return pd.DataFrame()
     t = co.copy()
-    t["synth_ci_low"], t["synth_ci_high"] = wilson(t["synth_matched"], t["synth_total"])
-    t["gt_ci_low"], t["gt_ci_high"] = wilson(t["gt_matched"], t["gt_total"])
+    if not {"ci_low", "ci_high"} <= set(t.columns):
+        t["ci_low"], t["ci_high"] = wilson(t["synth_matched"], t["synth_total"])
+    if not {"gt_ci_low", "gt_ci_high"} <= set(t.columns):
+        t["gt_ci_low"], t["gt_ci_high"] = wilson(t["gt_matched"], t["gt_total"])
     t["significant"] = t["p_value"] < alpha
     return _sort(t)
 

@@ -37,7 +37,7 @@ def table1_beside_paper_figure(t: pd.DataFrame) -> Figure:
     axes = fig.subplots(1, max(1, len(chars)), squeeze=False)[0]
     for ax, c in zip(axes, chars):
         g = t[t["character"] == c]
-        _pair_bars(ax, list(g["hypothesis"]), (g["rate"], g["rate_ci_low"], g["rate_ci_high"]),
+        _pair_bars(ax, list(g["hypothesis"]), (g["rate"], g["ci_low"], g["ci_high"]),
                    (g["paper_rate"], g["paper_ci_low"], g["paper_ci_high"]))
         ax.set_title(f"Table 1: {c}", fontsize=9)
         ax.set_ylabel("co-occurrence rate (%)")
@@ -79,9 +79,9 @@ def ablation_ci_figure(co: pd.DataFrame) -> Figure:
         for i, c in enumerate(conds):
             r = g[g["condition"] == c].set_index("hypothesis").reindex(hyps)
             xi = x - 0.4 + w * (i + 1.5)
-            ax.bar(xi, 100 * r["synth_rate"], w, yerr=_err(r["synth_rate"], r["synth_ci_low"], r["synth_ci_high"]),
+            ax.bar(xi, 100 * r["synth_rate"], w, yerr=_err(r["synth_rate"], r["ci_low"], r["ci_high"]),
                    capsize=2, label=c)
-            for xx, rr, sig in zip(xi, r["synth_ci_high"], r["significant"]):
+            for xx, rr, sig in zip(xi, r["ci_high"], r["significant"]):
                 if sig is True or sig == 1:
                     ax.text(xx, 100 * rr + 1, "*", ha="center", fontsize=9)
         ax.set_xticks(x, hyps, rotation=20)

@@ -220,7 +220,7 @@ def _paper_sections(out_dir: Path, table1, graph_stats, timing, rates, co, cases
 
     t1 = R.table1_beside_paper(table1)
     _csv(t1, out_dir / "table1_beside_paper.csv")
-    cols1 = [c for c in ("character", "hypothesis", "matched", "total", "rate", "rate_ci_low", "rate_ci_high",
+    cols1 = [c for c in ("character", "hypothesis", "matched", "total", "rate", "ci_low", "ci_high",
                          "chance_rate", "p_chi2", "paper_matched", "paper_total", "paper_rate") if c in t1]
     out += [f"## Table 1: audio-motion co-occurrence (whole corpus; paper: {P.TABLE1_SOURCE})", "", md(t1[cols1]),
             save(table1_beside_paper_figure(t1), "table1_beside_paper.png"), ""]
@@ -257,7 +257,7 @@ def _paper_sections(out_dir: Path, table1, graph_stats, timing, rates, co, cases
     if not ab.empty:
         _csv(ab, out_dir / "ablation_significance.csv")
         cols = [c for c in ("condition", "character", "hypothesis", "synth_matched", "synth_total", "synth_rate",
-                            "synth_ci_low", "synth_ci_high", "gt_rate", "gt_ci_low", "gt_ci_high", "chi2", "p_value",
+                            "ci_low", "ci_high", "gt_rate", "gt_ci_low", "gt_ci_high", "chi2", "p_value",
                             "significant") if c in ab]
         out += [f"## Co-occurrence ablation: synthesized motion vs held-out ground truth (two-sample chi-square with "
                 f"continuity correction; significant: p < {alpha}; the paper reports no such rates, its ablation "

@@ -10,6 +10,46 @@ from ..errors import ConfigError
 log = logging.getLogger(__name__)
 
 
+def enable_compilation_cache(cfg) -> Path | None:
+    """Turn on JAX's persistent compilation cache at ``cfg.jax_cache.dir`` (default
+    ``${cache_dir}/jax_cache``), so a second run of any task loads its compiled kernels from disk
+    instead of compiling them again. ``jax_cache.dir=null`` turns it off. The directory holds only
+    compiled executables and is safe to delete (the next run recompiles). Entries are written for
+    kernels that took at least ``jax_cache.min_compile_time_s`` to compile (default 0: every kernel,
+    since on CPU many small ones add up) and are at least ``jax_cache.min_entry_size_bytes`` large.
+    Returns the directory (or None when disabled)."""
+    import jax
+
+    node = cfg.get("jax_cache") if hasattr(cfg, "get") else None
+    path = node.get("dir") if node is not None else None
+    if not path:
+        _set_cache_dir(jax, None)  # off, also when an earlier task of this process turned it on
+        return None
+    path = Path(str(path)).expanduser().resolve()
+    try:
+        path.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise ConfigError(f"jax_cache.dir={path}: cannot create the compilation cache directory ({e})") from None
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(node.get("min_compile_time_s", 0.0)))
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", int(node.get("min_entry_size_bytes", 0)))
+    _set_cache_dir(jax, str(path))
+    log.debug("jax compilation cache: %s", path)
+    return path
+
+
+def _set_cache_dir(jax, path: str | None) -> None:
+    if jax.config.jax_compilation_cache_dir == path:
+        return
+    jax.config.update("jax_compilation_cache_dir", path)
+    try:  # a process that already compiled with another (or no) directory: re-read the setting
+        from jax._src import compilation_cache
+
+        if compilation_cache._cache_checked or compilation_cache._cache_initialized:
+            compilation_cache.reset_cache()
+    except (ImportError, AttributeError):  # pragma: no cover - private API moved
+        log.debug("jax compilation cache: reset_cache unavailable")
+
+
 def params_of(cfg):
     """The typed parameters of a composed config (converted once per task)."""
     from ..config import to_params

@@ -1,0 +1,108 @@
+"""Benchmark: start-up time with JAX's persistent compilation cache (issue #15, part 3).
+
+Each command runs in a fresh process, with a fresh cache directory (``CONVSYNTH_CACHE``), three times:
+  1. cold: nothing cached (synthetic corpus generated, annotation, graphs, every kernel compiled);
+  2. warm: the same command again, the compilation cache (``<cache>/jax_cache``) now populated;
+  3. control: again with ``jax_cache.dir=null`` (corpus, annotation and graphs cached, kernels
+     compiled afresh), which shows what the compilation cache alone saves.
+Commands: ``convsynth task=synthesize`` (figure: ``search_seconds`` per character from its summary)
+and ``convsynth task=build_graph corpus=bvh_folder corpus.root=../shared/data/bandai2/bvh``
+(figure: construction ``seconds``, loading excluded; skipped when the data is absent).
+Goals: search <= 0.1 s per character and bandai2 construction <= 1.5 s on the warm run.
+Writes experiments/results/bench_startup.json and .md.
+
+    python experiments/bench_startup.py [--skip-bandai]
+"""
+import argparse
+import json
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+from _bench import REPO, RESULTS, SHARED, write
+
+GOALS = {"search_s_per_character": 0.1, "bandai2_construction_s": 1.5}
+
+
+def run_task(overrides, cache: Path, out: Path) -> dict:
+    env = dict(os.environ, CONVSYNTH_CACHE=str(cache), PYTHONPATH=str(REPO))
+    cmd = [sys.executable, "-m", "convsynth_jax.config", *overrides, "progress=false", f"hydra.run.dir={out}"]
+    load = os.getloadavg()[0]
+    t = time.perf_counter()
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
+    wall = time.perf_counter() - t
+    if r.returncode != 0:
+        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}")
+    summary = json.loads((out / "summary.json").read_text())
+    return {"process_s": wall, "summary": summary, "load_avg_1min": [load, os.getloadavg()[0]]}
+
+
+def cache_stats(cache: Path) -> dict:
+    files = [p for p in (cache / "jax_cache").rglob("*") if p.is_file()] if (cache / "jax_cache").exists() else []
+    return {"jax_cache_files": len(files), "jax_cache_mb": sum(p.stat().st_size for p in files) / 2**20}
+
+
+def bench(name, overrides, figure, tmp: Path) -> dict:
+    cache = tmp / f"cache_{name}"
+    res = {"command": "convsynth " + " ".join(overrides)}
+    for run, extra in (("cold", []), ("warm", []), ("control_no_jax_cache", ["jax_cache.dir=null"])):
+        r = run_task(overrides + extra, cache, tmp / f"out_{name}_{run}")
+        res[run] = {"process_s": r["process_s"], "task_s": r["summary"].get("task_seconds"),
+                    "load_avg_1min": r["load_avg_1min"], **figure(r["summary"])}
+        if run == "cold":
+            res[run].update(cache_stats(cache))
+        print(name, run, json.dumps(res[run], default=float), flush=True)
+    return res
+
+
+def main():
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--skip-bandai", action="store_true")
+    a = ap.parse_args()
+    out = {"goals": GOALS, "cpu_count": os.cpu_count()}
+    with tempfile.TemporaryDirectory(prefix="bench_startup_") as d:
+        tmp = Path(d)
+        out["synthesize"] = bench("synthesize", ["task=synthesize"],
+                                  lambda s: {"search_seconds": s["search_seconds"],
+                                             "graph_seconds": s.get("graph_seconds")}, tmp)
+        bandai = SHARED / "bandai2" / "bvh"
+        if not a.skip_bandai and bandai.is_dir():
+            out["bandai2_build_graph"] = bench("bandai2", ["task=build_graph", "corpus=bvh_folder",
+                                                           f"corpus.root={bandai}"],
+                                               lambda s: {"construction_s": s["seconds"],
+                                                          "num_frames": s["num_frames"],
+                                                          "timings": s.get("timings")}, tmp)
+    warm = out["synthesize"]["warm"]["search_seconds"]
+    out["met"] = {"search_s_per_character": max(warm.values()) <= GOALS["search_s_per_character"]}
+    if "bandai2_build_graph" in out:
+        out["met"]["bandai2_construction_s"] = (out["bandai2_build_graph"]["warm"]["construction_s"]
+                                                <= GOALS["bandai2_construction_s"])
+    write("bench_startup", out)
+    loads = [x for b in ("synthesize", "bandai2_build_graph") if b in out for r in out[b].values()
+             if isinstance(r, dict) for x in r.get("load_avg_1min", [])]
+    lines = ["# Start-up with the persistent compilation cache", "",
+             f"{os.cpu_count()} CPUs; each run a fresh process; cold = empty cache dir, warm = second run, "
+             "control = second run with `jax_cache.dir=null`. The machine's 1-minute load average during the "
+             f"runs: {min(loads):.1f}-{max(loads):.1f}.", "",
+             "| command | figure | cold | warm | control (no jax cache) | goal |", "|---|---|---|---|---|---|"]
+    s = out["synthesize"]
+    for char in warm:
+        lines.append(f"| synthesize | search_seconds {char} | {s['cold']['search_seconds'][char]:.3f} | "
+                     f"{warm[char]:.3f} | {s['control_no_jax_cache']['search_seconds'][char]:.3f} | <= 0.1 |")
+    lines.append(f"| synthesize | process wall s | {s['cold']['process_s']:.1f} | {s['warm']['process_s']:.1f} | "
+                 f"{s['control_no_jax_cache']['process_s']:.1f} | |")
+    if "bandai2_build_graph" in out:
+        b = out["bandai2_build_graph"]
+        lines.append(f"| build_graph bandai2 | construction s | {b['cold']['construction_s']:.2f} | "
+                     f"{b['warm']['construction_s']:.2f} | {b['control_no_jax_cache']['construction_s']:.2f} | <= 1.5 |")
+        lines.append(f"| build_graph bandai2 | process wall s | {b['cold']['process_s']:.1f} | "
+                     f"{b['warm']['process_s']:.1f} | {b['control_no_jax_cache']['process_s']:.1f} | |")
+    (RESULTS / "bench_startup.md").write_text("\n".join(lines) + "\n")
+    print("\n".join(lines))
+
+
+if __name__ == "__main__":
+    main()

@@ -93,22 +93,22 @@ DEFAULTS: dict = {
                                   # other: the first ends where the next starts and the hand is held, not
                                   # returned to rest, between the strokes (off: 0.0)
     "coarticulation_hold": [0.4, 0.8],  # held level between coarticulated gestures (share of amplitude)
-    "sensor_noise_deg": 0.12,     # degrees: white measurement noise on every rotation channel (off: 0.03)
+    "sensor_noise_deg": 0.08,     # degrees: white measurement noise on every rotation channel (off: 0.03)
     "sensor_noise_cm": 0.08,      # cm: white measurement noise on the root position (off: 0.0)
     "glitches_per_minute": 0.5,   # marker-swap glitches per participant and minute (off: 0.0): for a few
                                   # frames the two arms swap (mirrored) or one joint jumps; listed in
                                   # glitches.csv, never in events.csv
     "glitch_frames": [2, 5],      # glitch length in frames (inclusive range)
-    "posture_shift_sd": 4.0,      # degrees: at each of its turns a participant shifts to a new rest posture
+    "posture_shift_sd": 5.25,     # degrees: at each of its turns a participant shifts to a new rest posture
                                   # (offset of spine, neck, head and arms; off: 0.0)
     "posture_shift_seconds": [0.6, 1.2],  # duration of a posture shift
     "calibrate_rates": True,      # plant with p' such that the realized window rates (other movements landing
                                   # in windows, movements lost to neighbours) match the configured ones, p'
                                   # measured on the corpus's own plan (see planting_probabilities; off: False)
     "calibration_passes": 3,
-    "quota_planting": True,       # plant exactly round(p * n) caused movements per session (stochastic
-                                  # rounding) instead of n independent Bernoulli(p) draws, so realized
-                                  # rates match the configured ones without sampling error (off: False)
+    "quota_planting": True,       # plant exactly round(p * N) caused movements over the corpus (spread over
+                                  # the sessions in proportion) instead of N independent Bernoulli(p) draws,
+                                  # so realized rates carry no sampling error (off: False)
 }
 # bumped whenever the generator's output changes for the same parameters (part of the parameter hash)
 GENERATOR_VERSION = 3
@@ -135,6 +135,9 @@ def _merge(base: dict, over) -> dict:
 
 def resolve_config(config=None) -> dict:
     cfg = _merge(DEFAULTS, config)
+    unknown = sorted(set(cfg) - set(DEFAULTS))
+    if unknown:
+        raise ConfigError(f"corpus.generator: unknown key(s) {unknown}; known: {sorted(DEFAULTS)}")
     for role, c in cfg["characters"].items():
         lh, rh, either = c["p_pc_lh"], c["p_pc_rh"], c["p_pc_either"]
         if not (max(lh, rh) <= either <= min(1.0, lh + rh)):
@@ -430,7 +433,7 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
 
 
 def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
-                  duration: float) -> tuple[list[dict], float]:
+                  duration: float, offsets: dict | None = None) -> tuple[list[dict], float]:
     """Motion events of ``role`` planted around its own PCs and LRs and the partner's HPs, plus
     spontaneous ones away from those windows. Returns (events sorted by start, seconds of time
     available to spontaneous movements)."""
@@ -462,9 +465,10 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
     lrs = [s for s in segs if s.role == role and s.kind == "LR"]
     hps = [s for s in segs if s.role == partner and s.kind == "HP"]
     quota = bool(cfg["quota_planting"])
-    pc_cat = _categories(rng, len(pcs), [p_both, p_lh_only, p_rh_only], quota)
-    lr_nod = _categories(rng, len(lrs), [ch["p_lr_nod"]], quota) == 0
-    hp_nod = _categories(rng, len(hps), [ch["p_ph_nod"]], quota) == 0
+    off = offsets or {}
+    pc_cat = _categories(rng, len(pcs), [p_both, p_lh_only, p_rh_only], quota, off.get("PC", 0))
+    lr_nod = _categories(rng, len(lrs), [ch["p_lr_nod"]], quota, off.get("LR", 0)) == 0
+    hp_nod = _categories(rng, len(hps), [ch["p_ph_nod"]], quota, off.get("HP", 0)) == 0
     causes = {id(s): c for s, c in zip(pcs, pc_cat)}
     causes.update({id(s): 0 if n else -1 for s, n in zip(lrs, lr_nod)})
     causes.update({id(s): 0 if n else -1 for s, n in zip(hps, hp_nod)})
@@ -546,15 +550,17 @@ def _free_intervals(busy: list[tuple[float, float]], lo: float, hi: float) -> li
     return [(a, b) for a, b in free if b > a]
 
 
-def _categories(rng: np.random.Generator, n: int, probs: list[float], quota: bool) -> np.ndarray:
+def _categories(rng: np.random.Generator, n: int, probs: list[float], quota: bool, offset: int = 0) -> np.ndarray:
     """A category per item: i with probability probs[i], len(probs) (none) with the rest. Independent
-    draws, or (``quota``) exact counts floor(P_i * n + u) of the cumulative probabilities P_i with one
-    shared u ~ U(0, 1) (so each count has expectation p_i * n and the total never exceeds n), assigned
-    to the items in random order."""
+    draws, or (``quota``) exact counts of the cumulative probabilities P_i, assigned to the items in
+    random order: the items continue a corpus-wide sequence after ``offset`` earlier ones (earlier
+    sessions), and this session gets round(P_i (offset + n)) - round(P_i offset), so the corpus total
+    is round(P_i N) however the items fall into sessions."""
     cum = np.cumsum(probs)
     if not quota:
         return np.searchsorted(cum, rng.random(n), side="right")
-    bounds = np.minimum(np.floor(cum * n + rng.random()).astype(int), n)
+    bounds = np.floor(cum * (offset + n) + 0.5).astype(int) - np.floor(cum * offset + 0.5).astype(int)
+    bounds = np.minimum(np.maximum.accumulate(np.maximum(bounds, 0)), n)
     cats = np.searchsorted(bounds, np.arange(n), side="right")
     return rng.permutation(cats)
 
@@ -600,19 +606,40 @@ def _separate(events: list[dict], gap: float, coarticulation_gap: float = 0.0, h
 # ----------------------------------------------------------------------------- corpus
 
 
-def _plan(idx: int, cfg: dict, probs: dict) -> dict:
-    """Conversation and planted movements of session ``idx`` (no rendering); ``probs``: per role the
-    planting probabilities (keys of HYPOTHESIS_KEYS). The session's generator continues into rendering."""
+def _session_start(idx: int, cfg: dict):
+    """(generator, emotion, conversation) of session ``idx``."""
     rng = np.random.default_rng([int(cfg["seed"]), idx])
     emotion = list(EMOTIONS)[int(rng.integers(len(EMOTIONS)))]
-    energy, rate = EMOTIONS[emotion]
+    segs = _conversation(rng, cfg, float(cfg["session_seconds"]), EMOTIONS[emotion][1])
+    return rng, emotion, segs
+
+
+def _quota_offsets(cfg: dict) -> list[dict]:
+    """Per session, per role: how many of the role's PCs and LRs and of the partner's HPs the earlier
+    sessions hold (the corpus-wide quota sequence of ``_categories``)."""
+    out, tot = [], {r: {"PC": 0, "LR": 0, "HP": 0} for r in ROLES}
+    for i in range(int(cfg["num_sessions"])):
+        out.append({r: dict(v) for r, v in tot.items()})
+        segs = _session_start(i, cfg)[2]
+        for k, r in enumerate(ROLES):
+            tot[r]["PC"] += sum(sg.role == r and sg.kind == "PC" for sg in segs)
+            tot[r]["LR"] += sum(sg.role == r and sg.kind == "LR" for sg in segs)
+            tot[r]["HP"] += sum(sg.role == ROLES[1 - k] and sg.kind == "HP" for sg in segs)
+    return out
+
+
+def _plan(idx: int, cfg: dict, probs: dict, offsets: list[dict] | None = None) -> dict:
+    """Conversation and planted movements of session ``idx`` (no rendering); ``probs``: per role the
+    planting probabilities (keys of HYPOTHESIS_KEYS); ``offsets``: ``_quota_offsets``. The session's
+    generator continues into rendering."""
+    rng, emotion, segs = _session_start(idx, cfg)
+    energy = EMOTIONS[emotion][0]
     duration = float(cfg["session_seconds"])
-    segs = _conversation(rng, cfg, duration, rate)
     events, free_seconds = {}, {}
     for k, role in enumerate(ROLES):
         ch = {**cfg["characters"][role], **probs[role]}
         events[role], free_seconds[role] = _plant_events(rng, segs, role, ROLES[1 - k], {**cfg, "characters": {role: ch}},
-                                                         duration)
+                                                         duration, offsets[idx][role] if offsets else None)
     return {"rng": rng, "name": f"session{idx + 1:02d}", "emotion": emotion, "energy": energy, "duration": duration,
             "segs": segs, "events": events, "free_seconds": free_seconds}
 
@@ -681,8 +708,9 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
     if not cfg["calibrate_rates"]:
         return conf, {}
     probs, report = copy.deepcopy(conf), {}
+    offsets = _quota_offsets(cfg)
     for _ in range(int(cfg["calibration_passes"])):
-        plans = [_plan(i, cfg, probs) for i in range(int(cfg["num_sessions"]))]
+        plans = [_plan(i, cfg, probs, offsets) for i in range(int(cfg["num_sessions"]))]
         new = copy.deepcopy(conf)
         for r in ROLES:
             for h, (_, _, _, key) in HYPOTHESIS_KEYS.items():
@@ -703,8 +731,8 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
     return probs, report
 
 
-def _session(idx: int, cfg: dict, probs: dict, out: Path) -> tuple[list[dict], list[dict], dict]:
-    plan = _plan(idx, cfg, probs)
+def _session(idx: int, cfg: dict, probs: dict, offsets: list[dict], out: Path) -> tuple[list[dict], list[dict], dict]:
+    plan = _plan(idx, cfg, probs, offsets)
     rng, name, duration, segs = plan["rng"], plan["name"], plan["duration"], plan["segs"]
     fps, sr = float(cfg["fps"]), int(cfg["sample_rate"])
     n = int(round(duration * fps))
@@ -755,9 +783,10 @@ def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
     try:
         probs, calibration = planting_probabilities(cfg)
+        offsets = _quota_offsets(cfg)
         rows, glitches, sessions = [], [], []
         for i in range(int(cfg["num_sessions"])):
-            r, g, meta = _session(i, cfg, probs, tmp)
+            r, g, meta = _session(i, cfg, probs, offsets, tmp)
             rows += r
             glitches += g
             sessions.append(meta)

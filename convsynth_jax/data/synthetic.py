@@ -105,7 +105,7 @@ DEFAULTS: dict = {
     "calibrate_rates": True,      # plant with p' such that the realized window rates (other movements landing
                                   # in windows, movements lost to neighbours) match the configured ones, p'
                                   # measured on the corpus's own plan (see planting_probabilities; off: False)
-    "calibration_passes": 3,
+    "calibration_passes": 6,      # fixed-point passes of the calibration (the best one is kept)
     "quota_planting": True,       # plant exactly round(p * N) caused movements over the corpus (spread over
                                   # the sessions in proportion) instead of N independent Bernoulli(p) draws,
                                   # so realized rates carry no sampling error (off: False)
@@ -701,17 +701,19 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
     previous window's movement runs into them, or it was dropped for coming too close to another),
     so the realized window rate (``window_matches``) is about p' (1 - m) + (1 - p') q. Both are
     measured on this very corpus's plan (same seed and conversations, no rendering) and p' is moved
-    by the remaining error, p' <- p' + p - realized(p'), for ``calibration_passes`` passes; the
-    report gives q, m and the realized rate of each pass's input."""
+    by the remaining error, p' <- p' + p - realized(p'), for ``calibration_passes`` passes. Since the
+    plan is a deterministic function of p', the pass with the smallest largest error is the corpus
+    that gets written; the report gives each pass's p', realized rates, q and m, and the chosen pass."""
     conf = {r: {HYPOTHESIS_KEYS[h][3]: float(cfg["characters"][r][HYPOTHESIS_KEYS[h][3]]) for h in HYPOTHESIS_KEYS}
             for r in ROLES}
     if not cfg["calibrate_rates"]:
         return conf, {}
-    probs, report = copy.deepcopy(conf), {}
+    probs, report = copy.deepcopy(conf), {"passes": []}
     offsets = _quota_offsets(cfg)
+    best = (np.inf, conf)
     for _ in range(int(cfg["calibration_passes"])):
         plans = [_plan(i, cfg, probs, offsets) for i in range(int(cfg["num_sessions"]))]
-        new = copy.deepcopy(conf)
+        new, rows, worst = copy.deepcopy(conf), {}, 0.0
         for r in ROLES:
             for h, (_, _, _, key) in HYPOTHESIS_KEYS.items():
                 flags = [_plan_matches(pl, r, h) for pl in plans]
@@ -720,14 +722,20 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
                 q = float(m[~c].mean()) if (~c).any() else 0.0
                 miss = float(1.0 - m[c].mean()) if c.any() else 0.0
                 realized = float(m.mean()) if m.size else conf[r][key]
-                # a secant-free fixed-point step: shift p' by the remaining error of the realized rate
+                worst = max(worst, abs(realized - conf[r][key]))
+                # fixed-point step: shift p' by the remaining error of the realized rate
                 new[r][key] = float(np.clip(probs[r][key] + conf[r][key] - realized, 0.0, 1.0))
-                report[f"{r} {h}"] = {"q": round(q, 4), "miss": round(miss, 4), "configured": conf[r][key],
-                                      "realized_with_previous": round(realized, 4), "planted_with": round(new[r][key], 4)}
+                rows[f"{r} {h}"] = {"planted_with": round(probs[r][key], 4), "realized": round(realized, 4),
+                                    "q": round(q, 4), "miss": round(miss, 4)}
             pr = new[r]  # keep the PC probabilities consistent: max(lh, rh) <= either <= lh + rh
             pr["p_pc_either"] = float(np.clip(pr["p_pc_either"], max(pr["p_pc_lh"], pr["p_pc_rh"]),
                                               min(1.0, pr["p_pc_lh"] + pr["p_pc_rh"])))
+        report["passes"].append({"max_abs_error": round(worst, 4), "rows": rows})
+        if worst < best[0]:  # a plan is a deterministic function of p': the best pass is the corpus
+            best = (worst, probs)
         probs = new
+    report["chosen_pass"] = int(np.argmin([ps["max_abs_error"] for ps in report["passes"]]))
+    probs = best[1]
     return probs, report
 
 

@@ -99,7 +99,7 @@ DEFAULTS: dict = {
                                   # frames the two arms swap (mirrored) or one joint jumps; listed in
                                   # glitches.csv, never in events.csv
     "glitch_frames": [2, 5],      # glitch length in frames (inclusive range)
-    "posture_shift_sd": 5.25,     # degrees: at each of its turns a participant shifts to a new rest posture
+    "posture_shift_sd": 4.4,      # degrees: at each of its turns a participant shifts to a new rest posture
                                   # (offset of spine, neck, head and arms; off: 0.0)
     "posture_shift_seconds": [0.6, 1.2],  # duration of a posture shift
     "calibrate_rates": True,      # plant with p' such that the realized window rates (other movements landing

@@ -297,7 +297,7 @@ def test_no_glitches_when_off(easy_corpus):
 def _reference_window_rate(ev, role, akind, kinds, whose):
     """Share of the hypothesis' audio segments whose window (twice the segment around its centre,
     trimmed to the channel's neighbouring segments, starting no earlier than the end of the movement
-    matched by the previous window) overlaps the middle 60% of a movement of the kinds: plain loops,
+    matched by the previous window) overlaps a movement of the kinds: plain loops,
     independent of the generator's window_matches."""
     hits = n = 0
     for s in sorted(ev.session.unique()):
@@ -318,8 +318,7 @@ def _reference_window_rate(ev, role, akind, kinds, whose):
                 if o.start >= r.end and o.end > r.end:
                     hi = min(hi, o.start)
             lo = max(lo, last_end)
-            ends = [x.end for x in mv.itertuples()
-                    if x.start + 0.2 * (x.end - x.start) < hi and x.end - 0.2 * (x.end - x.start) > lo]
+            ends = [x.end for x in mv.itertuples() if x.start < hi and x.end > lo]
             if hi > lo and ends:
                 hits += 1
                 last_end = max(ends)

@@ -99,8 +99,9 @@ DEFAULTS: dict = {
                                   # frames the two arms swap (mirrored) or one joint jumps; listed in
                                   # glitches.csv, never in events.csv
     "glitch_frames": [2, 5],      # glitch length in frames (inclusive range)
-    "posture_shift_sd": 4.4,      # degrees: at each of its turns a participant shifts to a new rest posture
-                                  # (offset of spine, neck, head and arms; off: 0.0)
+    "posture_shift_sd": 4.4,      # degrees: before each of its turns a participant shifts to a new rest
+                                  # posture (offset of spine, neck, head and arms), away from its candidate
+                                  # windows (off: 0.0)
     "posture_shift_seconds": [0.6, 1.2],  # duration of a posture shift
     "calibrate_rates": True,      # plant with p' such that the realized window rates (other movements landing
                                   # in windows, movements lost to neighbours) match the configured ones, p'
@@ -648,7 +649,8 @@ def _plan(idx: int, cfg: dict, probs: dict, offsets: list[dict] | None = None) -
 HYPOTHESIS_KEYS = {"PC-LH": ("PC", ("LH",), "own", "p_pc_lh"), "PC-RH": ("PC", ("RH",), "own", "p_pc_rh"),
                    "PC-LH/RH": ("PC", ("LH", "RH"), "own", "p_pc_either"),
                    "LR-Nod": ("LR", ("Nod",), "own", "p_lr_nod"), "PH-Nod": ("HP", ("Nod",), "partner", "p_ph_nod")}
-CORE = 0.2  # a movement "moves" on [start + CORE * length, end - CORE * length] (for window matching)
+CORE = 0.0  # a movement counts on [start + CORE * length, end - CORE * length] (window matching; 0: all of it,
+# which is what the annotation pipeline's nod detection reproduces on the default corpus)
 
 
 def window_matches(audio: np.ndarray, channel: np.ndarray, movements: np.ndarray) -> np.ndarray:
@@ -749,7 +751,8 @@ def _session(idx: int, cfg: dict, probs: dict, offsets: list[dict], out: Path) -
         ch = cfg["characters"][role]
         own = [s for s in segs if s.role == role]
         events = plan["events"][role]
-        motion, gl = _motion(rng, role, events, n, fps, plan["energy"], ch["scale"], cfg, _turn_starts(segs, role))
+        shifts = _shift_times(segs, role, events, duration, float(cfg["posture_shift_seconds"][1]))
+        motion, gl = _motion(rng, role, events, n, fps, plan["energy"], ch["scale"], cfg, shifts)
         glitch_rows += [{"session": name, "participant": role, **g} for g in gl]
         save_bvh(motion, out / f"{name}_{role}.bvh", precision=4)
         words = [(w[0], w[1], w[2]) for s in own for w in s.words]
@@ -769,6 +772,26 @@ def _session(idx: int, cfg: dict, probs: dict, offsets: list[dict], out: Path) -
 
 
 GLITCH_COLUMNS = ["session", "participant", "kind", "joint", "channel", "degrees", "start_frame", "end_frame"]
+
+
+def _shift_times(segs: list[Segment], role: str, events: list[dict], duration: float, longest: float) -> list[float]:
+    """When ``role`` shifts its posture: once before each of its turns, in the last stretch before
+    the turn that is free of its candidate windows (own segments, partner's hesitations) and of its
+    movements, so a posture shift never lands in a window (like spontaneous movements); a turn
+    without such a stretch since the previous shift gets none."""
+    partner = ROLES[1 - ROLES.index(role)]
+    busy = [_window(sg) for sg in segs if sg.role == role or (sg.role == partner and sg.kind == "HP")]
+    busy += [(e["start"] - 0.2, e["end"] + 0.2) for e in events]
+    free = _free_intervals(busy, 1.0, duration - 1.5)
+    need = longest + 0.2
+    out, last = [], -np.inf
+    for tau in _turn_starts(segs, role):
+        fits = [(a, b) for a, b in free if b <= tau + 1e-9 and b - max(a, last) >= need]
+        if fits:
+            a, b = fits[-1]
+            out.append(b - need + 0.1)
+            last = b
+    return out
 
 
 def _turn_starts(segs: list[Segment], role: str) -> list[float]:

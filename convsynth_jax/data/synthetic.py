@@ -114,7 +114,7 @@ DEFAULTS: dict = {
     "calibrate_rates": True,      # plant with p' such that the realized window rates (other movements landing
                                   # in windows, movements lost to neighbours) match the configured ones, p'
                                   # measured on the corpus's own plan (see planting_probabilities; off: False)
-    "calibration_passes": 6,      # fixed-point passes of the calibration (the best one is kept)
+    "calibration_passes": 10,     # fixed-point passes of the calibration (the best one is kept)
     "quota_planting": True,       # plant exactly round(p * N) caused movements over the corpus (spread over
                                   # the sessions in proportion) instead of N independent Bernoulli(p) draws,
                                   # so realized rates carry no sampling error (off: False)
@@ -703,6 +703,9 @@ def _plan_matches(plan: dict, role: str, hypothesis: str) -> tuple[np.ndarray, n
     return m, np.array([a.start in caused for a in audio], bool)
 
 
+CALIBRATION_DAMPING = 0.6  # step size of the calibration passes after the first (full) one
+
+
 def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
     """Per role the probabilities to plant with, and a report. Without ``calibrate_rates`` the
     configured ones. With it: movements that belong to other segments (a gesture of the next clause,
@@ -711,7 +714,8 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
     previous window's movement runs into them, or it was dropped for coming too close to another),
     so the realized window rate (``window_matches``) is about p' (1 - m) + (1 - p') q. Both are
     measured on this very corpus's plan (same seed and conversations, no rendering) and p' is moved
-    by the remaining error, p' <- p' + p - realized(p'), for ``calibration_passes`` passes. Since the
+    by the remaining error, p' <- p' + s (p - realized(p')) (s = 1 in the first pass, then
+    ``CALIBRATION_DAMPING``), for ``calibration_passes`` passes. Since the
     plan is a deterministic function of p', the pass with the smallest largest error is the corpus
     that gets written; the report gives each pass's p', realized rates, q and m, and the chosen pass."""
     conf = {r: {HYPOTHESIS_KEYS[h][3]: float(cfg["characters"][r][HYPOTHESIS_KEYS[h][3]]) for h in HYPOTHESIS_KEYS}
@@ -734,7 +738,8 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
                 realized = float(m.mean()) if m.size else conf[r][key]
                 worst = max(worst, abs(realized - conf[r][key]))
                 # fixed-point step: shift p' by the remaining error of the realized rate
-                new[r][key] = float(np.clip(probs[r][key] + conf[r][key] - realized, 0.0, 1.0))
+                step = 1.0 if not report["passes"] else CALIBRATION_DAMPING
+                new[r][key] = float(np.clip(probs[r][key] + step * (conf[r][key] - realized), 0.0, 1.0))
                 rows[f"{r} {h}"] = {"planted_with": round(probs[r][key], 4), "realized": round(realized, 4),
                                     "q": round(q, 4), "miss": round(miss, 4)}
             pr = new[r]  # keep the PC probabilities consistent: max(lh, rh) <= either <= lh + rh

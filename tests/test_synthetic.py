@@ -13,6 +13,10 @@ from tolerances import F0_RELATIVE
 
 SMALL = {"num_sessions": 2, "session_seconds": 20.0}
 MOTION_ONLY = {"num_sessions": 8, "session_seconds": 120.0, "write_audio": False}
+# every difficulty knob off (the easy corpus of generator version 2, as conf/corpus/synthetic_tiny.yaml)
+EASY = {"p_clause_pause": 1.0, "final_lengthening": 1.0, "p_backchannel_overlap": 0.0, "p_turn_overlap": 0.0,
+        "coarticulation_gap": 0.0, "sensor_noise_deg": 0.03, "sensor_noise_cm": 0.0, "glitches_per_minute": 0.0,
+        "posture_shift_sd": 0.0, "calibrate_rates": False, "quota_planting": False}
 
 
 @pytest.fixture(scope="module")
@@ -26,7 +30,7 @@ def test_same_seed_same_bytes_other_seed_differs(tmp_path):
     b = make_synthetic_corpus(tmp_path / "b", SMALL)
     c = make_synthetic_corpus(tmp_path / "c", {**SMALL, "seed": 1})
     names = sorted(p.name for p in a.iterdir())
-    assert names == sorted(p.name for p in b.iterdir()) and len(names) == 2 * 6 + 2
+    assert names == sorted(p.name for p in b.iterdir()) and len(names) == 2 * 6 + 3  # + glitches.csv
     match, mismatch, errors = filecmp.cmpfiles(a, b, names, shallow=False)
     assert mismatch == [] and errors == []
     assert not filecmp.cmp(a / "session01_main-agent.bvh", c / "session01_main-agent.bvh", shallow=False)
@@ -49,10 +53,28 @@ def test_invalid_probabilities_rejected():
         resolve_config({"characters": {"main-agent": {"p_pc_either": 0.3}}})
 
 
-def test_planted_rates_match_configuration(motion_corpus):
-    """On a corpus without audio (fast), planted gesture/nod rates agree with the configured
-    probabilities: a two-sided binomial test must not reject at the 0.1% level."""
-    ev = pd.read_csv(motion_corpus / "events.csv")
+@pytest.fixture(scope="module")
+def easy_corpus(tmp_path_factory):
+    """The same size without the difficulty knobs (independent Bernoulli planting)."""
+    return make_synthetic_corpus(tmp_path_factory.mktemp("synth") / "e", {**MOTION_ONLY, **EASY})
+
+
+def test_tiny_config_is_the_easy_corpus():
+    from convsynth_jax.config import compose
+
+    gen = compose(["corpus=synthetic_tiny"]).corpus.generator
+    assert {k: gen[k] for k in EASY} == EASY
+
+
+def test_unknown_generator_key_rejected():
+    with pytest.raises(ConfigError, match="posture_shift_Sd"):
+        resolve_config({"posture_shift_Sd": 3.0})
+
+
+def test_planted_rates_match_configuration(easy_corpus):
+    """With independent planting (quota and calibration off), planted gesture/nod rates agree with
+    the configured probabilities: a two-sided binomial test must not reject at the 0.1% level."""
+    ev = pd.read_csv(easy_corpus / "events.csv")
     cfg = resolve_config({})
     for role, ch in cfg["characters"].items():
         own = ev[ev["participant"] == role]
@@ -136,15 +158,223 @@ def test_spontaneous_movements_away_from_windows_at_configured_rate(motion_corpu
     assert stats.poisson.cdf(total_n, expected) > 5e-4 and stats.poisson.sf(total_n - 1, expected) > 5e-4
 
 
-def test_same_channel_events_keep_idle_between(motion_corpus):
-    """Consecutive events of the same hand (or of the head) leave at least min_event_gap of idle, so a
-    threshold segmenter can find both edges."""
-    ev = pd.read_csv(motion_corpus / "events.csv")
+def test_same_channel_events_keep_idle_between(motion_corpus, easy_corpus):
+    """Consecutive events of the head, and of the same hand unless coarticulated, leave at least
+    min_event_gap of idle, so a threshold segmenter can find both edges; coarticulated hand gestures
+    abut exactly (one ends where the next starts). The easy corpus has no coarticulation."""
     gap = resolve_config({})["min_event_gap"]
-    for (_, _, kind), g in ev[ev.kind.isin(["LH", "RH", "Nod"])].groupby(["session", "participant", "kind"]):
+    for root, coartic in ((motion_corpus, True), (easy_corpus, False)):
+        ev = pd.read_csv(root / "events.csv")
+        for (_, _, kind), g in ev[ev.kind.isin(["LH", "RH", "Nod"])].groupby(["session", "participant", "kind"]):
+            g = g.sort_values("start")
+            d = g.start.values[1:] - g.end.values[:-1]
+            abut = np.abs(d) < 1e-3
+            if kind == "Nod" or not coartic:
+                assert not abut.any(), kind
+            assert (abut | (d >= gap - 1e-3)).all(), kind
+            assert ((g.start < g.peak) & (g.peak < g.end)).all()
+
+
+def _hand_offsets(m):
+    """(F, 2, 3) left/right hand position relative to Spine2, in the hips' heading frame (cm)."""
+    from convsynth_jax.kinematics import global_transforms
+
+    pos = np.asarray(global_transforms(m)[0], np.float64)
+    names = list(m.skeleton.names)
+    return np.stack([pos[:, names.index(f"{s}Hand")] - pos[:, names.index("Spine2")] for s in ("Left", "Right")], 1)
+
+
+def test_gestures_run_into_each_other(motion_corpus):
+    """Gesture adjacency: a good share of consecutive same-hand gestures are coarticulated (no idle
+    between them), and at their shared boundary the hand is held away from where it rested before
+    the first of them, while between separate gestures it comes back close to that rest."""
+    ev = pd.read_csv(motion_corpus / "events.csv")
+    hands = ev[ev.kind.isin(["LH", "RH"])]
+    pairs = abut = 0
+    held, returned = [], []
+    for (s, role, kind), g in hands.groupby(["session", "participant", "kind"]):
         g = g.sort_values("start")
-        assert (g.start.values[1:] - g.end.values[:-1] >= gap - 1e-3).all(), kind
-        assert ((g.start < g.peak) & (g.peak < g.end)).all()
+        d = g.start.values[1:] - g.end.values[:-1]
+        pairs += d.size
+        abut += int((np.abs(d) < 1e-3).sum())
+        if s not in ("session01", "session02"):
+            continue
+        m = load_bvh(motion_corpus / f"{s}_{role}.bvh")
+        h = _hand_offsets(m)[:, 0 if kind == "LH" else 1]
+        frame = lambda x: int(np.clip(round(x * m.fps), 0, m.num_frames - 1))  # noqa: E731
+        for i in range(d.size):
+            rest = h[frame(g.start.values[i] - 0.05)]
+            if abs(d[i]) < 1e-3:
+                held.append(np.linalg.norm(h[frame(g.end.values[i])] - rest))
+            elif d[i] > 0.5:
+                returned.append(np.linalg.norm(h[frame(g.end.values[i] + d[i] / 2)] - rest))
+    assert pairs > 200 and 0.1 < abut / pairs < 0.6, (abut, pairs)
+    assert len(held) >= 10 and len(returned) >= 10
+    assert np.median(held) > 2 * np.median(returned), (np.median(held), np.median(returned))
+
+
+def test_easy_corpus_has_no_coarticulation(easy_corpus):
+    ev = pd.read_csv(easy_corpus / "events.csv")
+    for _, g in ev[ev.kind.isin(["LH", "RH"])].groupby(["session", "participant", "kind"]):
+        g = g.sort_values("start")
+        assert (g.start.values[1:] - g.end.values[:-1] > 0.2).all()
+
+
+def _stretches(tsv):
+    """Words per pause-free stretch (a pause: 0.2 s or more between consecutive words) of one transcript."""
+    w = pd.read_csv(tsv, sep="\t", header=None, names=["start", "end", "word"])
+    brk = np.flatnonzero(w.start.values[1:] - w.end.values[:-1] >= 0.2)
+    return np.diff(np.concatenate([[0], brk + 1, [len(w)]]))
+
+
+def test_fluent_speech_and_overlapping_speech(motion_corpus, easy_corpus):
+    """Fluent stretches: most clause boundaries inside a turn have no pause, so pause-free stretches
+    hold many words; overlap: backchannels over the partner's clauses and turns that start before
+    the other speaker has finished. The easy corpus has neither."""
+    def measure(root):
+        ev = pd.read_csv(root / "events.csv")
+        words = np.concatenate([_stretches(p) for p in sorted(root.glob("*.tsv"))])
+        pc, lr = ev[ev.kind == "PC"], ev[ev.kind == "LR"]
+        lr_over = np.mean([((pc.session == r.session) & (pc.participant != r.participant) & (pc.start < r.end)
+                            & (pc.end > r.start)).any() for r in lr.itertuples()])
+        turn_over = sum(((pc.session == r.session) & (pc.participant != r.participant) & (pc.start < r.start)
+                         & (pc.end > r.start)).any() for r in pc.itertuples())
+        own = ev[ev.kind.isin(["PC", "LR", "HP"])].sort_values(["session", "participant", "start"])
+        for _, g in own.groupby(["session", "participant"]):  # one participant never overlaps itself
+            assert (g.start.values[1:] >= g.end.values[:-1] + 0.02).all()
+        return words, lr_over, turn_over / len(pc)
+
+    words, lr_over, turn_over = measure(motion_corpus)
+    assert np.percentile(words, 90) >= 8 and words.max() >= 15, np.percentile(words, [50, 90, 100])
+    assert lr_over > 0.3 and turn_over > 0.02, (lr_over, turn_over)
+    words, lr_over, turn_over = measure(easy_corpus)
+    assert words.max() <= 10 and lr_over == 0 and turn_over == 0
+
+
+def test_sensor_noise_level(tmp_path):
+    """The leg joints carry nothing but measurement noise: the spread of their rotation channels is
+    the configured ``sensor_noise_deg`` (white: successive differences have sqrt(2) times that)."""
+    for sd in (0.12, 0.5):
+        root = make_synthetic_corpus(tmp_path / f"n{sd}", {"num_sessions": 1, "session_seconds": 30.0,
+                                                            "write_audio": False, "sensor_noise_deg": sd})
+        m = load_bvh(root / "session01_main-agent.bvh")
+        from convsynth_jax.rotations import quat_to_euler_deg_np
+
+        j = list(m.skeleton.names).index("LeftLeg")
+        e = quat_to_euler_deg_np(np.asarray(m.rotations[:, j], np.float64), "ZXY")
+        measured = np.diff(e, axis=0).std(0) / np.sqrt(2)
+        np.testing.assert_allclose(measured, sd, rtol=0.1)
+
+
+def test_glitches_listed_visible_and_at_the_configured_rate(motion_corpus):
+    """glitches.csv lists the marker-swap glitches: their number fits the configured rate (Poisson
+    test over 8 sessions x 2 participants x 2 minutes), each is a jump of its joint's rotation at its
+    first frame and back after its last, far above frame-to-frame motion elsewhere."""
+    gl = pd.read_csv(motion_corpus / "glitches.csv")
+    cfg = resolve_config({})
+    expected = cfg["glitches_per_minute"] * 8 * 2 * 2.0
+    assert stats.poisson.cdf(len(gl), expected) > 1e-3 and stats.poisson.sf(len(gl) - 1, expected) > 1e-3
+    assert set(gl.kind) == {"flip", "jump"}
+    lo, hi = cfg["glitch_frames"]
+    assert ((gl.end_frame - gl.start_frame).between(lo, hi)).all()
+    for (s, role), g in gl.groupby(["session", "participant"]):
+        m = load_bvh(motion_corpus / f"{s}_{role}.bvh")
+        q = np.asarray(m.rotations, np.float64)
+        step = 2 * np.degrees(np.arccos(np.clip(np.abs(np.sum(q[1:] * q[:-1], -1)), 0, 1)))  # (F-1, J)
+        names = list(m.skeleton.names)
+        glitched = np.zeros_like(step, bool)
+        for r in g.itertuples():
+            j = names.index(r.joint)
+            assert step[r.start_frame - 1, j] > 10 and step[r.end_frame - 1, j] > 10, r
+            glitched[r.start_frame - 1: r.end_frame, j] = True
+        assert np.percentile(step[~glitched], 99.9) < 8
+
+
+def test_no_glitches_when_off(easy_corpus):
+    assert len(pd.read_csv(easy_corpus / "glitches.csv")) == 0
+
+
+def _reference_window_rate(ev, role, akind, kinds, whose):
+    """Share of the hypothesis' audio segments whose window (twice the segment around its centre,
+    trimmed to the channel's neighbouring segments, starting no earlier than the end of the movement
+    matched by the previous window) overlaps a movement of the kinds: plain loops,
+    independent of the generator's window_matches."""
+    hits = n = 0
+    for s in sorted(ev.session.unique()):
+        e = ev[ev.session == s]
+        owner = role if whose == "own" else ("interloctr" if role == "main-agent" else "main-agent")
+        chan = e[(e.participant == owner) & e.kind.isin(["PC", "LR", "HP"])].sort_values("start")
+        mv = e[(e.participant == role) & e.kind.isin(kinds)]
+        last_end = -1e9
+        rows = list(chan.itertuples())
+        for i, r in enumerate(rows):
+            if r.kind != akind:
+                continue
+            n += 1
+            lo, hi = r.start - (r.end - r.start) / 2, r.end + (r.end - r.start) / 2
+            for o in rows:
+                if o.end <= r.start and o.start < r.start:
+                    lo = max(lo, o.end)
+                if o.start >= r.end and o.end > r.end:
+                    hi = min(hi, o.start)
+            lo = max(lo, last_end)
+            ends = [x.end for x in mv.itertuples() if x.start < hi and x.end > lo]
+            if hi > lo and ends:
+                hits += 1
+                last_end = max(ends)
+    return hits / n, n
+
+
+HYPS = {"PC-LH": ("PC", ["LH"], "own", "p_pc_lh"), "PC-RH": ("PC", ["RH"], "own", "p_pc_rh"),
+        "PC-LH/RH": ("PC", ["LH", "RH"], "own", "p_pc_either"), "LR-Nod": ("LR", ["Nod"], "own", "p_lr_nod"),
+        "PH-Nod": ("HP", ["Nod"], "partner", "p_ph_nod")}
+
+
+def test_realized_window_rates_match_configured(motion_corpus):
+    """Calibration: on a 16-minute corpus (8 x 120 s; about 230 clauses, 100 responses and 45 partner
+    hesitations per character) the realized co-occurrence rates, as the paper's windows see the
+    planted movements (all of them, whatever caused them), lie within 2 percentage points of the
+    configured Table 1 rates (or 1.5 segments for the smaller rows: the quotas are whole segments and
+    the calibration's fixed point moves by whole segments too)."""
+    ev = pd.read_csv(motion_corpus / "events.csv")
+    cfg = resolve_config({})
+    for role, ch in cfg["characters"].items():
+        for h, (akind, kinds, whose, key) in HYPS.items():
+            rate, n = _reference_window_rate(ev, role, akind, kinds, whose)
+            assert n >= 30
+            assert abs(rate - ch[key]) <= max(0.02, 1.5 / n) + 1e-9, (role, h, rate, ch[key], n)
+
+
+def test_window_matches_agrees_with_reference(motion_corpus):
+    from convsynth_jax.data.synthetic import window_matches
+
+    ev = pd.read_csv(motion_corpus / "events.csv")
+    for role in ("main-agent", "interloctr"):
+        for akind, kinds, whose, _ in HYPS.values():
+            ref, n = _reference_window_rate(ev, role, akind, kinds, whose)
+            hits = 0
+            for s in sorted(ev.session.unique()):
+                e = ev[ev.session == s]
+                owner = role if whose == "own" else ("interloctr" if role == "main-agent" else "main-agent")
+                chan = e[(e.participant == owner) & e.kind.isin(["PC", "LR", "HP"])]
+                mv = e[(e.participant == role) & e.kind.isin(kinds)]
+                hits += window_matches(chan[chan.kind == akind][["start", "end"]].values, chan[["start", "end"]].values,
+                                       mv[["start", "end"]].values).sum()
+            assert hits == round(ref * n)
+
+
+def test_quota_planting_hits_the_causal_counts(tmp_path):
+    """Quota planting without calibration: per session, the number of clauses with a planted left-hand
+    gesture is floor(p n + u) or its neighbour; summed over sessions within 1.5 points of p."""
+    root = make_synthetic_corpus(tmp_path / "q", {**MOTION_ONLY, "calibrate_rates": False})
+    ev = pd.read_csv(root / "events.csv")
+    cfg = resolve_config({})
+    for role, ch in cfg["characters"].items():
+        own = ev[ev.participant == role]
+        n = int((own.kind == "PC").sum())
+        k = int(((own.kind == "LH") & (own.source == "PC")).sum())
+        either = own[own.source == "PC"].groupby(["session", "cause_start"]).ngroups
+        assert abs(k / n - ch["p_pc_lh"]) < 0.015 and abs(either / n - ch["p_pc_either"]) < 0.015, (k, either, n)
 
 
 def test_gestures_and_nods_move_clearly_above_idle(motion_corpus):
@@ -171,7 +401,7 @@ def test_gestures_and_nods_move_clearly_above_idle(motion_corpus):
             assert 0.2 < idle < 15.0  # never perfectly still, but calm (cm/s)
             for r in e[e.kind == kind].itertuples():
                 inside = (t >= r.start) & (t <= r.end)
-                assert speed[inside].max() > 5 * idle, (role, kind, r.start)
+                assert speed[inside].max() > 3 * idle, (role, kind, r.start)
         head = names.index("Head")
         tip = pos[:, head] + Rotation.from_quat(rot[:, head][:, [1, 2, 3, 0]]).apply(dict(m.skeleton.end_sites)[head])
         for r in e[e.kind == "Nod"].itertuples():

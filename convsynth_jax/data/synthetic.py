@@ -5,15 +5,23 @@ Writes the same files a real corpus has (GENEA 2023 dyadic layout) plus the plan
 * ``<session>_main-agent.{bvh,wav,tsv}`` and ``<session>_interloctr.{bvh,wav,tsv}``;
 * ``events.csv`` (session, participant, kind, start, peak, end) with every planted audio segment
   (PC, LR, HP) and motion event (LH, RH, Nod; a two-handed gesture is one LH and one RH row);
-* ``corpus.json`` with the generator parameters, their hash and the characters.
+* ``glitches.csv`` (session, participant, kind, joint, channel, degrees, start_frame, end_frame) with
+  every motion-capture glitch put into the BVH;
+* ``corpus.json`` with the generator parameters, their hash, the characters and the calibration report.
 
 The process: turn-taking between two seated people; a turn is a run of phonemic clauses (words per
-clause drawn around each character's mean and spread) separated by short pauses, with hesitations
-inside turns; the listener gives listener responses near clause ends. Audio is a harmonic voice
-through two formant resonators with an F0 contour per clause (declination plus a pitch accent on the
-stressed word, which is the clause's F0 peak). Motion is idle (breathing, slow drift, small noise)
-plus hand gestures (preparation, stroke near the F0 peak, retraction) and nods, planted with the
-configured co-occurrence probabilities (default: the paper's Table 1) and a small spontaneous rate.
+clause drawn around each character's mean and spread), mostly joined without a pause (fluent
+stretches whose clause boundaries show only as an F0 reset and pre-boundary lengthening), with
+hesitations inside turns; the listener gives listener responses near clause ends, often over the end
+of the clause, and turns may overlap. Audio is a harmonic voice through two formant resonators with an
+F0 contour per clause (declination plus a pitch accent on the stressed word, which is the clause's
+F0 peak). Motion is idle (breathing, slow drift, small noise) plus hand gestures (preparation,
+stroke near the F0 peak, retraction; close same-hand gestures coarticulated, without rest between
+them) and nods, planted so that the realized co-occurrence rates in the paper's windows match the
+configured probabilities (default: the paper's Table 1; see ``planting_probabilities``), a small
+spontaneous rate away from the windows, per-turn posture shifts, sensor noise and a few marker-swap
+glitches (``glitches.csv``). Every difficulty has a parameter in ``DEFAULTS`` with an "off" value
+(``conf/corpus/synthetic_tiny.yaml`` turns them all off).
 """
 from __future__ import annotations
 
@@ -77,10 +85,42 @@ DEFAULTS: dict = {
     "accent_rise": 0.28,          # relative F0 rise of the pitch accent
     "posture_sd": 1.5,            # degrees: per-session posture offset of spine, neck, head and arms
     "drift_sd": 1.5,              # degrees: slow posture drift (about 10 s correlation time)
-    "min_event_gap": 0.3,         # seconds of idle between consecutive events of the same hand / the head
+    "min_event_gap": 0.3,         # seconds of idle between consecutive events of the same head / of
+                                  # the same hand when they are not coarticulated
+    # --- difficulty knobs (what makes the corpus as hard as real data); each has an "off" value that
+    # gives the easy corpus of generator version 2 in kind (not byte for byte)
+    "p_clause_pause": 0.3,        # chance of a pause (clause_pause) between clauses of a turn; otherwise
+                                  # the next clause follows after an ordinary word gap (off: 1.0)
+    "final_lengthening": 1.3,     # the last word of a clause followed without pause is this much longer
+                                  # (pre-boundary lengthening, a prosodic boundary cue; off: 1.0)
+    "p_backchannel_overlap": 0.5,  # share of listener responses that start inside the speaker's clause,
+                                  # 0.1-0.5 s before its end (overlapping speech; off: 0.0)
+    "p_turn_overlap": 0.3,        # share of turn changes where the next speaker starts 0.1-0.6 s before
+                                  # the previous one has finished (off: 0.0)
+    "coarticulation_gap": 0.8,    # seconds: same-hand gestures whose idle gap would be shorter run into each
+                                  # other: the first ends where the next starts and the hand is held, not
+                                  # returned to rest, between the strokes (off: 0.0)
+    "coarticulation_hold": [0.4, 0.8],  # held level between coarticulated gestures (share of amplitude)
+    "sensor_noise_deg": 0.08,     # degrees: white measurement noise on every rotation channel (off: 0.03)
+    "sensor_noise_cm": 0.08,      # cm: white measurement noise on the root position (off: 0.0)
+    "glitches_per_minute": 0.5,   # marker-swap glitches per participant and minute (off: 0.0): for a few
+                                  # frames the two arms swap (mirrored) or one joint jumps; listed in
+                                  # glitches.csv, never in events.csv
+    "glitch_frames": [2, 5],      # glitch length in frames (inclusive range)
+    "posture_shift_sd": 4.2,      # degrees: before each of its turns a participant shifts to a new rest
+                                  # posture (offset of spine, neck, head and arms), away from its candidate
+                                  # windows (off: 0.0)
+    "posture_shift_seconds": [0.6, 1.2],  # duration of a posture shift
+    "calibrate_rates": True,      # plant with p' such that the realized window rates (other movements landing
+                                  # in windows, movements lost to neighbours) match the configured ones, p'
+                                  # measured on the corpus's own plan (see planting_probabilities; off: False)
+    "calibration_passes": 10,     # fixed-point passes of the calibration (the best one is kept)
+    "quota_planting": True,       # plant exactly round(p * N) caused movements over the corpus (spread over
+                                  # the sessions in proportion) instead of N independent Bernoulli(p) draws,
+                                  # so realized rates carry no sampling error (off: False)
 }
 # bumped whenever the generator's output changes for the same parameters (part of the parameter hash)
-GENERATOR_VERSION = 2
+GENERATOR_VERSION = 3
 
 
 def _merge(base: dict, over) -> dict:
@@ -104,6 +144,9 @@ def _merge(base: dict, over) -> dict:
 
 def resolve_config(config=None) -> dict:
     cfg = _merge(DEFAULTS, config)
+    unknown = sorted(set(cfg) - set(DEFAULTS))
+    if unknown:
+        raise ConfigError(f"corpus.generator: unknown key(s) {unknown}; known: {sorted(DEFAULTS)}")
     for role, c in cfg["characters"].items():
         lh, rh, either = c["p_pc_lh"], c["p_pc_rh"], c["p_pc_either"]
         if not (max(lh, rh) <= either <= min(1.0, lh + rh)):
@@ -134,13 +177,23 @@ class Segment:
 
 
 def _conversation(rng: np.random.Generator, cfg: dict, duration: float, rate: float) -> list[Segment]:
-    """Audio segments of both participants for one session."""
+    """Audio segments of both participants for one session.
+
+    Turns alternate; a turn is a run of clauses, mostly joined without a pause (``p_clause_pause``),
+    so a pause-free stretch holds several clauses whose boundaries show only in the prosody (F0 reset,
+    pre-boundary lengthening). Listener responses may start inside the speaker's clause
+    (``p_backchannel_overlap``) and the next turn may start before the previous one has ended
+    (``p_turn_overlap``). One participant's own segments never overlap each other: a new segment of a
+    participant starts at least ``SAME_SPEAKER_GAP`` after that participant's previous one."""
     u = lambda lo_hi: rng.uniform(*lo_hi)  # noqa: E731
     segs: list[Segment] = []
+    busy = {r: -1.0 for r in ROLES}  # end of each participant's latest segment
     t = rng.uniform(0.5, 1.5)
     speaker = int(rng.integers(2))
     end_limit = duration - 1.5
-    while t < end_limit:
+    lengthen = float(cfg["final_lengthening"])
+    stop = False
+    while t < end_limit and not stop:
         role, other = ROLES[speaker], ROLES[1 - speaker]
         ch = cfg["characters"][role]
         n_clauses = 1 + rng.poisson(max(cfg["clauses_per_turn"] - 1, 0))
@@ -149,35 +202,58 @@ def _conversation(rng: np.random.Generator, cfg: dict, duration: float, rate: fl
                 word = HESITATIONS[rng.integers(len(HESITATIONS))]
                 d = rng.uniform(0.3, 0.5) / rate
                 if t + d > end_limit:
+                    stop = True
                     break
                 segs.append(Segment(role, "HP", t, t + d, t + d / 2, [(t, t + d, word, False)]))
-                t += d + u(cfg["clause_pause"]) / rate
+                busy[role] = t + d
+                t += d + u(cfg["clause_pause"]) / rate  # a filler is followed by a pause
             n_words = int(np.clip(np.round(rng.normal(ch["words_mean"], ch["words_sd"])), 1, 10))
+            last = c == n_clauses - 1
+            fluent = not last and rng.random() >= cfg["p_clause_pause"]
             words = []
             w0 = t
-            for _ in range(n_words):
+            for i in range(n_words):
                 d = u(cfg["word_seconds"]) / rate
+                if fluent and i == n_words - 1:
+                    d *= lengthen
                 words.append([t, t + d, VOCAB[rng.integers(len(VOCAB))], False])
                 t += d + u(cfg["word_gap"])
             t -= words and (t - words[-1][1])  # no gap after the last word
             if t > end_limit:
+                stop = True
                 break
             k = int(rng.integers(n_words))
             words[k][3] = True
             peak = 0.5 * (words[k][0] + words[k][1])
             segs.append(Segment(role, "PC", w0, t, peak, [tuple(w) for w in words]))
-            pause = u(cfg["clause_pause"]) / rate
+            busy[role] = t
+            pause = u(cfg["clause_pause"]) / rate if not fluent else u(cfg["word_gap"])
             if rng.random() < cfg["p_listener_response"]:
-                ls = t + rng.uniform(0.05, 0.25)
                 d = rng.uniform(0.3, 0.55)
+                if rng.random() < cfg["p_backchannel_overlap"]:  # over the end of the clause
+                    ls = max(t - rng.uniform(0.1, 0.5), w0 + 0.1)
+                else:
+                    ls = t + rng.uniform(0.05, 0.25)
+                ls = max(ls, busy[other] + SAME_SPEAKER_GAP)
                 word = RESPONSES[rng.integers(len(RESPONSES))]
                 segs.append(Segment(other, "LR", ls, ls + d, ls + d / 2, [(ls, ls + d, word, False)]))
-                pause = max(pause, ls + d + 0.4 - t)
+                busy[other] = ls + d
+                if not fluent:  # a paused speaker waits for the response to end
+                    pause = max(pause, ls + d + 0.4 - t)
             t += pause
-        t += u(cfg["turn_gap"])
+        # the next speaker: after a gap, or (p_turn_overlap) before the current speaker has finished
+        turn_end = busy[role]
+        if rng.random() < cfg["p_turn_overlap"]:
+            t_next = turn_end - rng.uniform(0.1, 0.6)
+        else:
+            t_next = turn_end + u(cfg["turn_gap"])
         speaker = 1 - speaker
+        t = max(t_next, busy[ROLES[speaker]] + SAME_SPEAKER_GAP)
     segs.sort(key=lambda s: (s.start, s.role))
     return segs
+
+
+SAME_SPEAKER_GAP = 0.35  # seconds between consecutive segments of one participant (at least)
 
 
 # ----------------------------------------------------------------------------- audio
@@ -250,16 +326,79 @@ POSTURE_JOINTS = ("Spine", "Spine1", "Neck", "Head", "LeftArm", "RightArm", "Lef
                   "LeftHand", "RightHand")
 
 
+def _envelope(t: np.ndarray, ev: dict) -> np.ndarray:
+    """Gesture profile on [start, end): from ``hold_start`` (0 = rest) up to 1 at the middle, down to
+    ``hold_end`` (levels relative to the event's amplitude; both 0 unless coarticulated), 0 outside.
+    Without holds it is ``_bump``."""
+    s, e = ev["start"], ev["end"]
+    m = 0.5 * (s + e)
+    h0 = ev.get("hold_start", 0.0) / ev["amp"]
+    h1 = ev.get("hold_end", 0.0) / ev["amp"]
+    rise = h0 + (1 - h0) * np.sin(0.5 * np.pi * np.clip((t - s) / max(m - s, 1e-3), 0, 1)) ** 2
+    fall = h1 + (1 - h1) * np.sin(0.5 * np.pi * np.clip((e - t) / max(e - m, 1e-3), 0, 1)) ** 2
+    return np.where(t < m, rise, fall) * ((t >= s) & (t < e))
+
+
+def _posture_offsets(rng, n: int, fps: float, shifts: list[float], session_sd: float, shift_sd: float,
+                     shift_seconds) -> np.ndarray:
+    """(F, len(POSTURE_JOINTS), 3) degrees: the session's posture offset, replaced at each time in
+    ``shifts`` by a new one (N(0, shift_sd) around the session's) over ``shift_seconds`` (smooth step)."""
+    t = np.arange(n) / fps
+    base = rng.normal(0, session_sd, (len(POSTURE_JOINTS), 3))
+    off = np.broadcast_to(base, (n, len(POSTURE_JOINTS), 3)).copy()
+    if shift_sd <= 0:
+        return off
+    cur = base
+    for tau in shifts:
+        new = base + rng.normal(0, shift_sd, base.shape)
+        d = rng.uniform(*shift_seconds)
+        x = np.clip((t - tau) / d, 0, 1)
+        w = (x * x * (3 - 2 * x))[:, None, None]
+        sel = t >= tau
+        off[sel] = (cur + w * (new - cur))[sel]
+        cur = new
+    return off
+
+
+GLITCH_JOINTS = ("LeftArm", "RightArm", "LeftForeArm", "RightForeArm", "LeftHand", "RightHand", "Neck", "Head")
+
+
+def _glitches(rng, n: int, fps: float, per_minute: float, frames) -> list[dict]:
+    """Marker-swap glitches of one participant: a Poisson number (``per_minute``) of few-frame
+    artefacts, each either a ``flip`` (a forearm twists 90-180 degrees about its long axis, as when
+    two markers of the segment swap labels) or a ``jump`` (one joint's rotation jumps 12-30 degrees
+    about one axis, as when the solver snaps to a wrong marker). Rows: kind, joint, channel (0..2 of
+    Z, X, Y), degrees, start_frame, end_frame (exclusive)."""
+    count = rng.poisson(per_minute * n / fps / 60.0)
+    out = []
+    for _ in range(count):
+        length = int(rng.integers(frames[0], frames[1] + 1))
+        start = int(rng.integers(1, max(2, n - length - 1)))
+        if rng.random() < 0.5:
+            joint = ("LeftForeArm", "RightForeArm")[rng.integers(2)]
+            out.append({"kind": "flip", "joint": joint, "channel": 2,
+                        "degrees": float(rng.choice([-1, 1]) * rng.uniform(90, 180))})
+        else:
+            out.append({"kind": "jump", "joint": GLITCH_JOINTS[rng.integers(len(GLITCH_JOINTS))],
+                        "channel": int(rng.integers(3)), "degrees": float(rng.choice([-1, 1]) * rng.uniform(12, 30))})
+        out[-1].update(start_frame=start, end_frame=min(n, start + length))
+    return sorted(out, key=lambda g: g["start_frame"])
+
+
 def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: float, scale: float,
-            posture_sd: float = 1.5, drift_sd: float = 1.5) -> Motion:
+            cfg: dict, shifts: list[float] = ()) -> tuple[Motion, list[dict]]:
+    """The participant's motion and its glitches (see ``_glitches``)."""
     skel = seated_skeleton(scale)
     t = np.arange(n) / fps
     euler = np.broadcast_to(base_pose_degrees(), (n, len(NAMES), 3)).copy()  # (F, J, [Z, X, Y])
-    # people sit differently from one conversation to the next, and shift their posture slowly
-    for j in POSTURE_JOINTS:
-        euler[:, INDEX[j]] += rng.normal(0, posture_sd, 3)
+    # people sit differently from one conversation to the next, shift their posture at their turns,
+    # and drift slowly
+    off = _posture_offsets(rng, n, fps, list(shifts), cfg["posture_sd"], cfg["posture_shift_sd"],
+                           cfg["posture_shift_seconds"])
+    for i, j in enumerate(POSTURE_JOINTS):
+        euler[:, INDEX[j]] += off[:, i]
         for c in range(3):
-            euler[:, INDEX[j], c] += _smooth_noise(rng, n, fps, 10.0, drift_sd)
+            euler[:, INDEX[j], c] += _smooth_noise(rng, n, fps, 10.0, cfg["drift_sd"])
     # idle: breathing on the spine chain, slow posture drift, small noise everywhere
     breath = np.sin(2 * np.pi * t / rng.uniform(3.5, 4.5) + rng.uniform(0, 6.3))
     for j, a in (("Spine", 0.8), ("Spine1", 0.6), ("Spine2", 0.5)):
@@ -267,12 +406,12 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
     for j in POSTURE_JOINTS[:8]:
         for c in range(3):
             euler[:, INDEX[j], c] += _smooth_noise(rng, n, fps, 2.0, 0.6)
-    euler += rng.normal(0, 0.03, euler.shape)
+    euler += rng.normal(0, cfg["sensor_noise_deg"], euler.shape)
     for ev in events:
         s, p, e, amp = ev["start"], ev["peak"], ev["end"], ev["amp"] * energy
-        b = _bump(t, s, e)
         beat = np.exp(-0.5 * ((t - p) / 0.09) ** 2) * (np.abs(t - p) < 0.4)
         if ev["kind"] in ("LH", "RH"):
+            b = _envelope(t, ev)
             side = "Left" if ev["kind"] == "LH" else "Right"
             sgn = 1.0 if side == "Left" else -1.0
             euler[:, INDEX[f"{side}Arm"], 1] -= amp * (22.0 * b + 6.0 * beat)
@@ -285,6 +424,9 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
             osc = np.sin(2 * np.pi * cyc * x) * np.sin(np.pi * x) * ((t >= s) & (t <= e))
             euler[:, INDEX["Head"], 1] += amp * 11.0 * osc
             euler[:, INDEX["Neck"], 1] += amp * 3.0 * osc
+    glitches = _glitches(rng, n, fps, cfg["glitches_per_minute"], cfg["glitch_frames"])
+    for g in glitches:
+        euler[g["start_frame"]:g["end_frame"], INDEX[g["joint"]], g["channel"]] += g["degrees"]
     quats = euler_deg_to_quat_np(euler, "ZXY")
     trans = np.broadcast_to(skel.offsets, (n, len(NAMES), 3)).copy()
     z0 = -60.0 if role == ROLES[0] else 60.0
@@ -292,13 +434,15 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
     trans[:, 0, 0] += _smooth_noise(rng, n, fps, 6.0, 0.8)
     trans[:, 0, 2] += _smooth_noise(rng, n, fps, 6.0, 0.8)
     trans[:, 0, 1] += 0.3 * breath
+    if cfg["sensor_noise_cm"] > 0:
+        trans[:, 0] += rng.normal(0, cfg["sensor_noise_cm"], (n, 3))
     if role == ROLES[1]:  # the interlocutor faces the other way (-Z)
         quats[:, 0] = quat_multiply_np(yaw_to_quat_np(np.pi), quats[:, 0])
-    return Motion(skel, quats, trans, float(fps), role)
+    return Motion(skel, quats, trans, float(fps), role), glitches
 
 
 def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
-                  duration: float) -> tuple[list[dict], float]:
+                  duration: float, offsets: dict | None = None) -> tuple[list[dict], float]:
     """Motion events of ``role`` planted around its own PCs and LRs and the partner's HPs, plus
     spontaneous ones away from those windows. Returns (events sorted by start, seconds of time
     available to spontaneous movements)."""
@@ -316,24 +460,56 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
         return {"kind": kind, "start": start, "peak": peak, "end": end, "amp": amp,
                 "spread": rng.uniform(-8, 14), "source": seg.kind, "cause_start": seg.start}
 
+    def nod(seg):
+        dur = float(np.clip(seg.end - seg.start + rng.uniform(0.1, 0.3), 0.45, 1.0))
+        mid = 0.5 * (seg.start + seg.end) + rng.normal(0, 0.04)
+        return {"kind": "Nod", "start": mid - dur / 2, "peak": mid, "end": mid + dur / 2,
+                "amp": rng.uniform(0.8, 1.2), "cycles": int(rng.integers(1, 4)), "source": seg.kind,
+                "cause_start": seg.start}
+
+    # which segments cause a movement: per segment kind, a category per segment (PC: both hands, LH
+    # only, RH only, none; LR / partner's HP: nod or none), either drawn independently or as an exact
+    # quota (stochastic rounding of p * n, randomly assigned)
+    pcs = [s for s in segs if s.role == role and s.kind == "PC"]
+    lrs = [s for s in segs if s.role == role and s.kind == "LR"]
+    hps = [s for s in segs if s.role == partner and s.kind == "HP"]
+    quota = bool(cfg["quota_planting"])
+    off = offsets or {}
+    pc_cat = _categories(rng, len(pcs), [p_both, p_lh_only, p_rh_only], quota, off.get("PC", 0))
+    lr_nod = _categories(rng, len(lrs), [ch["p_lr_nod"]], quota, off.get("LR", 0)) == 0
+    hp_nod = _categories(rng, len(hps), [ch["p_ph_nod"]], quota, off.get("HP", 0)) == 0
+    causes = {id(s): c for s, c in zip(pcs, pc_cat)}
+    causes.update({id(s): 0 if n else -1 for s, n in zip(lrs, lr_nod)})
+    causes.update({id(s): 0 if n else -1 for s, n in zip(hps, hp_nod)})
     for seg in segs:
-        if seg.role == role and seg.kind == "PC":
-            u = rng.random()
+        cat = causes.get(id(seg), -1)
+        if seg.kind == "PC" and seg.role == role:
             amp = rng.uniform(0.75, 1.25)
-            if u < p_both:
-                events += [gesture("LH", seg, amp), gesture("RH", seg, amp)]
-            elif u < p_both + p_lh_only:
+            if cat in (0, 1):
                 events.append(gesture("LH", seg, amp))
-            elif u < p_both + p_lh_only + p_rh_only:
+            if cat in (0, 2):
                 events.append(gesture("RH", seg, amp))
-        elif (seg.role == role and seg.kind == "LR" and rng.random() < ch["p_lr_nod"]) or \
-                (seg.role == partner and seg.kind == "HP" and rng.random() < ch["p_ph_nod"]):
-            dur = float(np.clip(seg.end - seg.start + rng.uniform(0.1, 0.3), 0.45, 1.0))
-            mid = 0.5 * (seg.start + seg.end) + rng.normal(0, 0.04)
-            events.append({"kind": "Nod", "start": mid - dur / 2, "peak": mid, "end": mid + dur / 2,
-                           "amp": rng.uniform(0.8, 1.2), "cycles": int(rng.integers(1, 4)), "source": seg.kind,
-                           "cause_start": seg.start})
-    events = _separate(events, cfg["min_event_gap"])
+        elif cat == 0:
+            events.append(nod(seg))
+
+    def settle(evs):
+        evs = _separate(evs, cfg["min_event_gap"], cfg["coarticulation_gap"], cfg["coarticulation_hold"], rng)
+        return [e for e in evs if e["start"] > 0.05 and e["end"] < duration - 0.05]
+
+    events = settle(events)
+    if quota:  # nods dropped for coming too close to another nod (or to the clip's edge) are replanted
+        for _ in range(4):  # on other segments of the same kind, so the quota holds
+            added = False
+            for kind, pool, target in (("LR", lrs, int(lr_nod.sum())), ("HP", hps, int(hp_nod.sum()))):
+                have = {e["cause_start"] for e in events if e["kind"] == "Nod" and e["source"] == kind}
+                free = [sg for sg in pool if sg.start not in have]
+                need = min(target - len(have), len(free))
+                if need > 0:
+                    events += [nod(free[i]) for i in rng.choice(len(free), need, replace=False)]
+                    added = True
+            if not added:
+                break
+            events = settle(events)
     # spontaneous movements: a Poisson process on the time away from this participant's candidate
     # windows (its own segments and the partner's hesitations) and away from its caused events
     sp_rng = np.random.default_rng(rng.integers(2 ** 63))
@@ -383,17 +559,48 @@ def _free_intervals(busy: list[tuple[float, float]], lo: float, hi: float) -> li
     return [(a, b) for a, b in free if b > a]
 
 
-def _separate(events: list[dict], gap: float, min_half: float = 0.15) -> list[dict]:
+def _categories(rng: np.random.Generator, n: int, probs: list[float], quota: bool, offset: int = 0) -> np.ndarray:
+    """A category per item: i with probability probs[i], len(probs) (none) with the rest. Independent
+    draws, or (``quota``) exact counts of the cumulative probabilities P_i, assigned to the items in
+    random order: the items continue a corpus-wide sequence after ``offset`` earlier ones (earlier
+    sessions), and this session gets round(P_i (offset + n)) - round(P_i offset), so the corpus total
+    is round(P_i N) however the items fall into sessions."""
+    cum = np.cumsum(probs)
+    if not quota:
+        return np.searchsorted(cum, rng.random(n), side="right")
+    bounds = np.floor(cum * (offset + n) + 0.5).astype(int) - np.floor(cum * offset + 0.5).astype(int)
+    bounds = np.minimum(np.maximum.accumulate(np.maximum(bounds, 0)), n)
+    cats = np.searchsorted(bounds, np.arange(n), side="right")
+    return rng.permutation(cats)
+
+
+def _separate(events: list[dict], gap: float, coarticulation_gap: float = 0.0, hold=(0.4, 0.8),
+              rng: np.random.Generator | None = None, min_half: float = 0.15) -> list[dict]:
     """Keep ``gap`` seconds of idle between consecutive events of the same channel (LH, RH, Nod):
     where two would come closer, the earlier one ends and the later one starts earlier/later around
     their midpoint; if that leaves less than ``min_half`` seconds between an event's peak and its
-    edge, the later event is dropped (rare: peaks of consecutive clauses are over 0.5 s apart)."""
+    edge, the later event is dropped (rare: peaks of consecutive clauses are over 0.5 s apart).
+
+    Hand gestures whose idle gap would be under ``coarticulation_gap`` are coarticulated instead: the
+    earlier one ends exactly where the later one starts (between the peaks, at least ``min_half`` from
+    each) and the hand is held at a level drawn from ``hold`` (share of the smaller amplitude) at that
+    boundary instead of returning to rest (``hold_end`` of the earlier, ``hold_start`` of the later
+    event, in absolute amplitude units); the later gesture keeps the earlier one's spread."""
     out = []
     for kind in ("LH", "RH", "Nod"):
         prev = None
         for e in sorted((e for e in events if e["kind"] == kind), key=lambda e: e["start"]):
             e = dict(e)
-            if prev is not None and e["start"] < prev["end"] + gap:
+            if prev is not None and kind != "Nod" and coarticulation_gap > 0 \
+                    and e["start"] < prev["end"] + coarticulation_gap:
+                b = float(np.clip(0.5 * (prev["end"] + e["start"]), prev["peak"] + min_half, e["peak"] - min_half))
+                if e["peak"] - prev["peak"] < 2 * min_half:
+                    log.debug("dropping a %s event at %.2f s too close to the previous one", kind, e["start"])
+                    continue
+                level = float(rng.uniform(*hold)) * min(prev["amp"], e["amp"])
+                prev["end"], e["start"] = b, b
+                prev["hold_end"], e["hold_start"], e["spread"] = level, level, prev["spread"]
+            elif prev is not None and e["start"] < prev["end"] + gap:
                 mid = 0.5 * (prev["end"] + e["start"])
                 new_end, new_start = mid - gap / 2, mid + gap / 2
                 if new_end - prev["peak"] < min_half or e["peak"] - new_start < min_half:
@@ -408,22 +615,158 @@ def _separate(events: list[dict], gap: float, min_half: float = 0.15) -> list[di
 # ----------------------------------------------------------------------------- corpus
 
 
-def _session(idx: int, cfg: dict, out: Path) -> tuple[list[dict], dict]:
+def _session_start(idx: int, cfg: dict):
+    """(generator, emotion, conversation) of session ``idx``."""
     rng = np.random.default_rng([int(cfg["seed"]), idx])
-    name = f"session{idx + 1:02d}"
     emotion = list(EMOTIONS)[int(rng.integers(len(EMOTIONS)))]
-    energy, rate = EMOTIONS[emotion]
+    segs = _conversation(rng, cfg, float(cfg["session_seconds"]), EMOTIONS[emotion][1])
+    return rng, emotion, segs
+
+
+def _quota_offsets(cfg: dict) -> list[dict]:
+    """Per session, per role: how many of the role's PCs and LRs and of the partner's HPs the earlier
+    sessions hold (the corpus-wide quota sequence of ``_categories``)."""
+    out, tot = [], {r: {"PC": 0, "LR": 0, "HP": 0} for r in ROLES}
+    for i in range(int(cfg["num_sessions"])):
+        out.append({r: dict(v) for r, v in tot.items()})
+        segs = _session_start(i, cfg)[2]
+        for k, r in enumerate(ROLES):
+            tot[r]["PC"] += sum(sg.role == r and sg.kind == "PC" for sg in segs)
+            tot[r]["LR"] += sum(sg.role == r and sg.kind == "LR" for sg in segs)
+            tot[r]["HP"] += sum(sg.role == ROLES[1 - k] and sg.kind == "HP" for sg in segs)
+    return out
+
+
+def _plan(idx: int, cfg: dict, probs: dict, offsets: list[dict] | None = None) -> dict:
+    """Conversation and planted movements of session ``idx`` (no rendering); ``probs``: per role the
+    planting probabilities (keys of HYPOTHESIS_KEYS); ``offsets``: ``_quota_offsets``. The session's
+    generator continues into rendering."""
+    rng, emotion, segs = _session_start(idx, cfg)
+    energy = EMOTIONS[emotion][0]
     duration = float(cfg["session_seconds"])
+    events, free_seconds = {}, {}
+    for k, role in enumerate(ROLES):
+        ch = {**cfg["characters"][role], **probs[role]}
+        events[role], free_seconds[role] = _plant_events(rng, segs, role, ROLES[1 - k], {**cfg, "characters": {role: ch}},
+                                                         duration, offsets[idx][role] if offsets else None)
+    return {"rng": rng, "name": f"session{idx + 1:02d}", "emotion": emotion, "energy": energy, "duration": duration,
+            "segs": segs, "events": events, "free_seconds": free_seconds}
+
+
+# hypothesis -> (audio kind, movement kinds, whose audio, configuration key); paper Table 1
+HYPOTHESIS_KEYS = {"PC-LH": ("PC", ("LH",), "own", "p_pc_lh"), "PC-RH": ("PC", ("RH",), "own", "p_pc_rh"),
+                   "PC-LH/RH": ("PC", ("LH", "RH"), "own", "p_pc_either"),
+                   "LR-Nod": ("LR", ("Nod",), "own", "p_lr_nod"), "PH-Nod": ("HP", ("Nod",), "partner", "p_ph_nod")}
+CORE = 0.0  # a movement counts on [start + CORE * length, end - CORE * length] (window matching; 0: all of it,
+# which is what the annotation pipeline's nod detection reproduces on the default corpus)
+
+
+def window_matches(audio: np.ndarray, channel: np.ndarray, movements: np.ndarray) -> np.ndarray:
+    """Which audio segments co-occur with a movement, as the paper's windows see it (Figure 3).
+
+    audio: (N, 2) [start, end] seconds of the hypothesis' audio segments; channel: (M, 2) every audio
+    segment of that channel (the neighbours that trim a window); movements: (K, 2) [start, end] of the
+    participant's movements of the hypothesis' kinds. A window is the segment doubled around its
+    centre, trimmed to the neighbouring segments; windows are visited in time order and each starts
+    no earlier than the end of the movement matched by the previous one; a window is matched when the
+    core of a movement (``CORE``) overlaps it. Returns (N,) bool in the order of ``audio``."""
+    audio, channel, movements = (np.asarray(x, float).reshape(-1, 2) for x in (audio, channel, movements))
+    length = movements[:, 1] - movements[:, 0]
+    core = np.stack([movements[:, 0] + CORE * length, movements[:, 1] - CORE * length], 1)
+    out = np.zeros(len(audio), bool)
+    last_end = -np.inf
+    for i in np.argsort(audio[:, 0], kind="stable"):
+        s, e = audio[i]
+        lo, hi = s - (e - s) / 2, e + (e - s) / 2
+        prev = channel[(channel[:, 1] <= s + 1e-9) & (channel[:, 0] < s - 1e-9), 1]
+        nxt = channel[(channel[:, 0] >= e - 1e-9) & (channel[:, 1] > e + 1e-9), 0]
+        lo = max(lo, prev.max()) if prev.size else lo
+        hi = min(hi, nxt.min()) if nxt.size else hi
+        lo = max(lo, last_end)
+        hit = (core[:, 0] < hi) & (core[:, 1] > lo)
+        if hi > lo and hit.any():
+            out[i] = True
+            last_end = movements[hit, 1].max()
+    return out
+
+
+def _plan_matches(plan: dict, role: str, hypothesis: str) -> tuple[np.ndarray, np.ndarray]:
+    """(matched, caused) flags over the hypothesis' audio segments of one planned session."""
+    akind, kinds, whose, _ = HYPOTHESIS_KEYS[hypothesis]
+    owner = role if whose == "own" else ROLES[1 - ROLES.index(role)]
+    chan = [sg for sg in plan["segs"] if sg.role == owner]
+    audio = [sg for sg in chan if sg.kind == akind]
+    evs = [e for e in plan["events"][role] if e["kind"] in kinds]
+    caused = {e.get("cause_start") for e in evs if e["source"] == akind}
+    m = window_matches([(a.start, a.end) for a in audio], [(c.start, c.end) for c in chan],
+                       [(e["start"], e["end"]) for e in evs])
+    return m, np.array([a.start in caused for a in audio], bool)
+
+
+CALIBRATION_DAMPING = 0.6  # step size of the calibration passes after the first (full) one
+
+
+def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
+    """Per role the probabilities to plant with, and a report. Without ``calibrate_rates`` the
+    configured ones. With it: movements that belong to other segments (a gesture of the next clause,
+    a nod for a listener response) or spontaneous ones also land in windows of segments that caused
+    nothing, at a rate q, and a share m of the causing segments' windows miss their movement (the
+    previous window's movement runs into them, or it was dropped for coming too close to another),
+    so the realized window rate (``window_matches``) is about p' (1 - m) + (1 - p') q. Both are
+    measured on this very corpus's plan (same seed and conversations, no rendering) and p' is moved
+    by the remaining error, p' <- p' + s (p - realized(p')) (s = 1 in the first pass, then
+    ``CALIBRATION_DAMPING``), for ``calibration_passes`` passes. Since the
+    plan is a deterministic function of p', the pass with the smallest largest error is the corpus
+    that gets written; the report gives each pass's p', realized rates, q and m, and the chosen pass."""
+    conf = {r: {HYPOTHESIS_KEYS[h][3]: float(cfg["characters"][r][HYPOTHESIS_KEYS[h][3]]) for h in HYPOTHESIS_KEYS}
+            for r in ROLES}
+    if not cfg["calibrate_rates"]:
+        return conf, {}
+    probs, report = copy.deepcopy(conf), {"passes": []}
+    offsets = _quota_offsets(cfg)
+    best = (np.inf, conf)
+    for _ in range(int(cfg["calibration_passes"])):
+        plans = [_plan(i, cfg, probs, offsets) for i in range(int(cfg["num_sessions"]))]
+        new, rows, worst = copy.deepcopy(conf), {}, 0.0
+        for r in ROLES:
+            for h, (_, _, _, key) in HYPOTHESIS_KEYS.items():
+                flags = [_plan_matches(pl, r, h) for pl in plans]
+                m = np.concatenate([f[0] for f in flags])
+                c = np.concatenate([f[1] for f in flags])
+                q = float(m[~c].mean()) if (~c).any() else 0.0
+                miss = float(1.0 - m[c].mean()) if c.any() else 0.0
+                realized = float(m.mean()) if m.size else conf[r][key]
+                worst = max(worst, abs(realized - conf[r][key]))
+                # fixed-point step: shift p' by the remaining error of the realized rate
+                step = 1.0 if not report["passes"] else CALIBRATION_DAMPING
+                new[r][key] = float(np.clip(probs[r][key] + step * (conf[r][key] - realized), 0.0, 1.0))
+                rows[f"{r} {h}"] = {"planted_with": round(probs[r][key], 4), "realized": round(realized, 4),
+                                    "q": round(q, 4), "miss": round(miss, 4)}
+            pr = new[r]  # keep the PC probabilities consistent: max(lh, rh) <= either <= lh + rh
+            pr["p_pc_either"] = float(np.clip(pr["p_pc_either"], max(pr["p_pc_lh"], pr["p_pc_rh"]),
+                                              min(1.0, pr["p_pc_lh"] + pr["p_pc_rh"])))
+        report["passes"].append({"max_abs_error": round(worst, 4), "rows": rows})
+        if worst < best[0]:  # a plan is a deterministic function of p': the best pass is the corpus
+            best = (worst, probs)
+        probs = new
+    report["chosen_pass"] = int(np.argmin([ps["max_abs_error"] for ps in report["passes"]]))
+    probs = best[1]
+    return probs, report
+
+
+def _session(idx: int, cfg: dict, probs: dict, offsets: list[dict], out: Path) -> tuple[list[dict], list[dict], dict]:
+    plan = _plan(idx, cfg, probs, offsets)
+    rng, name, duration, segs = plan["rng"], plan["name"], plan["duration"], plan["segs"]
     fps, sr = float(cfg["fps"]), int(cfg["sample_rate"])
     n = int(round(duration * fps))
-    segs = _conversation(rng, cfg, duration, rate)
-    rows, free_seconds = [], {}
-    for k, role in enumerate(ROLES):
-        partner = ROLES[1 - k]
+    rows, glitch_rows = [], []
+    for role in ROLES:
         ch = cfg["characters"][role]
         own = [s for s in segs if s.role == role]
-        events, free_seconds[role] = _plant_events(rng, segs, role, partner, cfg, duration)
-        motion = _motion(rng, role, events, n, fps, energy, ch["scale"], cfg["posture_sd"], cfg["drift_sd"])
+        events = plan["events"][role]
+        shifts = _shift_times(segs, role, events, duration, float(cfg["posture_shift_seconds"][1]))
+        motion, gl = _motion(rng, role, events, n, fps, plan["energy"], ch["scale"], cfg, shifts)
+        glitch_rows += [{"session": name, "participant": role, **g} for g in gl]
         save_bvh(motion, out / f"{name}_{role}.bvh", precision=4)
         words = [(w[0], w[1], w[2]) for s in own for w in s.words]
         save_transcript_tsv(pd.DataFrame(words, columns=["start", "end", "word"]), out / f"{name}_{role}.tsv")
@@ -437,8 +780,43 @@ def _session(idx: int, cfg: dict, out: Path) -> tuple[list[dict], dict]:
             rows.append({"session": name, "participant": role, "kind": e["kind"], "start": e["start"],
                          "peak": e["peak"], "end": e["end"], "text": "", "source": e["source"],
                          "cause_start": e.get("cause_start", np.nan)})
-    return rows, {"name": name, "emotion": emotion, "duration": duration,
-                  "spontaneous_free_seconds": {r: round(v, 4) for r, v in free_seconds.items()}}
+    return rows, glitch_rows, {"name": name, "emotion": plan["emotion"], "duration": duration,
+                               "spontaneous_free_seconds": {r: round(v, 4) for r, v in plan["free_seconds"].items()}}
+
+
+GLITCH_COLUMNS = ["session", "participant", "kind", "joint", "channel", "degrees", "start_frame", "end_frame"]
+
+
+def _shift_times(segs: list[Segment], role: str, events: list[dict], duration: float, longest: float) -> list[float]:
+    """When ``role`` shifts its posture: once before each of its turns, in the last stretch before
+    the turn that is free of its candidate windows (own segments, partner's hesitations) and of its
+    movements, so a posture shift never lands in a window (like spontaneous movements); a turn
+    without such a stretch since the previous shift gets none."""
+    partner = ROLES[1 - ROLES.index(role)]
+    busy = [_window(sg) for sg in segs if sg.role == role or (sg.role == partner and sg.kind == "HP")]
+    busy += [(e["start"] - 0.2, e["end"] + 0.2) for e in events]
+    free = _free_intervals(busy, 1.0, duration - 1.5)
+    need = longest + 0.2
+    out, last = [], -np.inf
+    for tau in _turn_starts(segs, role):
+        fits = [(a, b) for a, b in free if b <= tau + 1e-9 and b - max(a, last) >= need]
+        if fits:
+            a, b = fits[-1]
+            out.append(b - need + 0.1)
+            last = b
+    return out
+
+
+def _turn_starts(segs: list[Segment], role: str) -> list[float]:
+    """Start times of ``role``'s turns: its clauses that follow a clause of the other participant."""
+    out, last = [], None
+    for s in segs:  # sorted by start
+        if s.kind != "PC":
+            continue
+        if s.role == role and last is not None and last != role:
+            out.append(s.start)
+        last = s.role
+    return out
 
 
 def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
@@ -448,16 +826,22 @@ def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
     out_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
     try:
-        rows, sessions = [], []
+        probs, calibration = planting_probabilities(cfg)
+        offsets = _quota_offsets(cfg)
+        rows, glitches, sessions = [], [], []
         for i in range(int(cfg["num_sessions"])):
-            r, meta = _session(i, cfg, tmp)
+            r, g, meta = _session(i, cfg, probs, offsets, tmp)
             rows += r
+            glitches += g
             sessions.append(meta)
         ev = pd.DataFrame(rows).round({"start": 4, "peak": 4, "end": 4, "cause_start": 4})
         ev.to_csv(tmp / "events.csv", index=False, float_format="%.4f")
+        gl = pd.DataFrame(glitches, columns=GLITCH_COLUMNS)
+        gl.to_csv(tmp / "glitches.csv", index=False, float_format="%.4f")
         meta = {"generator": "convsynth_jax.data.synthetic", "generator_version": GENERATOR_VERSION,
                 "seed": int(cfg["seed"]), "config": cfg, "config_hash": config_hash(cfg),
-                "characters": {r: cfg["characters"][r]["name"] for r in ROLES}, "sessions": sessions}
+                "characters": {r: cfg["characters"][r]["name"] for r in ROLES}, "sessions": sessions,
+                "calibration": calibration}
         (tmp / "corpus.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
         os.chmod(tmp, 0o777 & ~_umask())
         if out_dir.exists():

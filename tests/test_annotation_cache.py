@@ -1,0 +1,30 @@
+"""The on-disk annotation cache is keyed by the corpus's contents, not only its folder."""
+import os
+
+from convsynth_jax.annotate import cache as ann_cache
+from convsynth_jax.config import default_params
+from convsynth_jax.tasks.common import open_corpus
+
+
+def test_cache_is_not_reused_after_the_corpus_files_change(tmp_path, monkeypatch):
+    """A corpus regenerated in the same folder (here: one transcript rewritten) must be annotated
+    again; before, the cache key was the folder path alone and the old annotations came back."""
+    p = default_params(["corpus=synthetic_tiny", f"cache_dir={tmp_path}", "progress=false"])
+    corpus = open_corpus(p)
+    calls = []
+
+    def fake_annotate(corpus, params, fps, progress=True):
+        calls.append(1)
+        return {"n": len(calls)}
+
+    monkeypatch.setattr(ann_cache, "annotate_corpus", fake_annotate)
+    cdir = tmp_path / "ann"
+    first = ann_cache.annotate_corpus_cached(corpus, p.annotate, 30.0, cdir, progress=False)
+    again = ann_cache.annotate_corpus_cached(corpus, p.annotate, 30.0, cdir, progress=False)
+    assert first == again == {"n": 1} and len(calls) == 1  # unchanged corpus: the cache is used
+    f = corpus.sessions[0].participants[0].transcript_path
+    st = os.stat(f)
+    f.write_text(f.read_text() + "\n")
+    os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
+    changed = ann_cache.annotate_corpus_cached(corpus, p.annotate, 30.0, cdir, progress=False)
+    assert changed == {"n": 2} and len(calls) == 2

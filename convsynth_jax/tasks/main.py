@@ -10,7 +10,7 @@
    paper's numbers (``convsynth_jax.paper_values``): Table 1, Table 2 (k = ``task.paper_ks``,
    motion graphs only), Figure 4, Table 3, success rates, the co-occurrence ablation with tests,
    Figure 6 re-tested, motion quality; rates with Wilson 95% intervals; and a stick-figure rendering
-   of the first window (synthesized | ground truth; ``task.render``).
+   of the first window leave-one-out solved (synthesized | ground truth; ``task.render``).
 """
 from __future__ import annotations
 
@@ -116,7 +116,7 @@ def run(cfg, out_dir: Path) -> dict:
     if not co.empty:
         ablation_figure(co).savefig(out_dir / "ablation.png", dpi=120)
     paper = _paper_sections(out_dir, table1, graph_stats, timing, rates, co, cases, params.stats.significance)
-    media = _render_window(cfg, system, annotations, fold, conditions[0], fitted, params, out_dir)
+    media = _render_window(cfg, system, annotations, fold, conditions, cases, fitted, params, out_dir)
     timings["report_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     report = [
@@ -279,9 +279,22 @@ def _paper_sections(out_dir: Path, table1, graph_stats, timing, rates, co, cases
     return out
 
 
-def _render_window(cfg, system, annotations, fold, condition, fitted, params, out_dir: Path) -> list[str]:
-    """Synthesize the first window of the held-out session again (same seeds as leave-one-out) and
-    render it beside the ground truth: ``window.gif`` and ``window_contact_sheet.png``."""
+def _pick_window(cases: pd.DataFrame, conditions) -> tuple:
+    """(condition, window index) to render: the first window that leave-one-out solved for at least
+    one character, in the order of ``conditions`` (the first condition, window 0 when nothing was
+    solved)."""
+    ok = cases[cases["success"].fillna(False).astype(bool)] if "success" in cases else cases.iloc[:0]
+    for cond in conditions:
+        hit = ok[ok["condition"] == cond]
+        if len(hit):
+            return cond, int(hit["window"].min())
+    return conditions[0], 0
+
+
+def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, params, out_dir: Path) -> list[str]:
+    """Synthesize again (same seeds as leave-one-out) the first window leave-one-out solved, in the
+    first condition that solved one, and render it beside the ground truth: ``window.gif`` and
+    ``window_contact_sheet.png``."""
     if not bool(cfg.task.get("render", True)):
         return []
     from ..evaluation.loo import session_windows, window_input
@@ -292,10 +305,11 @@ def _render_window(cfg, system, annotations, fold, condition, fitted, params, ou
     held_out = list(annotations)[fold]
     held = annotations[held_out]
     fps = float(params.fps)
-    windows = session_windows(held, fps, params.loo.window, params.loo.hop, 1)
+    condition, index = _pick_window(cases, list(conditions))
+    windows = session_windows(held, fps, params.loo.window, params.loo.hop, index + 1)
     if not windows:
         return []
-    w = windows[0]
+    w = windows[min(index, len(windows) - 1)]
     f0 = int(round(w.start * fps))
     synth, truth, lines = [], [], []
     for k, (role, ann) in enumerate(held.items()):
@@ -304,10 +318,10 @@ def _render_window(cfg, system, annotations, fold, condition, fitted, params, ou
         res = system.synthesize(fitted[ann.character], win, condition)
         truth.append(track_from_motion(ann.motion.slice(f0, f0 + win.num_frames), ann.character))
         if res.success:
-            synth.append(track_from_motion(res.motion, ann.character, res.synthetic_at or ()))
+            synth.append(track_from_motion(res.motion, ann.character, () if res.synthetic_at is None else tuple(res.synthetic_at)))
         lines.append(Timeline(f"{ann.character} audio", win.own_segments))
     if not synth:
-        return ["## Rendering", "", "_(no character was synthesized in the first window)_", ""]
+        return ["## Rendering", "", f"_(no character was synthesized in window {index} under `{condition}`)_", ""]
     panels = [Panel(f"synthesized ({condition})", tuple(synth)), Panel("ground truth", tuple(truth))]
     anim = render_animation(panels, lines, fps, out_dir / "window.gif", render_fps=float(cfg.task.get("render_fps", 8)))
     sheet = contact_sheet(panels, lines, fps, out_dir / "window_contact_sheet.png")

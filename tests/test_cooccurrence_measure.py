@@ -345,3 +345,31 @@ def test_head_only_system_is_measured_on_the_head(annotations, tiny_params):
     assert row["metric_scope"] == "head"
     assert row["jerk"] > 0 and row["acceleration"] > 0 and row["max_jump"] > 0
     assert row["gt_jerk"] > 0
+
+
+def test_head_only_diversity_is_measured_on_the_head(tiny_params, annotations):
+    """Window diversity of a head-only system compares its head motion between windows; over every
+    joint of a still body it was 0 whatever the head did."""
+    from convsynth_jax.evaluation.loo import run_fold
+    from convsynth_jax.skeleton import Motion
+    from convsynth_jax.systems.base import SynthesisSystem, SystemParams, WindowResult
+
+    class StillBodyMovingHead(SynthesisSystem):
+        produces_hands = False
+
+        def fit(self, clips, character, condition, cache_dir=None):
+            return None
+
+        def synthesize(self, model, window, condition):
+            ann = annotations[window.session][window.role]
+            gt = ann.motion.slice(window.start_frame, window.start_frame + window.num_frames)
+            head = gt.skeleton.names.index("Head")
+            rot = np.broadcast_to(np.asarray(ann.motion.rotations[:1], np.float64), gt.rotations.shape).copy()
+            rot[:, head] = np.asarray(gt.rotations[:, head])
+            trans = np.broadcast_to(np.asarray(ann.motion.translations[:1]), gt.translations.shape).copy()
+            return WindowResult(True, Motion(gt.skeleton, rot, trans, gt.fps, "head"))
+
+    system = StillBodyMovingHead(tiny_params, SystemParams("head", "x:y", {"none": {}}))
+    rows = run_fold(system, annotations, 0, "none", tiny_params)
+    assert (rows["metric_scope"] == "head").all()
+    assert (rows["diversity"] > 0).all(), rows["diversity"].tolist()

@@ -271,7 +271,11 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
                          "window": w.index, "window_start": w.start, "window_end": w.end,
                          "character": ann.character, "role": role, "seed": seed, **row})
             if motion is not None:
-                synth_windows.setdefault(ann.character, []).append(np.asarray(pose_features(motion).positions))
+                if system.produces_hands:
+                    pts = np.asarray(pose_features(motion).positions)
+                else:  # head-only systems: the head point relative to the root (the rest of the body is still)
+                    pts = _metric_points(motion, True, params) - np.asarray(motion.translations, np.float64)[:, :1]
+                synth_windows.setdefault(ann.character, []).append(pts)
                 if export_bvh and out_dir is not None:
                     save_bvh(motion, Path(out_dir) / "bvh" / f"{held_out}_w{w.index:02d}_{ann.character}_{condition}.bvh")
     out = pd.DataFrame(rows)

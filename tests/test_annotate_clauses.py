@@ -147,6 +147,19 @@ def test_guard_drops_a_planted_octave_jump_in_a_track():
     assert g.median == pytest.approx(np.nanmedian(f0), rel=0.02)
 
 
+def test_guard_drops_a_sustained_stretch_outside_the_speakers_range():
+    """A tracker stuck an octave and a half up for 0.4 s (longer than the running median's window,
+    so only the speaker-range check can catch it) is dropped; a stretch half an octave up is kept."""
+    t = np.arange(0, 2.0, 0.01)
+    f0 = np.full(t.size, 150.0)
+    f0[50:90] = 150.0 * 2 ** 1.5   # 425 Hz for 0.4 s: outside median +- 1 octave
+    f0[130:170] = 150.0 * 2 ** 0.5  # 212 Hz: a high but plausible stretch
+    g = guard_f0(t, f0, AnnotateParams())
+    assert g.dropped[50:90].all()
+    assert not g.dropped[130:170].any()
+    assert np.nanmax(g.f0) == pytest.approx(212.1, rel=0.01)
+
+
 def _voice(f, sr=16000):
     phase = 2 * np.pi * np.cumsum(f) / sr
     x = 0.3 * sum(np.sin(k * phase) / k for k in range(1, 8))

@@ -184,3 +184,23 @@ def test_blinks_follow_the_rules():
     c = blink_curve([1.0], 60, 30.0)
     assert c.max() == pytest.approx(1.0, abs=0.2) and c[29] == 0 and c[30] == 0 and c[31] > 0
     assert np.count_nonzero(c) == pytest.approx(0.17 * 30, abs=1)
+
+
+def test_paper_placement_rule_matches_a_plain_comparison_everywhere():
+    """The vectorized placement test (kernel and DFS) against the rule written out: start, end and
+    peak of the source segment each within the tolerance of the input's, on an exhaustive grid
+    (the kernel-vs-reference tests alone did not notice an entry allowed 3 frames late)."""
+    import itertools
+
+    from convsynth_jax.search.constraints import NO_PEAK, placement_ok
+
+    tol, t, s, e = 3, 40, 35, 50
+    for kind, peak in ((1, 42), (2, NO_PEAK)):
+        labels, offsets, lengths, peaks = (np.array(v) for v in zip(*itertools.product(
+            (1, 2), range(0, 12), range(8, 24), (-1, 0, 3, 6, 9, 12))))
+        got = placement_ok(labels, offsets, lengths, peaks, t, (kind, s, e, peak), tol)
+        for i in range(labels.size):
+            st = t - offsets[i]
+            want = (labels[i] == kind and abs(st - s) <= tol and abs(st + lengths[i] - e) <= tol
+                    and (peak == NO_PEAK or (peaks[i] >= 0 and abs(st + peaks[i] - peak) <= tol)))
+            assert bool(got[i]) == want, (labels[i], offsets[i], lengths[i], peaks[i])

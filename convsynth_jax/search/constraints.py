@@ -151,13 +151,9 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
             if 0 <= t < T:
                 arr[t] = code
 
-    def frames(r):
-        return int(round(r.start * fps)), int(round(r.end * fps)), int(round(getattr(r, "peak", np.nan) * fps)) \
-            if np.isfinite(getattr(r, "peak", np.nan)) else None
-
     own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end"])
     for r in own_segments.itertuples(index=False):
-        s, e, p = frames(r)
+        s, e, p = _seg_frames(r, fps)
         lo, hi = max(0, s - tol), min(T, e + tol)
         if hi <= 0 or lo >= T:
             continue
@@ -179,7 +175,7 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
         for r in partner_segments.itertuples(index=False):
             if r.kind != "HP":
                 continue
-            s, e, _ = frames(r)
+            s, e, _ = _seg_frames(r, fps)
             a, b = max(0, s + tol), min(T, e - tol)
             if b <= a:
                 continue

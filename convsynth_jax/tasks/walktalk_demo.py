@@ -64,18 +64,71 @@ def _pick_loops(lcs, n):
     return [lcs[k] for k in order[best:best + n]]
 
 
+def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
+    """Per speaker, the gestures cut from its character's synthesized BVH (``task.synthesized_dir``,
+    the output folder of ``task=synthesize``; ``task.synthesized_characters`` one character per
+    speaker, default the folder's BVHs sorted) as GestureContexts; with ``own_times`` each speaker's peaks
+    become its gestures' own stroke peaks (+ offset_s, + lead_s so the nominal peak is the
+    synthesized one). Returns (gestures by speaker, speakers, info for the summary)."""
+    import dataclasses
+
+    from ..walktalk.pipeline import gesture_context
+    from ..walktalk.synthesized import synthesized_gestures
+
+    folder = _resolve(str(t.get("synthesized_dir") or ""))
+    if not t.get("synthesized_dir") or not folder.is_dir():
+        raise MissingFileError("gesture_source=synthesized needs task.synthesized_dir, the output folder of "
+                               "task=synthesize", folder)
+    chars = t.get("synthesized_characters") or sorted(f.stem for f in folder.glob("*.bvh"))
+    if len(chars) < len(speakers):
+        raise WalkTalkError(f"{len(speakers)} speakers but synthesized characters {list(chars)}", folder)
+    files = {sp.name: folder / f"{c}.bvh" for sp, c in zip(speakers, chars)}
+    offsets = {s["name"]: float(s.get("offset_s", 0.0)) for s in t["speakers"]}
+    template = lib.gestures[0].gesture.motion if lib.gestures else None
+    if template is None:
+        raise WalkTalkError("gesture_source=synthesized needs one standing gesture clip of the library as the "
+                            "retargeting template", where="walktalk.gesture_globs")
+    pad = round(p.splice.transition_pad_s * p.fps)
+    by_speaker, out_speakers, info = {}, [], {}
+    duration = float(t["duration_s"])
+    for sp in speakers:
+        path = _resolve(str(files[sp.name]))
+        if not path.is_file():
+            raise MissingFileError("synthesized BVH not found", path)
+        gs, starts, skipped = synthesized_gestures(path, template, lib.body, p)
+        by_speaker[sp.name] = [gesture_context(g, lib.body, pad) for g in gs]
+        info[sp.name] = {"file": str(path), "gestures": len(gs), "skipped": skipped}
+        if own_times:
+            peaks = [offsets[sp.name] + st + g.phases.peaks[0] / p.fps + p.splice.lead_s for g, st in zip(gs, starts)]
+            keep = [k for k, u in enumerate(peaks) if 0 <= u <= duration]
+            sp = dataclasses.replace(sp, peaks_s=tuple(peaks[k] for k in keep), gesture_at=tuple(keep),
+                                     source=str(path))
+        out_speakers.append(sp)
+    return by_speaker, out_speakers, info
+
+
 def run(cfg, out_dir: Path) -> dict:
     t = OmegaConf.to_container(cfg.task, resolve=True)
     p = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
     dp = DemoParams(duration_s=float(t["duration_s"]), spacing_cm=float(t["spacing_cm"]),
                     min_gap_s=float(t["min_gap_s"]), aar=str(t["aar"]), method=str(t["method"]),
                     include_multi_peak=bool(t["include_multi_peak"]))
+    source = str(t.get("gesture_source", "library"))
+    if source not in ("library", "synthesized"):
+        raise WalkTalkError(f"gesture_source must be library or synthesized, got {source!r}", where="task.gesture_source")
+    timing = str(t.get("synthesized_timing", "own"))
+    if timing not in ("own", "speech"):
+        raise WalkTalkError(f"synthesized_timing must be own or speech, got {timing!r}", where="task.synthesized_timing")
+    own_times = source == "synthesized" and timing == "own"
     t0 = time.perf_counter()
-    speakers = [Speaker(s["name"], speech_peaks(s, cfg), str(s.get("wav") or s.get("peaks_tsv")))
+    speakers = [Speaker(s["name"], () if own_times else speech_peaks(s, cfg), str(s.get("wav") or s.get("peaks_tsv")))
                 for s in t["speakers"]]
     t1 = time.perf_counter()
     data_dir = resolve_data_dir(p, REPO)
-    lib = load_library(p, data_dir, int(t["loop_candidates"]), t.get("max_gestures"))
+    lib = load_library(p, data_dir, int(t["loop_candidates"]), 1 if source == "synthesized" else t.get("max_gestures"))
+    gestures, synth_info = lib.gestures, {}
+    if source == "synthesized":
+        gestures, speakers, synth_info = _synthesized_source(t, speakers, lib, p, own_times)
     scripted = [AAREvent(**e) for e in (t.get("scripted_aar") or [])]
     t2 = time.perf_counter()
     rows, aar_rows, files = [], [], []
@@ -88,8 +141,7 @@ def run(cfg, out_dir: Path) -> dict:
         if len(lcs) < len(speakers):  # e.g. the one-clip test fixtures: characters share a loop
             log.warning("%d characters but %d %s loops: loops are reused", len(speakers), len(lcs), gait)
             lcs = [lcs[i % len(lcs)] for i in range(len(speakers))]
-        motions, ev, aar = run_demo(_pick_loops(lcs, len(speakers)), lib.gestures, speakers, p, dp, rng, scripted,
-                                     rom)
+        motions, ev, aar = run_demo(_pick_loops(lcs, len(speakers)), gestures, speakers, p, dp, rng, scripted, rom)
         for name, m in motions.items():
             save_bvh(m, out_dir / f"{name}_{gait}.bvh")
             files.append(f"{name}_{gait}.bvh")
@@ -106,5 +158,6 @@ def run(cfg, out_dir: Path) -> dict:
             "utterance_peaks": {s.name: len(s.peaks_s) for s in speakers},
             "single_peak_contact_rate": float(single["contact_at_peak"].mean()) if len(single) else None,
             "shift_range_s": [float(events["shift_s"].min()), float(events["shift_s"].max())] if len(events) else None,
-            "aar_events": len(aar_rows), "speech_seconds": t1 - t0, "load_seconds": t2 - t1,
+            "aar_events": len(aar_rows), "gesture_source": source, "synthesized": synth_info,
+            "speech_seconds": t1 - t0, "load_seconds": t2 - t1,
             "synthesis_seconds": t3 - t2}

@@ -26,7 +26,7 @@ from .gaze import (
 )
 from .locomotion import tile_contact, tile_loop
 from .params import WalkTalkParams
-from .pipeline import METHODS, GestureContext, LoopContext, splice_gesture
+from .pipeline import METHODS, LoopContext, splice_gesture
 from .splice import JointLimits
 
 
@@ -35,6 +35,10 @@ class Speaker:
     name: str
     peaks_s: tuple[float, ...]       # utterance stress peaks on the shared timeline (s)
     source: str = ""                 # where they came from (WAV / TSV)
+    # (ours) the gesture (index into the character's pool) for each peak, in the order of peaks_s;
+    # empty = a seeded random draw per peak (the clip library). Gestures cut from a synthesized
+    # conversation keep their own times this way (see walktalk_demo's gesture_source).
+    gesture_at: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -68,11 +72,14 @@ def place_character(m: Motion, advance: np.ndarray, lateral_cm: float) -> Motion
     return dataclasses.replace(m, rotations=rot, translations=tr)
 
 
-def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers: list[Speaker], p: WalkTalkParams,
+def run_demo(loops: list[LoopContext], gestures, speakers: list[Speaker], p: WalkTalkParams,
              dp: DemoParams, rng: np.random.Generator, scripted: list[AAREvent] | None = None,
              limits: JointLimits | None = None):
     """Returns (motions: name -> Motion, events: list of dict rows, aar: list[AAREvent]).
-    ``limits``: the library's range of motion for the stylization (``splice.respect_joint_limits``)."""
+    ``gestures``: one list of :class:`GestureContext` shared by every character (the clip library),
+    or a dict character name -> its own list (gestures cut from a synthesized conversation, see
+    :mod:`.synthesized`). ``limits``: the library's range of motion for the stylization
+    (``splice.respect_joint_limits``)."""
     fps = p.fps
     T = round(dp.duration_s * fps)
     if len(loops) < len(speakers):
@@ -81,11 +88,21 @@ def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers:
     if len(set(names)) != len(names):
         raise WalkTalkError(f"character names must be unique: {names}")
     method = METHODS[dp.method]
-    pool = [g for g in gestures if dp.include_multi_peak or g.gesture.single_peak]
-    if not pool:
+    per_speaker = gestures if isinstance(gestures, dict) else {n: gestures for n in names}
+    missing = [n for n in names if n not in per_speaker]
+    if missing:
+        raise WalkTalkError(f"no gesture source for characters {missing}", where="task.synthesized")
+    pools = {n: [g for g in per_speaker[n] if dp.include_multi_peak or g.gesture.single_peak] for n in names}
+    if not any(pools.values()):
         raise WalkTalkError("no gestures to use")
+    for sp in speakers:
+        if sp.gesture_at and (len(sp.gesture_at) != len(sp.peaks_s) or
+                              not all(0 <= k < len(per_speaker[sp.name]) for k in sp.gesture_at)):
+            raise WalkTalkError(f"character {sp.name}: gesture_at must give one gesture of its "
+                                f"{len(per_speaker[sp.name])} per peak ({len(sp.peaks_s)})", sp.source or None)
     motions, rows, meta = {}, [], []
     for i, (sp, lc) in enumerate(zip(speakers, loops)):
+        pool = pools[sp.name]
         for u in sp.peaks_s:
             if not 0 <= u <= dp.duration_s:
                 raise WalkTalkError(f"utterance peak at {u:.3f} s outside the timeline 0-{dp.duration_s} s",
@@ -94,8 +111,15 @@ def run_demo(loops: list[LoopContext], gestures: list[GestureContext], speakers:
         contact = tile_contact(lc.loop, T)
         cur = loco
         busy_until = -1
-        for u in sorted(sp.peaks_s):
-            gc = pool[int(rng.integers(len(pool)))]
+        order = sorted(range(len(sp.peaks_s)), key=lambda k: sp.peaks_s[k])
+        for k in order:
+            u = sp.peaks_s[k]
+            if sp.gesture_at:
+                gc = per_speaker[sp.name][sp.gesture_at[k]]
+            elif pool:
+                gc = pool[int(rng.integers(len(pool)))]
+            else:
+                continue
             g = gc.gesture
             n0 = int(np.floor((u - p.splice.lead_s) * fps + 1e-9))
             earliest = n0 - int(np.floor(p.splice.max_shift_s * fps + 1e-9)) - g.phases.peaks[0] + g.phases.pb

@@ -7,19 +7,28 @@ Reported (goals from issue #12, never asserted):
   * the demo: 2 characters x 60 s per gait (walk and jog), task time after start-up (speech
     annotation, library loading and synthesis included);
   * an ablation of the stylization constant c on joint-limit violations and the per-gait elbow
-    correlation (subset of gestures, 3 loops per gait);
+    correlation (subset of gestures, 3 loops per gait), plus the paper's band alone
+    (splice.respect_joint_limits=false) and the old bounce order (splice.bounce_fit=rescale);
   * the elbow-tracking study: every walk and run clip as a loop (24 + 52), every 6th single-peak
     gesture, naive / stylized / stylized+synced: per gait, the correlation over loops of the
-    stroke's elbow bend with the loop's, per gesture.
-Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results/bench_walktalk.json.
+    stroke's elbow bend with the loop's, per gesture, plain and partial given the loop's spread
+    (evaluate.elbow_partial_corr says why), for the default bounce order and the old one;
+  * optionally (--synthesized-dir, the output folder of task=synthesize) the demo with its
+    gestures cut from that synthesized conversation.
+Joint-limit violations are printed in both readings (evaluate.limit_violations: frames with any
+DOF out or any hand in the torso; evaluate.limit_cells: DOF x frame cells of the spliced arm over
+the blended frames, gesturing hand in the torso), each beside the loop alone over the same frames.
+Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results/bench_walktalk.json
+(--out to name another file there).
 
-    python experiments/bench_walktalk.py [--skip-ablation]
+    python experiments/bench_walktalk.py [--quick] [--skip-ablation] [--skip-elbow] [--synthesized-dir DIR]
 """
 from __future__ import annotations
 
 import argparse
 import dataclasses
 import json
+import os
 import platform
 import statistics
 import tempfile
@@ -66,16 +75,19 @@ def bench_eval(data_dir: Path) -> dict:
             "limits_in_sample_violation": s["limits_in_sample_violation"], "loop_contact_frac": s["loop_contact_frac"]}
 
 
-def bench_demo(data_dir: Path) -> dict:
+def bench_demo(data_dir: Path, synthesized_dir: str | None = None) -> dict:
     out = {}
-    for gaits in (["walk"], ["walk", "jog"]):
-        cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={data_dir}", f"task.gaits=[{','.join(gaits)}]"])
+    runs = [(["walk"], []), (["walk", "jog"], [])]
+    if synthesized_dir:
+        runs.append((["walk", "jog"], ["task.gesture_source=synthesized", f"task.synthesized_dir={synthesized_dir}"]))
+    for gaits, extra in runs:
+        cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={data_dir}", f"task.gaits=[{','.join(gaits)}]", *extra])
         with tempfile.TemporaryDirectory() as d:
             t0 = time.perf_counter()
             s = run_task(cfg, d)
             wall = time.perf_counter() - t0
-        key = "+".join(gaits)
-        out[key] = {"demo_s": wall, "speech_s": s["speech_seconds"], "load_s": s["load_seconds"],
+        key = "+".join(gaits) + (" synthesized" if extra else "")
+        out[key] = {"demo_s": wall, "synthesized": s.get("synthesized"), "speech_s": s["speech_seconds"], "load_s": s["load_seconds"],
                     "synthesis_s": s["synthesis_seconds"], "gestures_spliced": s["gestures_spliced"],
                     "single_peak_contact_rate": s["single_peak_contact_rate"], "shift_range_s": s["shift_range_s"]}
     return out
@@ -94,15 +106,22 @@ def bench_ablation(data_dir: Path) -> list[dict]:
     base = WalkTalkParams()
     lib = load_library(base, data_dir, 3, single_peak_only=True)
     lib.gestures = lib.gestures[::5]
-    for c in (1.0, 1.5, 2.0, 3.0, 5.0):
-        p = dataclasses.replace(base, splice=dataclasses.replace(base.splice, c=c))
+    variants = [(f"c={c}", {"c": c}) for c in (1.0, 1.5, 2.0, 3.0, 5.0)]
+    variants += [("c=3.0 paper band (respect_joint_limits=false)", {"respect_joint_limits": False}),
+                 ("c=3.0 bounce_fit=rescale", {"bounce_fit": "rescale"})]
+    for name, kw in variants:
+        p = dataclasses.replace(base, splice=dataclasses.replace(base.splice, **kw))
         df = run_evaluation(lib, p, EvalParams(methods=("naive", "stylized+synced")))
         for r in summarize(df):
             if r["gait"] != "all":
-                rows.append({"c": c, "gait": r["gait"], "method": r["method"],
+                rows.append({"variant": name, "c": p.splice.c, "gait": r["gait"], "method": r["method"],
                              "violation_frac_mean": r["violation_frac_mean"],
                              "loop_violation_frac_mean": r["loop_violation_frac_mean"],
+                             "limit_cell_frac_mean": r["limit_cell_frac_mean"],
+                             "hand_in_torso_gesturing_frac_mean": r["hand_in_torso_gesturing_frac_mean"],
+                             "loop_limit_cell_frac_mean": r["loop_limit_cell_frac_mean"],
                              "max_jerk_ratio_median": r["max_jerk_ratio_median"],
+                             "jerk_ratio_le_2_rate": r["jerk_ratio_le_2_rate"],
                              "elbow_corr_per_gesture_mean": r["elbow_corr_per_gesture_mean"]})
     return rows
 
@@ -115,15 +134,30 @@ def bench_elbow(data_dir: Path) -> dict:
     t0 = time.perf_counter()
     lib = load_library(p, data_dir, 10_000, single_peak_only=True)   # every walk and run clip as a loop
     df = elbow_tracking(lib, p, gestures=lib.gestures[::6])
-    return {"seconds": time.perf_counter() - t0, "skipped_clips": lib.skipped,
-            "per_gait_method": elbow_tracking_summary(df)}
+    out = {"seconds": time.perf_counter() - t0, "skipped_clips": lib.skipped,
+           "per_gait_method": elbow_tracking_summary(df)}
+    # the old bounce order (rescaled into the band a second time), synced only
+    old = dataclasses.replace(p, splice=dataclasses.replace(p.splice, bounce_fit="rescale"))
+    df = elbow_tracking(lib, old, gestures=lib.gestures[::6], methods=("stylized+synced",))
+    out["bounce_fit_rescale"] = elbow_tracking_summary(df)
+    # the paper's band alone (no range-of-motion cut)
+    paper = dataclasses.replace(p, splice=dataclasses.replace(p.splice, respect_joint_limits=False))
+    df = elbow_tracking(lib, paper, gestures=lib.gestures[::6], methods=("stylized", "stylized+synced"))
+    out["paper_band"] = elbow_tracking_summary(df)
+    return out
 
 
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
     ap.add_argument("--skip-elbow", action="store_true")
+    ap.add_argument("--quick", action="store_true", help="= --skip-ablation --skip-elbow")
+    ap.add_argument("--synthesized-dir", default=None, help="output folder of task=synthesize: also time the demo "
+                    "with gestures from that synthesized conversation")
+    ap.add_argument("--out", default="bench_walktalk.json", help="file name under experiments/results/")
     a = ap.parse_args()
+    if a.quick:
+        a.skip_ablation = a.skip_elbow = True
     data_dir = SHARED / "bandai2" / "bvh"
     if not data_dir.is_dir():
         data_dir = REPO / "tests" / "data" / "walktalk"
@@ -134,7 +168,7 @@ def main():
               "data_dir": str(data_dir), "goals": GOALS}
     result.update(bench_splice(data_dir))
     result.update(bench_eval(data_dir))
-    result["demo"] = bench_demo(data_dir)
+    result["demo"] = bench_demo(data_dir, a.synthesized_dir)
     if not a.skip_ablation:
         result["ablation_c"] = bench_ablation(data_dir)
     if not a.skip_elbow:
@@ -143,16 +177,42 @@ def main():
                      "eval": result["eval_s"] < GOALS["eval_s"],
                      "demo": all(v["demo_s"] < GOALS["demo_s"] for v in result["demo"].values())}
     RESULTS.mkdir(parents=True, exist_ok=True)
-    write_json_atomic(RESULTS / "bench_walktalk.json", result)
+    result["load_average"] = list(os.getloadavg())
+    write_json_atomic(RESULTS / a.out, result)
     print(json.dumps({k: v for k, v in result.items() if k not in ("per_gait_method", "ablation_c", "elbow_tracking")},
                      indent=2, default=float))
-    for r in result["per_gait_method"]:
-        print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
-    for r in result.get("elbow_tracking", {}).get("per_gait_method", []):
-        print(r)
+    print_table(result)
+    for key in ("per_gait_method", "bounce_fit_rescale", "paper_band"):
+        for r in result.get("elbow_tracking", {}).get(key, []):
+            print(key, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
     if "ablation_c" in result:
         for r in result["ablation_c"]:
-            print(r)
+            print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
+
+
+def print_table(result: dict) -> None:
+    """The per-gait table: violations in both readings with the loop-alone baselines, elbow
+    correlations (3 evaluation loops), peak in contact, shifts, jerk, foot slide."""
+    pct = "{:.2%}".format
+    print("\n| gait | method | peak in contact | shifts (s) | violations, frames (loop alone) | violations, "
+          "cells (loop alone) | gesturing hand in torso (loop alone) | jerk ratio median (max) | foot slide max cm "
+          "| elbow corr. plain / partial (3 loops) |")
+    print("|---" * 10 + "|")
+    for r in result["per_gait_method"]:
+        if r["gait"] == "all":
+            continue
+        print(f"| {r['gait']} | {r['method']} | {pct(r['peak_in_contact_rate'])} | "
+              f"[{r['shift_min_s']:.3f}, {r['shift_max_s']:.3f}] | {pct(r['violation_frac_mean'])} "
+              f"({pct(r['loop_violation_frac_mean'])}) | {pct(r['limit_cell_frac_mean'])} "
+              f"({pct(r['loop_limit_cell_frac_mean'])}) | {pct(r['hand_in_torso_gesturing_frac_mean'])} "
+              f"({pct(r['loop_hand_in_torso_gesturing_frac_mean'])}) | {r['max_jerk_ratio_median']:.2f} "
+              f"({r['max_jerk_ratio_max']:.2f}) | {r['foot_slide_cm_max']:.2f} | "
+              f"{r['elbow_corr_per_gesture_mean']:.2f} / {r['elbow_partial_corr_per_gesture_mean']:.2f} |")
+    for r in result.get("elbow_tracking", {}).get("per_gait_method", []):
+        print(f"elbow, all loops: {r['gait']} {r['method']} ({r['loops']} loops, {r['gestures']} gestures): plain "
+              f"{r['elbow_corr_per_gesture_mean']:.3f} (median {r['elbow_corr_per_gesture_median']:.3f}), partial "
+              f"{r['elbow_partial_corr_per_gesture_mean']:.3f} (median {r['elbow_partial_corr_per_gesture_median']:.3f}),"
+              f" slope {r['elbow_slope_per_gesture_median']:.2f}")
 
 
 if __name__ == "__main__":

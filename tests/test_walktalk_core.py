@@ -3,6 +3,7 @@ shift rule and the elbow bounce, each fast kernel against a slow NumPy reference
 from __future__ import annotations
 
 import dataclasses
+import itertools
 
 import numpy as np
 import pytest
@@ -427,3 +428,39 @@ def test_stylize_kernel_with_bands_vs_reference():
     loose = JointLimits(lim.joints, lim.ref, lim.lo - 1e-5, lim.hi + 1e-5)
     assert not loose.violations(got, tuple(range(4))).any()
     assert np.all(np.abs(got - b_l) <= 3.0 * sd + 1e-5)
+
+
+def test_bounce_reserve_stays_in_band_without_rescaling_the_gesture(loop):
+    """splice.bounce_fit=reserve (ours): the stylization leaves the bounce's room free in the
+    elbow DOF's band, so the spliced elbow is the stylized one plus exactly k dH_root and still
+    inside B_L +- c sigma, with or without the range-of-motion cut; a band too narrow for the
+    bounce (c = 0.3 here: +-2 deg against a +-10 deg bounce) takes it scaled down. The old order
+    (bounce added, then rescaled once more when limits were given; added unchecked otherwise)
+    broke one or the other."""
+    from convsynth_jax.walktalk.splice import JointLimits, bounce_offsets
+
+    body = find_body(loop.motion.skeleton)
+    lc = loop_context(loop, body)
+    gc = gesture_context(make_gesture(synthetic_gesture(), GaitParams(), PhaseParams()), body)
+    k = 2.0
+    wide = JointLimits(lc.joints, np.zeros_like(lc.stats.mean), np.full_like(lc.stats.mean, -10.0),
+                       np.full_like(lc.stats.mean, 10.0))
+    always = np.ones(200, bool)
+    loco = tile_loop(loop, 200)
+    idx = [lc.joints.index(j) for j in gc.joints]
+    elbow = gc.joints.index(body.joints["elbow_r"])
+    dof = lc.elbow_dof["r"]
+    gains = {}
+    for c, limits in itertools.product((3.0, 0.3), (None, wide)):
+        p = SpliceParams(k_bounce=k, c=c)
+        r = splice_gesture(lc, gc, 3.0, 200, p, "stylized+synced", loco=loco, contact=always, limits=limits)
+        d_b = bounce_offsets(loop.root_height, k, r.offset, gc.gesture.motion.num_frames)
+        diff = r.arm_euler[:, elbow, dof] - r.styled_euler[:, elbow, dof]
+        gain = float(np.dot(diff, d_b) / np.dot(d_b, d_b))
+        np.testing.assert_allclose(diff, gain * d_b, atol=1e-9)   # the bounce's shape, unrescaled gesture
+        band = c * lc.stats.std[idx]
+        assert np.all(np.abs(r.arm_euler - lc.stats.mean[idx]) <= band + 1e-5)
+        gains[c] = gain
+    assert gains[3.0] == pytest.approx(1.0)          # room enough: R' = R + k dH exactly
+    assert 0.0 < gains[0.3] < 1.0                    # a band narrower than the bounce: scaled to fit
+    assert np.ptp(loop.root_height) * np.radians(k) > 0.3 * 2 * lc.stats.std[idx][elbow, dof]

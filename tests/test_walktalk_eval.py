@@ -277,3 +277,64 @@ def test_walking_contact_is_the_landing_front_foot_on_fixture():
         nxt = [r for r in g.strikes_r if r > s]
         if nxt:
             assert not g.contact[s:nxt[0]].all()
+
+
+def test_limit_cells_count_spliced_dofs_on_blended_frames():
+    """The cell reading of the joint-limit metric (ours): DOF x frame cells of the gesturing arm over
+    t_Pb < t < t_Re, exactly the frames whose Eq. 2 weight is > 0 (both eases), and only the
+    gesturing hand in the torso test. Planted: limits that one DOF leaves on known frames, the idle
+    hand kept inside the torso cylinder."""
+    from convsynth_jax.walktalk.evaluate import limit_cells, limit_violations
+    from convsynth_jax.walktalk.gestures import Phases
+    from convsynth_jax.walktalk.splice import JointLimits, joint_euler, splice_weights
+
+    m = load_bvh(next(FIXTURES.glob("*raise-up-right-hand*.bvh")))
+    body = find_body(m.skeleton)
+    ph = Phases(5, 9, 10, 30, 31, 45, (20,))
+    for ease in ("linear", "smootherstep"):
+        assert np.flatnonzero(splice_weights(m.num_frames, ph, ease) > 0).tolist() == list(range(ph.pb + 1, ph.re))
+    joints = tuple(body.arm("r"))
+    e = joint_euler(m, joints)
+    x = e[:, 2, 0]                                    # the forearm's first channel
+    thr = np.median(x[ph.pb:ph.re + 1])
+    lo = np.full((len(joints), 3), -10.0)
+    hi = np.full((len(joints), 3), 10.0)
+    hi[2, 0] = thr
+    lim = JointLimits(joints, np.zeros((len(joints), 3)), lo, hi)
+    pos = joint_positions(m)
+    cells, torso = limit_cells(m, pos, ph, joints, ("r",), body, lim, 0.0)
+    inner = np.arange(ph.pb + 1, ph.re)
+    want = np.zeros((len(inner), len(joints), 3), bool)
+    want[:, 2, 0] = x[inner] > thr
+    np.testing.assert_array_equal(cells, want)
+    assert 0 < cells.mean() < 1.0 / (len(joints) * 3) and not torso.any()
+    # the frame reading counts a frame when any DOF is out, on t_Pb..t_Re
+    dof_bad, _ = limit_violations(m, pos, ph, joints, body, lim, 0.0)
+    np.testing.assert_array_equal(dof_bad, x[ph.pb:ph.re + 1] > thr)
+    # the torso test: a radius that swallows every hand counts the gesturing one only in the cells
+    _, torso = limit_cells(m, pos, ph, joints, ("r",), body, lim, 1e4)
+    assert torso.all() and len(torso) == len(inner)
+
+
+def test_elbow_partial_corr_planted():
+    """Planted loops whose mean bend and spread anti-correlate and strokes at mean + 2.5 spread (the
+    saturated c-sigma rescale): the plain correlation with the mean is poor, the partial one given
+    the spread is 1 with slope 1; a stroke that does not move (naive) counts as 0."""
+    from convsynth_jax.walktalk.evaluate import _per_gesture_corr, elbow_partial_corr
+
+    rng = np.random.default_rng(2)
+    mean = rng.normal(90, 7, 30)
+    sd = 12 - 0.4 * (mean - 90) + rng.normal(0, 0.5, 30)
+    rows = []
+    for g, off in (("g1", 0.0), ("g2", 3.0)):
+        for i in range(30):
+            rows.append({"gesture": g, "loop_elbow_bend_deg": mean[i], "loop_elbow_bend_sd_deg": sd[i],
+                         "elbow_bend_deg": mean[i] + 2.5 * sd[i] + off})
+    d = pd.DataFrame(rows)
+    plain = _per_gesture_corr(d)
+    corr, slope = elbow_partial_corr(d)
+    assert max(plain) < 0.5
+    np.testing.assert_allclose(corr, 1.0, atol=1e-9)
+    np.testing.assert_allclose(slope, 1.0, atol=1e-9)
+    naive = d.assign(elbow_bend_deg=50.0)
+    assert _per_gesture_corr(naive) == [0.0, 0.0] and elbow_partial_corr(naive) == ([0.0, 0.0], [0.0, 0.0])

@@ -2,8 +2,11 @@
 
 Per splice (one row): stroke/utterance peak times, shift, whether the peak falls in a contact
 phase, the largest wrist jerk near a splice boundary relative to the source clips' largest, the
-fraction of gesture frames violating joint limits (per-DOF 0.5-99.5 percentile over all clips,
-or a hand inside the torso), the foot slide at loop seams and the elbow bend during the stroke.
+joint-limit violations (per-DOF 0.5-99.5 percentile over all clips, and hands inside the torso) in
+two readings, per frame (:func:`limit_violations`, the acceptance as first written) and per DOF x
+frame over what the splice changes (:func:`limit_cells`, ours: the docstring argues why), each
+beside the loop alone over the same frames; the foot slide at loop seams and the elbow bend during
+the stroke with the loop's mean bend and its spread (:func:`elbow_partial_corr` says why both).
 Utterance stress peaks are synthetic here (uniform over a span longer than the loop, one draw per
 gesture x loop, shared by the methods); the demo uses real speech.
 """
@@ -145,9 +148,10 @@ def dof_limits(lib: Library, percentiles=(0.5, 99.5), tolerance_deg: float = 0.0
 def in_sample_violations(lib: Library, limits: JointLimits) -> dict:
     """The DOF part of the joint-limit metric on the library's own frames, per source kind (walk,
     jog, gesture, all): fraction of frames with a DOF of one arm outside its limits (mean of the
-    two arms; a one-handed splice is scored on one arm) and of both arms. With per-DOF 0.5-99.5
-    percentiles over 12 DOFs per arm, even in-sample frames fail at several percent: the floor
-    against which the splices' "< 1%" goal should be read."""
+    two arms; a one-handed splice is scored on one arm) and of both arms, and of DOF x frame cells
+    (``cell_frac``, the unit of :func:`limit_cells`). With per-DOF 0.5-99.5 percentiles over 12 DOFs
+    per arm, even in-sample frames fail at several percent, cells at ~1%: the floors against which
+    the splices' "< 1%" goal should be read."""
     joints = limits.joints
     arms = {s: [i for i, j in enumerate(joints) if j in lib.body.arm(s)] for s in ("l", "r")}
     out = {}
@@ -159,7 +163,8 @@ def in_sample_violations(lib: Library, limits: JointLimits) -> dict:
         bad = limits.violations(np.concatenate(xs), joints)
         one = [float(bad[:, arms[s]].any(axis=(1, 2)).mean()) for s in ("l", "r")]
         out[kind] = {"clips": len(xs), "frames": int(sum(len(x) for x in xs)),
-                     "one_arm_frac": float(np.mean(one)), "both_arms_frac": float(bad.any(axis=(1, 2)).mean())}
+                     "one_arm_frac": float(np.mean(one)), "both_arms_frac": float(bad.any(axis=(1, 2)).mean()),
+                     "cell_frac": float(bad.mean())}
     return out
 
 
@@ -194,7 +199,10 @@ def loop_source_jerk(lc: LoopContext, sides) -> float:
 
 def limit_violations(m, pos, ph, joints, body: Body, limits: JointLimits, torso_radius_cm: float):
     """Per frame t_Pb..t_Re of ``m`` (positions ``pos``): (DOF of ``joints`` outside its limits,
-    a hand inside the torso), two (n,) bool arrays."""
+    a hand inside the torso), two (n,) bool arrays. The *frame* reading of the joint-limit metric
+    (the acceptance as first written): a frame violates if any of the arm(s)' 12-24 DOFs is out,
+    or either hand (the idle one too) is inside the torso. See :func:`limit_cells` for why it
+    cannot mean "< 1% of frames"."""
     frames = np.arange(ph.pb, ph.re + 1)
     dof_bad = np.any(limits.violations(joint_euler(m.slice(ph.pb, ph.re + 1), joints), joints), axis=(1, 2))
     torso_bad = np.zeros(len(frames), bool)
@@ -203,6 +211,36 @@ def limit_violations(m, pos, ph, joints, body: Body, limits: JointLimits, torso_
                                  pos[frames, body.joints["neck"]])
         torso_bad |= dist < torso_radius_cm
     return dof_bad, torso_bad
+
+
+def limit_cells(m, pos, ph, joints, sides, body: Body, limits: JointLimits, torso_radius_cm: float):
+    """The *cell* reading of the joint-limit metric (ours, the one the "< 1%" goal can mean):
+    (DOF cells of ``joints`` outside their limits, (n, A, 3) bool; gesturing hand(s) ``sides``
+    inside the torso, (n,) bool) over the frames the splice changes, t_Pb < t < t_Re (where the
+    Eq. 2 weight toward the gesture is > 0, the transition pad included).
+
+    Why: the limits are per-DOF 0.5 / 99.5 percentiles pooled over every clip, so by construction
+    each DOF is out on ~1% of the library's own frames (0.4% of walk, 1.2% of run, 0.6% of gesture
+    frames on bandai2: runs are a minority of the pool, so their extremes fall in its tails). A
+    frame that fails when *any* of an arm's 12 DOFs is out compounds twelve such tails: the
+    library's own frames fail 4.5% (walk) to 13% (run) of the time, so "< 1% of frames" would ask
+    the splice to be four to thirteen times tamer than the data it is made of, and a splice that
+    leaves the loop's arm in place outside the gesture can never beat the loop's own rate. Counted
+    per DOF and frame, the unit the percentile is defined on, the library's own rate is <= ~1%
+    and "< 1%" reads as "no more out-of-range than the recorded motion". Only the DOFs the splice
+    writes (the gesturing arm(s); lower body, torso and the idle arm are the loop's, bit for bit)
+    and the frames it blends are counted, and only the gesturing hands for the torso test (the idle
+    hand of a jog loop crosses the 12 cm torso cylinder on ~2% of frames by itself)."""
+    frames = np.arange(ph.pb + 1, ph.re)
+    if len(frames) == 0:
+        return np.zeros((0, len(joints), 3), bool), np.zeros(0, bool)
+    cells = limits.violations(joint_euler(m.slice(frames[0], frames[-1] + 1), joints), joints)
+    torso = np.zeros(len(frames), bool)
+    for s in sides:
+        dist = _segment_distance(pos[frames, body.joints[f"hand_{s}"]], pos[frames, body.joints["hips"]],
+                                 pos[frames, body.joints["neck"]])
+        torso |= dist < torso_radius_cm
+    return cells, torso
 
 
 def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits, ep: EvalParams,
@@ -222,16 +260,19 @@ def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits
         if hi > lo:
             near.append(jerk[lo:hi].max())
     dof_bad, torso_bad = limit_violations(m, pos, ph, gc.joints, body, limits, ep.torso_radius_cm)
+    cells, torso_g = limit_cells(m, pos, ph, gc.joints, g.sides, body, limits, ep.torso_radius_cm)
     key = (ph.pb, ph.re)
     if loop_cache is None or key not in loop_cache:
         # FK of the loop over t_Pb..t_Re only (same for the methods that place the gesture alike)
         seg = loco.slice(ph.pb, ph.re + 1)
         seg_ph = ph.shifted(-ph.pb)
-        ld, lt = limit_violations(seg, joint_positions(seg), seg_ph, gc.joints, body, limits, ep.torso_radius_cm)
+        seg_pos = joint_positions(seg)
+        ld, lt = limit_violations(seg, seg_pos, seg_ph, gc.joints, body, limits, ep.torso_radius_cm)
+        lc_cells, lc_torso = limit_cells(seg, seg_pos, seg_ph, gc.joints, g.sides, body, limits, ep.torso_radius_cm)
         if loop_cache is None:
             loop_cache = {}
-        loop_cache[key] = ld | lt
-    loop_bad = loop_cache[key]
+        loop_cache[key] = (ld | lt, lc_cells, lc_torso)
+    loop_bad, loop_cells, loop_torso = loop_cache[key]
     stroke = slice(ph.sb, ph.se + 1)
     bend = np.mean([elbow_bend(pos[stroke], body, s).mean() for s in g.sides])
     loop_bend = np.mean([lc_bend(lc, s) for s in g.sides])
@@ -252,22 +293,35 @@ def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits
         "loop_violation_frac": float(np.mean(loop_bad)),
         # variant (not the acceptance metric): frames the splice violates where the loop alone does not
         "new_violation_frac": float(np.mean((dof_bad | torso_bad) & ~loop_bad)),
+        # the cell reading (limit_cells): DOF x frame cells of the spliced arm(s) out of limits over
+        # the blended frames, gesturing hand(s) inside the torso; and both for the loop alone
+        "limit_cell_frac": _mean(cells),
+        "hand_in_torso_gesturing_frac": _mean(torso_g),
+        "loop_limit_cell_frac": _mean(loop_cells),
+        "loop_hand_in_torso_gesturing_frac": _mean(loop_torso),
         "foot_slide_cm": seam_foot_slide(m, lc.loop.num_frames, _GAIT, body, pos),
         "elbow_bend_deg": float(bend),
         "loop_elbow_bend_deg": float(loop_bend),
+        "loop_elbow_bend_sd_deg": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides])),
         "dof_within_csigma": within,
     }
+
+
+def _mean(x) -> float:
+    return float(np.mean(x)) if np.size(x) else 0.0
 
 
 _GAIT = None  # set by run_evaluation (GaitParams for the seam foot-slide test)
 _BEND_CACHE: dict = {}
 
 
-def lc_bend(lc: LoopContext, side: str) -> float:
+def lc_bend(lc: LoopContext, side: str, sd: bool = False) -> float:
+    """The loop's elbow bend (degrees) of ``side``: its mean over the loop, or (``sd``) its std."""
     key = (id(lc), side)
     if key not in _BEND_CACHE:
-        _BEND_CACHE[key] = float(elbow_bend(joint_positions(lc.loop.motion), lc.body, side).mean())
-    return _BEND_CACHE[key]
+        b = elbow_bend(joint_positions(lc.loop.motion), lc.body, side)
+        _BEND_CACHE[key] = (float(b.mean()), float(b.std()))
+    return _BEND_CACHE[key][1 if sd else 0]
 
 
 def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bool = False) -> pd.DataFrame:
@@ -312,18 +366,77 @@ def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bo
     return df[cols + [c for c in df.columns if c not in cols]]
 
 
+CONSTANT_DEG = 1e-3   # a stroke bend spreading less than this over the loops is constant (naive)
+
+
 def _per_gesture_corr(d: pd.DataFrame) -> list[float]:
+    """Per gesture, the correlation over its loops of the stroke's elbow bend with the loop's mean
+    bend. A stroke bend that does not change with the loop (naive: the gesture's own arm) has no
+    covariance with it and counts as 0 (the ratio itself is undefined)."""
     out = []
     for _, dg in d.groupby("gesture"):
-        if dg["elbow_bend_deg"].std() > 1e-9 and dg["loop_elbow_bend_deg"].std() > 1e-9:
+        if len(dg) < 3 or dg["loop_elbow_bend_deg"].std() <= 1e-9:
+            continue
+        if dg["elbow_bend_deg"].std() <= CONSTANT_DEG:
+            out.append(0.0)
+        else:
             out.append(float(np.corrcoef(dg["loop_elbow_bend_deg"], dg["elbow_bend_deg"])[0, 1]))
     return out
 
 
+def elbow_partial_corr(d: pd.DataFrame) -> tuple[list[float], list[float]]:
+    """Per gesture over its loops: the partial correlation of the stroke's elbow bend with the
+    loop's mean bend given the loop's bend spread (std over the loop), and the slope on the mean
+    in that two-variable fit (1 = the stroke moves with the loop's mean degree for degree).
+
+    Why (ours): Sec. 4.1 takes two things from the loop, its mean pose B_L (M'_G = M_G + B_L - B_G)
+    and its spread (the +- c sigma band). A raise-hand stroke folds the elbow 3-5x farther than the
+    band allows, so the linear rescale puts it on the band's edge, B_L + c sigma_L; the stroke's
+    bend is then a two-variable function of the loop (on bandai2 with the paper's band, bend =
+    1.0 x mean + 2.45 x std, R = 0.999 in both gaits). Over one gait's loops the plain correlation
+    with the mean is then a property of the loops, not of the method: bandai2's 24 walks are takes
+    of one ("normal") style whose mean bends spread by 1.3 deg (std) while their spreads vary by
+    1.1 deg (x 3), and across the 52 runs mean and spread anti-correlate (-0.8), so corr(mean,
+    mean + 2.45 std) is ~0.6 (walk) and ~0.3 (run) however exactly B_D is applied. Holding the
+    spread fixed isolates the base-pose transfer the acceptance asks about. Constant stroke bends
+    (naive) count as 0."""
+    corr, slope = [], []
+    for _, dg in d.groupby("gesture"):
+        if len(dg) < 4 or dg["loop_elbow_bend_deg"].std() <= 1e-9:
+            continue
+        y = dg["elbow_bend_deg"].to_numpy(float)
+        x = dg["loop_elbow_bend_deg"].to_numpy(float)
+        z = np.c_[np.ones(len(dg)), dg["loop_elbow_bend_sd_deg"].to_numpy(float)]
+        rx = x - z @ np.linalg.lstsq(z, x, rcond=None)[0]
+        if y.std() <= CONSTANT_DEG:
+            corr.append(0.0)
+            slope.append(0.0)
+            continue
+        ry = y - z @ np.linalg.lstsq(z, y, rcond=None)[0]
+        if rx.std() <= 1e-9 or ry.std() <= 1e-12:
+            continue
+        corr.append(float(np.corrcoef(rx, ry)[0, 1]))
+        slope.append(float(np.dot(rx, ry) / np.dot(rx, rx)))
+    return corr, slope
+
+
 def _corr(d: pd.DataFrame) -> float:
-    if d["elbow_bend_deg"].std() > 1e-9 and d["loop_elbow_bend_deg"].std() > 1e-9:
+    if d["elbow_bend_deg"].std() > CONSTANT_DEG and d["loop_elbow_bend_deg"].std() > 1e-9:
         return float(np.corrcoef(d["loop_elbow_bend_deg"], d["elbow_bend_deg"])[0, 1])
-    return float("nan")
+    return 0.0 if d["loop_elbow_bend_deg"].std() > 1e-9 else float("nan")
+
+
+def _elbow_summary(d: pd.DataFrame) -> dict:
+    per_g = _per_gesture_corr(d)
+    pc, sl = elbow_partial_corr(d)
+    nan = float("nan")
+    return {"elbow_corr_pooled": _corr(d),
+            "elbow_corr_per_gesture_mean": float(np.mean(per_g)) if per_g else nan,
+            "elbow_corr_per_gesture_median": float(np.median(per_g)) if per_g else nan,
+            "elbow_corr_per_gesture_n": len(per_g),
+            "elbow_partial_corr_per_gesture_mean": float(np.mean(pc)) if pc else nan,
+            "elbow_partial_corr_per_gesture_median": float(np.median(pc)) if pc else nan,
+            "elbow_slope_per_gesture_median": float(np.median(sl)) if sl else nan}
 
 
 def summarize(df: pd.DataFrame) -> list[dict]:
@@ -334,7 +447,6 @@ def summarize(df: pd.DataFrame) -> list[dict]:
     groups = [((g, m), d) for (g, m), d in df.groupby(["gait", "method"], sort=False)]
     groups += [(("all", m), d) for m, d in df.groupby("method", sort=False)]
     for (gait, method), d in groups:
-        per_g = _per_gesture_corr(d)
         out.append({
             "gait": gait, "method": method, "splices": len(d),
             "peak_in_contact_rate": float(d["peak_in_contact"].mean()),
@@ -346,15 +458,17 @@ def summarize(df: pd.DataFrame) -> list[dict]:
             "hand_in_torso_frac_mean": float(d["hand_in_torso_frac"].mean()),
             "loop_violation_frac_mean": float(d["loop_violation_frac"].mean()),
             "new_violation_frac_mean": float(d["new_violation_frac"].mean()),
+            "limit_cell_frac_mean": float(d["limit_cell_frac"].mean()),
+            "limit_cell_frac_max": float(d["limit_cell_frac"].max()),
+            "hand_in_torso_gesturing_frac_mean": float(d["hand_in_torso_gesturing_frac"].mean()),
+            "loop_limit_cell_frac_mean": float(d["loop_limit_cell_frac"].mean()),
+            "loop_hand_in_torso_gesturing_frac_mean": float(d["loop_hand_in_torso_gesturing_frac"].mean()),
             "max_jerk_ratio_max": float(d["max_jerk_ratio"].max()),
             "max_jerk_ratio_median": float(d["max_jerk_ratio"].median()),
             "jerk_ratio_le_2_rate": float((d["max_jerk_ratio"] <= 2.0).mean()),
             "foot_slide_cm_max": float(d["foot_slide_cm"].max()),
             "dof_within_csigma_rate": float(d["dof_within_csigma"].mean()),
-            "elbow_corr_pooled": _corr(d),
-            "elbow_corr_per_gesture_mean": float(np.mean(per_g)) if per_g else float("nan"),
-            "elbow_corr_per_gesture_median": float(np.median(per_g)) if per_g else float("nan"),
-            "elbow_corr_per_gesture_n": len(per_g),
+            **_elbow_summary(d),
         })
     return out
 
@@ -382,7 +496,8 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
                     rows.append({"gesture": Path(g.name).stem, "gait": gait, "loop": Path(lc.loop.source).stem,
                                  "method": name,
                                  "bend": float(np.mean([elbow_bend(pos, lib.body, s).mean() for s in g.sides])),
-                                 "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides]))})
+                                 "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides])),
+                                 "loop_bend_sd": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides]))})
     return pd.DataFrame(rows)
 
 
@@ -393,11 +508,8 @@ def elbow_tracking_summary(df: pd.DataFrame) -> list[dict]:
     groups = [((g, m), d) for (g, m), d in df.groupby(["gait", "method"], sort=False)]
     groups += [(("all", m), d) for m, d in df.groupby("method", sort=False)]
     for (gait, method), d in groups:
-        d = d.rename(columns={"bend": "elbow_bend_deg", "loop_bend": "loop_elbow_bend_deg"})
-        per_g = _per_gesture_corr(d)
+        d = d.rename(columns={"bend": "elbow_bend_deg", "loop_bend": "loop_elbow_bend_deg",
+                              "loop_bend_sd": "loop_elbow_bend_sd_deg"})
         out.append({"gait": gait, "method": method, "loops": int(d["loop"].nunique()),
-                    "gestures": int(d["gesture"].nunique()),
-                    "elbow_corr_per_gesture_mean": float(np.mean(per_g)) if per_g else float("nan"),
-                    "elbow_corr_per_gesture_median": float(np.median(per_g)) if per_g else float("nan"),
-                    "elbow_corr_pooled": _corr(d)})
+                    "gestures": int(d["gesture"].nunique()), **_elbow_summary(d)})
     return out

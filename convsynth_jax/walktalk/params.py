@@ -43,6 +43,11 @@ class SpliceParams:
 
     c: float = 3.0                    # (paper) arm DOFs within +- c std of the loop
     k_bounce: float = 1.0             # elbow bounce, degrees of elbow DOF per cm of root height change (ours)
+    # (ours) how the bounce meets the c-sigma band: "reserve" = the stylization leaves the bounce's
+    # room free in the elbow DOF's band, then the bounce is added; "rescale" = the bounced deviation
+    # is rescaled once more into the band (only with respect_joint_limits), which moves the stroke's
+    # level by wherever the bounce peaks (see README, elbow tracking)
+    bounce_fit: str = "reserve"
     lead_s: float = 0.2               # nominal stroke-peak lead before the stress peak (paper window 0.2-0.6)
     max_shift_s: float = 0.6          # (paper) search this far earlier for a contact phase
     stylize_deictic: bool = False     # (paper) deictic gestures are not stylized
@@ -56,6 +61,9 @@ class SpliceParams:
     def __post_init__(self):
         if not self.c > 0:
             raise WalkTalkError(f"stylization constant c must be > 0, got {self.c}", where="walktalk.splice.c")
+        if self.bounce_fit not in ("reserve", "rescale"):
+            raise WalkTalkError(f"bounce_fit must be reserve or rescale, got {self.bounce_fit!r}",
+                                where="walktalk.splice.bounce_fit")
         if self.max_shift_s < 0 or self.lead_s < 0:
             raise WalkTalkError("lead_s and max_shift_s must be >= 0", where="walktalk.splice")
 

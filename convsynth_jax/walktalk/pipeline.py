@@ -18,6 +18,9 @@ from .splice import (
     JointLimits,
     LoopStats,
     arm_joints,
+    bounce_offsets,
+    bounce_reserve,
+    check_placement,
     elbow_dof,
     joint_euler,
     loop_stats,
@@ -26,6 +29,7 @@ from .splice import (
     splice_arrays,
     splice_weights,
     stylize,
+    stylize_bands,
 )
 from .sync import align_peak, nominal_frame, shift_frames
 
@@ -126,23 +130,38 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
     offset = peak - g.phases.peaks[0]
     idx = [lc.joints.index(j) for j in gc.joints]
     e = gc.euler
-    st, lim = None, None
-    if m.stylize and (g.kind != "deictic" or p.stylize_deictic):
+    st, lim, reserve, bounce_gain = None, None, None, 1.0
+    bounce = m.bounce and p.k_bounce != 0.0
+    if bounce:
+        check_placement(offset, g.motion.num_frames, num_frames, g.name)
+    stylized = m.stylize and (g.kind != "deictic" or p.stylize_deictic)
+    if stylized:
         st = LoopStats(lc.stats.mean[idx], lc.stats.std[idx])
         lim = limits if p.respect_joint_limits else None
-        e = stylize(e, st, gc.rest, p.c, lim, gc.joints)
+        if bounce and p.bounce_fit == "reserve":
+            # (ours) keep room in the elbow's band for the bounce on both sides, so adding it
+            # afterwards stays inside the band without rescaling the gesture a second time; the
+            # bounce takes at most half of either side of the band (else it is scaled down, bounce_gain)
+            lo, hi = bounce_reserve(lc.loop.root_height, p.k_bounce)
+            down, up = stylize_bands(st, p.c, lim, gc.joints)
+            reserve = (np.zeros_like(st.mean), np.zeros_like(st.mean))
+            for s in g.sides:
+                a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
+                d = lc.elbow_dof[s]
+                bounce_gain = min(bounce_gain, 0.5 * down[a, d] / lo if lo > 0 else 1.0,
+                                  0.5 * up[a, d] / hi if hi > 0 else 1.0)
+            for s in g.sides:
+                a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
+                reserve[0][a, lc.elbow_dof[s]], reserve[1][a, lc.elbow_dof[s]] = bounce_gain * lo, bounce_gain * hi
+        e = stylize(e, st, gc.rest, p.c, lim, gc.joints, reserve)
     styled = e
-    if m.bounce and p.k_bounce != 0.0:
-        from .splice import check_placement
-
-        check_placement(offset, g.motion.num_frames, num_frames, g.name)
-        h = lc.loop.root_height
-        d_h = (h - h.mean())[(np.arange(offset, offset + g.motion.num_frames)) % lc.loop.num_frames]
+    if bounce:
+        d_b = bounce_gain * bounce_offsets(lc.loop.root_height, p.k_bounce, offset, g.motion.num_frames)
         e = e.copy()
         for s in g.sides:
             a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
-            e[:, a, lc.elbow_dof[s]] += np.radians(p.k_bounce * d_h)   # R' = R + k dH_root (Sec. 4.2)
-        if lim is not None:
+            e[:, a, lc.elbow_dof[s]] += d_b   # R' = R + k dH_root (Sec. 4.2)
+        if lim is not None and p.bounce_fit == "rescale":
             # (ours) the bounce must not push an elbow the stylization brought to its limit past
             # it: the bounced deviation is rescaled once more into the same bands (B_D = 0 now)
             e = stylize(e, st, st.mean, p.c, lim, gc.joints)

@@ -130,13 +130,19 @@ def stylize_bands(stats: LoopStats, c: float, limits: JointLimits | None = None,
 
 
 def stylize(gesture_euler, stats: LoopStats, b_g, c: float, limits: JointLimits | None = None,
-            joints=None) -> np.ndarray:
+            joints=None, reserve=None) -> np.ndarray:
     """:func:`stylize_kernel` padded to a bucket length (edge frames repeat, so maxima do not change);
-    ``limits`` (with the ``joints`` of the A rows) narrows the band, see :func:`stylize_bands`."""
+    ``limits`` (with the ``joints`` of the A rows) narrows the band, see :func:`stylize_bands`.
+    ``reserve`` (ours): a pair (below, above) of (A, 3) arrays >= 0 taken off the band's two sides,
+    room kept free for a disturbance added afterwards (the elbow bounce, see
+    :func:`bounce_reserve`)."""
     f = gesture_euler.shape[0]
     p = bucket(f)
     x = np.pad(gesture_euler, ((0, p - f), (0, 0), (0, 0)), mode="edge")
     down, up = stylize_bands(stats, c, limits, joints)
+    if reserve is not None:
+        down = np.maximum(down - reserve[0], 0.0)
+        up = np.maximum(up - reserve[1], 0.0)
     f32 = partial(jnp.asarray, dtype=jnp.float32)
     return np.asarray(stylize_kernel(f32(x), f32(stats.mean), f32(down), f32(up), f32(b_g)),
                       dtype=np.float64)[:f]
@@ -217,6 +223,22 @@ def splice_arrays(loco_q: np.ndarray, gest_q: np.ndarray, w: np.ndarray, arm_mas
                         jnp.asarray(np.pad(gest_q, pad, mode="edge"), dtype=jnp.float32),
                         jnp.asarray(np.pad(w, (0, p - t)), dtype=jnp.float32), jnp.asarray(arm_mask))
     return np.asarray(out)[:t]
+
+
+def bounce_offsets(root_height: np.ndarray, k: float, offset: int, frames: int) -> np.ndarray:
+    """Sec. 4.2 elbow bounce k * dH_root (radians) for ``frames`` gesture frames placed at timeline
+    frame ``offset``: dH_root = the loop's root height minus its mean (cm), k in degrees per cm."""
+    h = np.asarray(root_height, dtype=np.float64)
+    d_h = (h - h.mean())[np.arange(offset, offset + frames) % len(h)]
+    return np.radians(k * d_h)
+
+
+def bounce_reserve(root_height: np.ndarray, k: float) -> tuple[float, float]:
+    """Room (radians, below and above) the bounce k * dH_root can take anywhere on the loop: the
+    loop's largest fall below and rise above its mean root height, times k (for ``bounce_fit=reserve``)."""
+    h = np.asarray(root_height, dtype=np.float64)
+    d = np.radians(k * (h - h.mean()))
+    return float(max(-d.min(), 0.0)), float(max(d.max(), 0.0))
 
 
 def elbow_dof(loop_euler_elbow: np.ndarray) -> int:

@@ -22,6 +22,7 @@ Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results
 (--out to name another file there).
 
     python experiments/bench_walktalk.py [--quick] [--skip-ablation] [--skip-elbow] [--synthesized-dir DIR]
+    python experiments/bench_walktalk.py --elbow-diagnosis   # why the within-gait elbow figure is low
 """
 from __future__ import annotations
 
@@ -147,6 +148,93 @@ def bench_elbow(data_dir: Path) -> dict:
     return out
 
 
+def elbow_diagnosis(data_dir: Path) -> dict:
+    """Why the within-gait elbow correlation is low: the same loops and gestures as bench_elbow,
+    stylization variants from B_D alone (c huge, no range-of-motion cut) to the default, and three
+    ways to measure the loop's elbow bend (its mean over the loop, the bend of its mean pose B_L,
+    the loop over the stroke's own frames). Per gait and variant: the plain per-gesture correlation
+    with each loop measure, and the partial one given the loop's bend spread."""
+    import numpy as np
+    import pandas as pd
+
+    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.walktalk.evaluate import (
+        _per_gesture_corr,
+        dof_limits,
+        elbow_bend,
+        elbow_partial_corr,
+        lc_bend,
+        load_library,
+    )
+    from convsynth_jax.walktalk.locomotion import tile_contact, tile_loop
+    from convsynth_jax.walktalk.params import WalkTalkParams
+    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
+    from convsynth_jax.walktalk.splice import euler_to_joint_quats
+
+    p = WalkTalkParams()
+    lib = load_library(p, data_dir, 10_000, single_peak_only=True)
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
+    sp = p.splice
+    variants = {
+        "B_D alone (c=1e6, no cut)": (dataclasses.replace(sp, c=1e6, respect_joint_limits=False), "stylized"),
+        "paper band c=3 (no cut)": (dataclasses.replace(sp, respect_joint_limits=False), "stylized"),
+        "c=3 + range-of-motion cut": (sp, "stylized"),
+        "+ bounce, bounce_fit=rescale (old)": (dataclasses.replace(sp, bounce_fit="rescale"), "stylized+synced"),
+        "+ bounce, bounce_fit=reserve (default)": (sp, "stylized+synced"),
+    }
+    body = lib.body
+    tmpl = lib.gestures[0].gesture.motion
+    sk = tmpl.skeleton
+
+    def bend_of_pose(euler_elbow, j):   # geometric bend of one elbow pose (3,) radians
+        from convsynth_jax.walktalk.body import quat_to_matrix_np
+
+        q = euler_to_joint_quats(euler_elbow[None, None], tmpl, (j,))[0, 0]
+        hand = [k for k in range(sk.num_joints) if sk.parents[k] == j][0]
+        u, v = sk.offsets[j], quat_to_matrix_np(q) @ sk.offsets[hand]
+        return float(np.degrees(np.arccos(np.clip(u @ v / np.linalg.norm(u) / np.linalg.norm(v), -1, 1))))
+
+    rows = []
+    for gc in lib.gestures[::6]:
+        g = gc.gesture
+        for gait, lcs in lib.loops.items():
+            for lc in lcs:
+                n = lc.loop.num_frames
+                T = g.motion.num_frames + 2 * n + 40
+                u = (n + 20 + g.phases.peaks[0]) / p.fps + p.splice.lead_s
+                loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
+                lpos = joint_positions(loco)
+                for name, (vp, method) in variants.items():
+                    r = splice_gesture(lc, gc, u, T, vp, METHODS[method], loco=loco, contact=contact, limits=rom)
+                    st = slice(r.phases.sb, r.phases.se + 1)
+                    pos = joint_positions(r.motion.slice(r.phases.sb, r.phases.se + 1))
+                    vals = {k: [] for k in ("bend", "mean", "pose", "phase", "sd")}
+                    for s in g.sides:
+                        je = body.joints[f"elbow_{s}"]
+                        vals["bend"].append(elbow_bend(pos, body, s).mean())
+                        vals["mean"].append(lc_bend(lc, s))
+                        vals["sd"].append(lc_bend(lc, s, sd=True))
+                        vals["pose"].append(bend_of_pose(lc.stats.mean[lc.joints.index(je)], je))
+                        vals["phase"].append(elbow_bend(lpos[st], body, s).mean())
+                    rows.append({"gesture": g.name, "gait": gait, "variant": name,
+                                 **{k: float(np.mean(v)) for k, v in vals.items()}})
+    df = pd.DataFrame(rows)
+    out = []
+    for (gait, name), d in df.groupby(["gait", "variant"], sort=False):
+        rec = {"gait": gait, "variant": name, "loops": len(lib.loops[gait]), "gestures": int(d["gesture"].nunique())}
+        for meas in ("mean", "pose", "phase"):
+            dd = d.rename(columns={"bend": "elbow_bend_deg", meas: "loop_elbow_bend_deg", "sd": "loop_elbow_bend_sd_deg"})
+            rec[f"plain_vs_loop_{meas}"] = float(np.mean(_per_gesture_corr(dd)))
+        dd = d.rename(columns={"bend": "elbow_bend_deg", "mean": "loop_elbow_bend_deg", "sd": "loop_elbow_bend_sd_deg"})
+        pc, sl = elbow_partial_corr(dd)
+        rec.update({"partial_given_sd": float(np.mean(pc)), "slope_median": float(np.median(sl))})
+        out.append(rec)
+    loops = df.drop_duplicates(["gait", "mean"]).groupby("gait")
+    spread = {g: {"loop_mean_bend_std_deg": float(d["mean"].std()), "loop_bend_sd_std_deg": float(d["sd"].std()),
+                  "corr_mean_sd": float(np.corrcoef(d["mean"], d["sd"])[0, 1])} for g, d in loops}
+    return {"per_gait_variant": out, "loops_spread": spread}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
@@ -155,6 +243,8 @@ def main():
     ap.add_argument("--synthesized-dir", default=None, help="output folder of task=synthesize: also time the demo "
                     "with gestures from that synthesized conversation")
     ap.add_argument("--out", default="bench_walktalk.json", help="file name under experiments/results/")
+    ap.add_argument("--elbow-diagnosis", action="store_true", help="only the elbow-tracking diagnosis "
+                    "(writes experiments/results/bench_walktalk_elbow_diagnosis.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -166,6 +256,15 @@ def main():
     result = {"machine": {"platform": platform.platform(), "python": platform.python_version(),
                           "jax": jax.__version__, "devices": [str(d) for d in jax.devices()]},
               "data_dir": str(data_dir), "goals": GOALS}
+    if a.elbow_diagnosis:
+        result.update(elbow_diagnosis(data_dir))
+        result["load_average"] = list(os.getloadavg())
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(RESULTS / "bench_walktalk_elbow_diagnosis.json", result)
+        for r in result["per_gait_variant"]:
+            print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
+        print(result["loops_spread"])
+        return
     result.update(bench_splice(data_dir))
     result.update(bench_eval(data_dir))
     result["demo"] = bench_demo(data_dir, a.synthesized_dir)

@@ -102,16 +102,25 @@ def test_movement_runs_find_planted_movements():
     assert 119 <= a1 < 128 and 157 < b1 <= 166
 
 
-def test_demo_walks_the_synthesized_conversation(tiny_corpus_dir, tmp_path):
+@pytest.fixture(scope="module")
+def synthesized_dir(tiny_corpus_dir, tmp_path_factory):
+    """task=synthesize on the tiny corpus: one BVH per character (relaxed matching, so the window
+    is solved)."""
+    syn = tmp_path_factory.mktemp("syn")
+    s = run_task(compose(["task=synthesize", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
+                          f"cache_dir={tmp_path_factory.mktemp('cache')}", "progress=false", "task.start=14",
+                          "task.duration=10", "search.matching=labels"]), syn)
+    assert s["success"]
+    return syn
+
+
+def test_demo_walks_the_synthesized_conversation(synthesized_dir, tmp_path):
     """End to end on the tiny corpus: task=synthesize writes one BVH per character, the demo cuts
     gestures from them (gesture_source=synthesized) and splices them, at their own times, onto the
     fixture loops, synchronized to the footsteps."""
-    syn = tmp_path / "syn"
-    s = run_task(compose(["task=synthesize", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
-                          f"cache_dir={tmp_path / 'cache'}", "progress=false", "task.start=14", "task.duration=10",
-                          "search.matching=labels"]), syn)
+    syn = synthesized_dir
     chars = sorted(p.stem for p in syn.glob("*.bvh"))
-    assert s["success"] and len(chars) == 2
+    assert len(chars) == 2
     out = tmp_path / "demo"
     summary = run_task(compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", "task.duration_s=14",
                                 "task.loop_candidates=1", "task.gesture_source=synthesized",
@@ -133,6 +142,23 @@ def test_demo_walks_the_synthesized_conversation(tiny_corpus_dir, tmp_path):
     for name in summary["files"]:
         assert load_bvh(out / name).num_frames == 14 * 30
     json.dumps(summary, default=str)
+
+
+def test_synthesized_gestures_on_speech_peaks(synthesized_dir, tmp_path):
+    """synthesized_timing=speech: the synthesized character's gestures drawn per stress peak of a
+    peak TSV, never another character's."""
+    peaks = tmp_path / "b.tsv"
+    pd.DataFrame({"peak": [2.0, 4.5, 7.0, 9.5]}).to_csv(peaks, sep="\t", index=False)
+    chars = sorted(p.stem for p in synthesized_dir.glob("*.bvh"))
+    out = tmp_path / "demo"
+    run_task(compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", "task.duration_s=12",
+                      "task.loop_candidates=1", "task.gaits=[walk]", "task.gesture_source=synthesized",
+                      "task.synthesized_timing=speech", f"task.synthesized_dir={synthesized_dir}",
+                      f"task.synthesized_characters=[{chars[1]},{chars[1]}]",
+                      f"task.speakers=[{{name: A, peaks_tsv: '{peaks}'}}, {{name: B, peaks_tsv: '{peaks}'}}]"]), out)
+    ev = pd.read_csv(out / "walktalk_events.csv")
+    assert len(ev) >= 2 and ev["gesture"].str.startswith(f"{chars[1]}@").all()
+    assert (ev["t_stroke_peak"] <= ev["utterance_peak_s"]).all()
 
 
 def test_synthesized_source_needs_its_folder(tmp_path):

@@ -148,6 +148,25 @@ def bench_elbow(data_dir: Path) -> dict:
     return out
 
 
+def loop_spread(lib) -> dict:
+    """Per gait and arm, over the loops: std of the loops' mean elbow bend, std of their bend
+    spread (std over the loop), and the correlation of the two (degrees)."""
+    import numpy as np
+
+    from convsynth_jax.walktalk.evaluate import lc_bend
+
+    out = {}
+    for gait, lcs in lib.loops.items():
+        for s in ("l", "r"):
+            m = np.array([lc_bend(lc, s) for lc in lcs])
+            sd = np.array([lc_bend(lc, s, sd=True) for lc in lcs])
+            out[f"{gait}_{s}"] = {"loops": len(lcs), "loop_mean_bend_mean_deg": float(m.mean()),
+                                  "loop_mean_bend_std_deg": float(m.std(ddof=1)),
+                                  "loop_bend_sd_std_deg": float(sd.std(ddof=1)),
+                                  "corr_mean_sd": float(np.corrcoef(m, sd)[0, 1])}
+    return out
+
+
 def elbow_diagnosis(data_dir: Path) -> dict:
     """Why the within-gait elbow correlation is low: the same loops and gestures as bench_elbow,
     stylization variants from B_D alone (c huge, no range-of-motion cut) to the default, and three
@@ -229,9 +248,7 @@ def elbow_diagnosis(data_dir: Path) -> dict:
         pc, sl = elbow_partial_corr(dd)
         rec.update({"partial_given_sd": float(np.mean(pc)), "slope_median": float(np.median(sl))})
         out.append(rec)
-    loops = df.drop_duplicates(["gait", "mean"]).groupby("gait")
-    spread = {g: {"loop_mean_bend_std_deg": float(d["mean"].std()), "loop_bend_sd_std_deg": float(d["sd"].std()),
-                  "corr_mean_sd": float(np.corrcoef(d["mean"], d["sd"])[0, 1])} for g, d in loops}
+    spread = loop_spread(lib)
     return {"per_gait_variant": out, "loops_spread": spread}
 
 

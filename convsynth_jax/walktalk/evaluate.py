@@ -395,8 +395,9 @@ def elbow_partial_corr(d: pd.DataFrame) -> tuple[list[float], list[float]]:
     bend is then a two-variable function of the loop (on bandai2 with the paper's band, bend =
     1.0 x mean + 2.45 x std, R = 0.999 in both gaits). Over one gait's loops the plain correlation
     with the mean is then a property of the loops, not of the method: bandai2's 24 walks are takes
-    of one ("normal") style whose mean bends spread by 1.3 deg (std) while their spreads vary by
-    1.1 deg (x 3), and across the 52 runs mean and spread anti-correlate (-0.8), so corr(mean,
+    of one ("normal") style whose mean bends spread by 1.6-1.7 deg per arm (std) while their
+    spreads vary by 1.0-1.4 deg (x 3), and across the 52 runs mean and spread anti-correlate (-0.6
+    to -0.8), so corr(mean,
     mean + 2.45 std) is ~0.6 (walk) and ~0.3 (run) however exactly B_D is applied. Holding the
     spread fixed isolates the base-pose transfer the acceptance asks about. Constant stroke bends
     (naive) count as 0."""

@@ -338,3 +338,20 @@ def test_elbow_partial_corr_planted():
     np.testing.assert_allclose(slope, 1.0, atol=1e-9)
     naive = d.assign(elbow_bend_deg=50.0)
     assert _per_gesture_corr(naive) == [0.0, 0.0] and elbow_partial_corr(naive) == ([0.0, 0.0], [0.0, 0.0])
+
+
+def test_loop_bend_cache_is_not_fooled_by_a_reused_id(monkeypatch):
+    """lc_bend caches by id(loop context); a freed context's id can come back for another loop (the
+    bench builds several libraries in one process). Planted collision: every id is 1."""
+    from convsynth_jax.walktalk import evaluate
+    from convsynth_jax.walktalk.params import GaitParams
+    from convsynth_jax.walktalk.pipeline import loop_context
+
+    monkeypatch.setattr(evaluate, "_BEND_CACHE", {})
+    monkeypatch.setattr(evaluate, "id", lambda x: 1, raising=False)
+    walk = extract_loop(load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh"))), GaitParams())
+    run = extract_loop(load_bvh(next(FIXTURES.glob("*_run_normal_*.bvh"))), GaitParams())
+    a, b = loop_context(walk), loop_context(run)
+    bend_a, bend_b = evaluate.lc_bend(a, "r"), evaluate.lc_bend(b, "r")
+    assert abs(bend_a - bend_b) > 20     # walking vs running elbows
+    assert evaluate.lc_bend(a, "r") == bend_a

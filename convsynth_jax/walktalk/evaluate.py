@@ -318,10 +318,11 @@ _BEND_CACHE: dict = {}
 def lc_bend(lc: LoopContext, side: str, sd: bool = False) -> float:
     """The loop's elbow bend (degrees) of ``side``: its mean over the loop, or (``sd``) its std."""
     key = (id(lc), side)
-    if key not in _BEND_CACHE:
+    hit = _BEND_CACHE.get(key)
+    if hit is None or hit[0] is not lc:   # an id can be reused once its loop is freed: check identity
         b = elbow_bend(joint_positions(lc.loop.motion), lc.body, side)
-        _BEND_CACHE[key] = (float(b.mean()), float(b.std()))
-    return _BEND_CACHE[key][1 if sd else 0]
+        hit = _BEND_CACHE[key] = (lc, float(b.mean()), float(b.std()))
+    return hit[2 if sd else 1]
 
 
 def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bool = False) -> pd.DataFrame:

@@ -44,7 +44,7 @@ def run(cfg, out_dir: Path) -> dict:
     res = run_evaluation(turns, norms, p, ep)
     f1 = res["fold1"]
     n_cdbn = res["chosen_states"]["cdbn"]
-    dist = transition_distances(f1["train"], p, n_cdbn, f1["cdbn"])
+    dist = transition_distances(f1["train"], p, n_cdbn, ep)
     fig6_turns = f1["train"]
     comp = init_comparison(fig6_turns, p, ep.fig6_states)
     # Sec. V statistics on the original head rotation

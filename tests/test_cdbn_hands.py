@@ -86,3 +86,18 @@ def test_keypoint_smoothing_keeps_key_frames_and_slerps_between():
         want = q0 * Rotation.from_rotvec(frac * (q0.inv() * q1).as_rotvec())
         got = Rotation.from_quat(out[t, j][[1, 2, 3, 0]])
         assert (got * want.inv()).magnitude() < 1e-9
+
+
+def test_bandai_hand_turns_pair_real_motion_with_real_speech():
+    from convsynth_jax.cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns
+
+    wav = Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "speech" / "acoustic_corpus.wav"
+    if not wav.is_file():
+        pytest.skip("needs ../shared/data/speech")
+    turns, rig = bandai_hand_turns(BANDAI.parent, wav, FeatureParams())
+    assert len(turns) >= 2 and rig.joints
+    for t in turns:
+        assert t.speech.shape == (len(t.motion), 6) and t.motion.shape[1] == 10
+        assert np.isfinite(t.observations()).all()
+        c = t.constraints
+        assert c[0] == 0 and c[-1] == 0 and set(np.unique(c)) == {0, BANDAI_CONSTRAINTS.index("raise")}

@@ -16,6 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
+from ..errors import CDBNError
 from .dataset import Turn
 from .features import speech_features
 from .hands import arm_angles, arm_rig
@@ -48,13 +49,14 @@ def dyadic_hand_turns(corpus, ann, fp: FeatureParams, turn_seconds: float = 10.0
 def bandai_hand_turns(bvh_dir, wav, fp: FeatureParams, rest_fraction: float = 0.15, max_clips: int | None = None,
                       seed: int = 0):
     """(turns, rig) from the raise/wave clips of a Bandai2 ``bvh`` folder, each paired with a random
-    excerpt of ``wav`` of the clip's duration; subject = the clip's style (all 'normal' here)."""
-    from ..io.audio import Audio, load_audio
+    stretch of the prosody track of ``wav`` (analysed once, whole) of the clip's length; subject = the
+    clip's style (all 'normal' here)."""
+    from ..io.audio import load_audio
     from ..io.bvh import load_bvh
 
     rng = np.random.default_rng(seed)
     audio = load_audio(wav)
-    x = np.asarray(audio.samples, np.float32)
+    track = speech_features(audio, fp, int(round(audio.duration * fp.fps)), fp.fps, path=wav)
     files = sorted(f for f in Path(bvh_dir).glob("*.bvh") if "raise" in f.name or "wave" in f.name)
     if max_clips:
         files = [files[i] for i in np.sort(rng.choice(len(files), min(max_clips, len(files)), replace=False))]
@@ -66,9 +68,10 @@ def bandai_hand_turns(bvh_dir, wav, fp: FeatureParams, rest_fraction: float = 0.
         rig = rig or arm_rig(mo.skeleton, fp)
         m = arm_angles(mo, fp, rig)
         n = len(m)
-        L = int(round(n / fp.fps * audio.sample_rate))
-        a0 = int(rng.integers(0, max(1, len(x) - L)))
-        s = speech_features(Audio(x[a0:a0 + L], audio.sample_rate, str(wav)), fp, n, fp.fps, path=wav)
+        if n > len(track):
+            raise CDBNError(f"clip {f.name} ({n} frames) is longer than the speech ({len(track)} frames)", wav)
+        a0 = int(rng.integers(0, len(track) - n + 1))
+        s = track[a0:a0 + n]
         c = np.full(n, BANDAI_CONSTRAINTS.index("raise" if "raise" in f.name else "wave"), np.int32)
         r = int(round(rest_fraction * n))
         c[:r] = 0

@@ -138,24 +138,10 @@ def bench_eval():
             "gesture_accuracy": s["gesture_accuracy"], "transition_distance": s["transition_distance"]}
 
 
-def _hand_table(turns, rig, names, ep_kw, jdbn_states=None):
-    import dataclasses
+def _hand_table(turns, rig, names, ep_kw):
+    from convsynth_jax.cdbn.hand_eval import hand_evaluation
 
-    from convsynth_jax.cdbn.dataset import normalize_by_subject
-    from convsynth_jax.cdbn.experiment import EvalParams, run_evaluation
-    from convsynth_jax.cdbn.params import CDBNParams
-
-    p = dataclasses.replace(CDBNParams(), constraints=tuple(names))
-    zt, norms = normalize_by_subject(turns)
-    t0 = time.perf_counter()
-    res = run_evaluation(zt, norms, p, EvalParams(**ep_kw), rig=rig)
-    return {"turns": len(turns), "frames": int(sum(len(t.speech) for t in turns)),
-            "frames_per_constraint": dict(zip(names, np.bincount(np.concatenate([t.constraints for t in turns]),
-                                                                 minlength=len(names)).tolist())),
-            "eval": ep_kw, "chosen_states": res["chosen_states"], "validation_curves": res["validation_curves"],
-            "table": res["table"], "gesture_accuracy": res["gesture_accuracy"], "tests": res["tests"],
-            "cca_original_speech_motion": res["cca_original_speech_motion"], "test_folds": res["test_folds"],
-            "seconds": time.perf_counter() - t0}
+    return hand_evaluation(turns, rig, names, ep_kw)
 
 
 def bench_hands(cache: str, dyadic_sessions: int = 6, bandai_clips: int | None = None):

@@ -78,3 +78,26 @@ def bandai_hand_turns(bvh_dir, wav, fp: FeatureParams, rest_fraction: float = 0.
         c[n - r:] = 0
         turns.append(Turn(f.stem, f.stem.split("_")[-2], s, m, c))
     return turns, rig
+
+
+def hand_evaluation(turns, rig, names: tuple, eval_kw: dict, base=None) -> dict:
+    """The Sec. VIII protocol (run_evaluation) on hand turns: Table V analogue (states, parameters,
+    CCA_m, CCA_ms, KLD per model), gesture accuracy of the synthesized segments, validation curves."""
+    import dataclasses
+    import time
+
+    from .dataset import normalize_by_subject
+    from .experiment import EvalParams, run_evaluation
+    from .params import CDBNParams
+
+    p = dataclasses.replace(base or CDBNParams(), constraints=tuple(names))
+    zt, norms = normalize_by_subject(turns)
+    t0 = time.perf_counter()
+    res = run_evaluation(zt, norms, p, EvalParams(**eval_kw), rig=rig)
+    counts = np.bincount(np.concatenate([t.constraints for t in turns]), minlength=len(names))
+    return {"turns": len(turns), "frames": int(sum(len(t.speech) for t in turns)),
+            "frames_per_constraint": dict(zip(names, counts.tolist())), "eval": dict(eval_kw),
+            "chosen_states": res["chosen_states"], "validation_curves": res["validation_curves"],
+            "table": res["table"], "gesture_accuracy": res["gesture_accuracy"], "tests": res["tests"],
+            "cca_original_speech_motion": res["cca_original_speech_motion"], "test_folds": res["test_folds"],
+            "seconds": time.perf_counter() - t0}

@@ -174,15 +174,46 @@ def bench_hands(cache: str, dyadic_sessions: int = 6, bandai_clips: int | None =
     return out
 
 
+def bench_distance(cache: str, fps: float = 30.0, max_iters=(20, 300)):
+    """Eq. 8 on all nod/shake turns: the shared-state model (N = 8) after max_iter = 20 and converged
+    (tol 1e-4), to show that the 0.13-0.18 of the old runs came from unconverged EM."""
+    from convsynth_jax.cdbn.dataset import load_semisynthetic_turns, normalize_by_subject
+    from convsynth_jax.cdbn.experiment import fit
+    from convsynth_jax.cdbn.params import TrainParams
+    from convsynth_jax.config import compose
+    from convsynth_jax.tasks.cdbn_common import ensure_corpus, params
+
+    cfg = compose(["task=cdbn_eval", f"cache_dir={cache}", f"cdbn.features.fps={fps}"])
+    p = params(cfg)
+    turns, _ = normalize_by_subject(load_semisynthetic_turns(ensure_corpus(cfg, p), p.constraints, p.features))
+    a, b = p.constraints.index("nod"), p.constraints.index("shake")
+    out = {"fps": fps, "turns": len(turns)}
+    for it in max_iters:
+        tm = fit("shared", turns, 8, p, TrainParams(**{**p.train.__dict__, "max_iter": it, "tol": 1e-4}))
+        A = tm.model.transitions
+        out[f"max_iter_{it}"] = {"distance": float(np.abs(A[a] - A[b]).max()), "iterations": len(tm.log_likelihoods),
+                                 "final_loglik_per_frame": float(tm.log_likelihoods[-1])}
+    return out
+
+
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--eval", action="store_true", help="also time the whole task=cdbn_eval")
     ap.add_argument("--out", type=Path, default=REPO / "experiments" / "results" / "bench_cdbn.json")
+    ap.add_argument("--distance", action="store_true", help="only the Eq. 8 convergence check (bench_cdbn_distance.json)")
     ap.add_argument("--hands", action="store_true", help="only the hand-model evaluation (bench_cdbn_hands.json)")
     ap.add_argument("--cache", default=str(REPO / "data_cache"), help="cache_dir of the dyadic corpus (--hands)")
     ap.add_argument("--dyadic-sessions", type=int, default=6)
     ap.add_argument("--bandai-clips", type=int, default=None)
     args = ap.parse_args()
+    if args.distance:
+        from convsynth_jax.utils import write_json_atomic
+
+        warnings.simplefilter("ignore", RuntimeWarning)
+        res = bench_distance(args.cache)
+        print(json.dumps(res))
+        write_json_atomic(args.out.with_name("bench_cdbn_distance.json"), res)
+        return
     if args.hands:
         import os
 

@@ -98,3 +98,34 @@ def test_fit_without_audio_is_a_project_error(annotated):
     bare.audio_path = None
     with pytest.raises(CDBNError, match="needs the clip's audio"):
         system(cfg).fit([bare], bare.character, "jdbn")
+
+
+def test_hand_stream_moves_the_arms(annotated):
+    """cdbn.stream=hands (ours): the hand model of the paper (10-D arm/forearm angles) in system=cdbn."""
+    from convsynth_jax.cdbn.hands import arm_angles
+    from convsynth_jax.cdbn.params import FeatureParams
+    from convsynth_jax.io.audio import Audio, load_audio
+
+    cfg, ann = annotated
+    sysm = system(cfg, stream="hands")
+    assert sysm.produces_hands
+    sessions = sorted(ann)
+    train = [ann[s]["main-agent"] for s in sessions[:1]]
+    held = ann[sessions[-1]]["main-agent"]
+    model = sysm.fit(train, train[0].character, "cdbn")
+    assert len(model.trained.model.motion_dims) == 10 and model.trained.model.num_constraints == 4
+    fps, n, start = held.motion.fps, 300, 150
+    aud = load_audio(held.audio_path, channel=held.audio_channel)
+    a0 = round(start / fps * aud.sample_rate)
+    window = WindowInput(held.session, held.role, held.character, start, n, fps, held.segments, held.partner_segments,
+                         own_frames=held.own.label[start:start + n], partner_frames=held.partner.label[start:start + n],
+                         own_audio=Audio(aud.samples[a0:a0 + round(n / fps * aud.sample_rate)], aud.sample_rate),
+                         seed=1)
+    res = sysm.synthesize(model, window, "cdbn")
+    assert res.success, res.failure
+    mo = res.motion
+    assert mo.num_frames == n and np.all(np.isfinite(mo.rotations))
+    arms = arm_angles(mo, FeatureParams())
+    assert arms.std(axis=0).max() > 0.05
+    head = mo.skeleton.names.index("Head")
+    assert np.allclose(mo.rotations[:, head], mo.rotations[0, head])

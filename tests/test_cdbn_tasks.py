@@ -11,7 +11,7 @@ from convsynth_jax.errors import CDBNError
 
 FAST = ["cdbn.data.num_turns=24", "cdbn.train.max_iter=4", "cdbn.constrain.states_per_constraint=2",
         "cdbn.eval.folds=3", "cdbn.eval.jdbn_grid=[3]", "cdbn.eval.cdbn_grid=[2]", "cdbn.eval.max_test_folds=1",
-        "cdbn.eval.fig6_states=4"]
+        "cdbn.eval.fig6_states=4", "cdbn.eval.distance_max_iter=4"]
 
 
 @pytest.fixture(scope="module")
@@ -63,3 +63,31 @@ def test_synthesize_real_speech_with_constraints(corpus_args, tmp_path, speech_d
     with pytest.raises(CDBNError, match="line 2"):
         run_task(compose(["task=cdbn_synthesize", f"task.audio={wav}", f"task.constraints={bad}"] + corpus_args),
                  tmp_path / "syn2")
+
+
+def test_eval_with_the_hand_model_on_real_bandai_clips(corpus_args, tmp_path):
+    """cdbn.eval.hands: the hand model (Table V analogue) on real Bandai2 raise/wave clips with real speech."""
+    import shutil
+    from pathlib import Path
+
+    shared = Path(__file__).resolve().parent.parent.parent / "shared" / "data"
+    src, wav = shared / "bandai2" / "bvh", shared / "speech" / "acoustic_corpus.wav"
+    if not (src.is_dir() and wav.is_file()):
+        pytest.skip("needs ../shared/data/bandai2 and speech")
+    clips = tmp_path / "bvh"
+    clips.mkdir()
+    for kind in ("raise-up-right-hand", "wave-right-hand"):
+        for f in sorted(src.glob(f"*_{kind}_normal_0*.bvh"))[:5]:
+            shutil.copy(f, clips / f.name)
+    out = tmp_path / "eval"
+    run_task(compose(["task=cdbn_make_data"] + corpus_args), tmp_path / "make")
+    s = run_task(compose(["task=cdbn_eval"] + corpus_args + [
+        f"cdbn.eval.hands.bvh_dir={clips}", f"cdbn.eval.hands.wav={wav}",
+        "cdbn.eval.hands.eval.folds=3", "cdbn.eval.hands.eval.jdbn_grid=[3]", "cdbn.eval.hands.eval.cdbn_grid=[2]",
+        "cdbn.eval.hands.eval.max_test_folds=1"]), out)
+    assert (out / "table_hands.csv").is_file()
+    h = s["hands"]
+    assert h["turns"] == 10 and set(h["frames_per_constraint"]) == {"other", "raise", "wave"}
+    assert {r["model"] for r in h["table"]} == {"Baseline (jDBN)", "CDBN-Ges"}
+    for r in h["table"]:
+        assert np.isfinite([r["cca_m_mean"], r["cca_ms_mean"], r["kld"]]).all()

@@ -107,3 +107,40 @@ def test_too_few_frames_per_state():
     c = [np.zeros(12, np.int32)]
     with pytest.raises(CDBNError, match="too few frames per state"):
         train_cdbn(x, c, 4, (0, 1), (2,), TrainParams(), ("other", "nod"))
+
+
+def test_transition_distances_train_to_convergence(monkeypatch):
+    """Eq. 8 (Sec. VII-B) compares converged models: transition_distances must train both options with
+    EvalParams' distance_max_iter / distance_tol, not the cross-validation's max_iter (20), which left
+    the shared model's fast states moving (0.13-0.18 instead of 0.016 on the nod/shake corpus). Also
+    checks the common-rows variant on known matrices. Fails on the old code (no train override, the
+    CDBN of the first test fold reused)."""
+    from convsynth_jax.cdbn import experiment
+    from convsynth_jax.cdbn.cdbn import TrainedModel
+    from convsynth_jax.cdbn.params import CDBNParams, DBNModel
+
+    K = 3
+    shared_t = np.stack([np.full((K, K), 1 / 3)] * 3)
+    shared_t[2, 0] = [0.5, 0.25, 0.25]                          # shake row 0 differs by 1/6
+    sparse_t = np.zeros((3, K, K))
+    sparse_t[1] = [[0.9, 0, 0.1], [0, 0, 1.0], [0.5, 0, 0.5]]   # state 1 is shake-only
+    sparse_t[2] = [[0, 0, 1.0], [0, 0.8, 0.2], [0, 0.4, 0.6]]   # state 0 is nod-only, 2 shared
+    owners = np.array([[1, 1, 0], [1, 0, 1], [1, 1, 1]], bool)
+    seen = []
+
+    def fake_fit(kind, turns, n, p, train=None):
+        seen.append((kind, train))
+        t = shared_t if kind == "shared" else sparse_t
+        m = DBNModel(np.zeros((K, 2)), np.broadcast_to(np.eye(2), (K, 2, 2)), np.full((3, K), 1 / K), t,
+                     (0,), (1,), ("other", "nod", "shake"))
+        return TrainedModel(m, owners if kind == "cdbn" else np.ones((K, 3), bool), [0.0] * 7, kind)
+
+    monkeypatch.setattr(experiment, "fit", fake_fit)
+    ep = experiment.EvalParams(distance_max_iter=123, distance_tol=1e-5)
+    d = experiment.transition_distances([], CDBNParams(), 8, ep)
+    assert sorted(k for k, _ in seen) == ["cdbn", "shared"]
+    assert all(t is not None and t.max_iter == 123 and t.tol == 1e-5 for _, t in seen)
+    assert d["shared"] == pytest.approx(1 / 6)
+    assert d["sparse"] == pytest.approx(0.9)                      # nod-only state 0: 0.9 self vs 0
+    assert d["sparse_common_rows"] == pytest.approx(0.5)         # only the shared state row: |0.5 - 0|
+    assert d["em_iterations"] == {"shared": 7, "cdbn": 7}

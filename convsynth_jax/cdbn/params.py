@@ -58,6 +58,9 @@ class FeatureParams:
     min_voiced_fraction: float = 0.10     # fewer voiced frames than this -> CDBNError (suggest a floor)
     head_joints: tuple = ("Neck", "Head")  # joints whose rotations compose the head rotation
     fps: float = 30.0                     # model frame rate (motion and upsampled/downsampled speech)
+    # hand stream (cdbn/hands.py): left arm, left forearm, right arm, right forearm; "|" = alternatives
+    arm_joints: tuple = ("LeftArm|UpperArm_L", "LeftForeArm|LowerArm_L", "RightArm|UpperArm_R",
+                         "RightForeArm|LowerArm_R")
 
 
 @dataclass(frozen=True)
@@ -91,7 +94,8 @@ class SynthParams:
     """Sec. VI-B: posterior (smoother | viterbi | filter), key-point smoothing (15/s head)."""
 
     posterior: str = "smoother"
-    keypoints_per_second: float = 15.0
+    keypoints_per_second: float = 15.0       # head (Sec. VI-B)
+    hand_keypoints_per_second: float = 12.0  # hands (Sec. VI-B)
 
 
 @dataclass(frozen=True)
@@ -102,11 +106,13 @@ class CDBNParams:
     synth: SynthParams = field(default_factory=SynthParams)
     jdbn_states: int = 7
     constraints: tuple = ("other", "nod", "shake")
+    stream: str = "head"                     # head | hands (ours: which model system=cdbn trains)
     extra: dict = field(default_factory=dict)
 
 
 POSTERIORS = ("smoother", "viterbi", "filter")
 INITS = ("lbg", "random")
+STREAMS = ("head", "hands")
 
 
 def _build(cls, d: dict | None, where: str):
@@ -138,9 +144,12 @@ def cdbn_params_from_config(c) -> CDBNParams:
                    synth=_build(SynthParams, sub["synth"], "cdbn.synth"),
                    jdbn_states=int(c.pop("jdbn_states", 7)),
                    constraints=tuple(c.pop("constraints", ("other", "nod", "shake"))),
+                   stream=str(c.pop("stream", "head")),
                    extra=c)
     if p.synth.posterior not in POSTERIORS:
         raise ConfigError(f"cdbn.synth.posterior must be one of {POSTERIORS}, got {p.synth.posterior!r}")
+    if p.stream not in STREAMS:
+        raise ConfigError(f"cdbn.stream must be one of {STREAMS}, got {p.stream!r}")
     if p.train.init not in INITS:
         raise ConfigError(f"cdbn.train.init must be one of {INITS}, got {p.train.init!r}")
     return p

@@ -11,6 +11,11 @@ synthesize: prosody of ``window.own_audio`` normalized with the character's trai
 state posteriors under the window's own labels, motion = sum_i gamma_i mu_i (Eq. 4/6), key-point
 slerp smoothing; the rest of the body holds the training mean pose. Head only: produces_hands False.
 
+``cdbn.stream`` (ours; ``system.options.stream=hands``) selects the model: ``head`` (default, 3 DOF
+head rotation, 15 key points/s) or ``hands`` (the paper's separate hand model: arm 3 DOF x 2 and
+forearm 2 DOF x 2 of cdbn/hands.py, 12 key points/s; the head then holds the mean pose and the
+system reports produces_hands True).
+
 Parameters: ``params`` may be a :class:`~convsynth_jax.cdbn.params.CDBNParams`, an object or mapping
 with a ``cdbn`` entry, or None (defaults); ``system.options`` entries override ``cdbn`` keys.
 """
@@ -25,12 +30,14 @@ import numpy as np
 from ..cdbn.cdbn import TrainedModel, train_cdbn, train_jdbn
 from ..cdbn.features import (
     FEATURE_LAYOUT,
+    SPEECH_NAMES,
     Normalization,
     head_rotation,
     speech_features,
 )
+from ..cdbn.hands import HAND_NAMES, arm_angles, arm_quaternions, arm_rig, arms_into_motion, keypoint_smooth_joints
 from ..cdbn.params import CDBNParams, cdbn_params_from_config
-from ..cdbn.synthesize import head_into_motion, keypoint_smooth, synthesize_head
+from ..cdbn.synthesize import expected_motion, head_into_motion, keypoint_smooth, state_posteriors, synthesize_head
 from ..errors import CDBNError
 from .base import SynthesisSystem, WindowInput, WindowResult
 
@@ -48,6 +55,8 @@ class CDBNFit:
     constrained: bool
     constraint_map: tuple       # audio label code -> constraint code
     seconds: float
+    stream: str = "head"        # head | hands
+    rig: object = None          # hands: the ArmRig of the template's skeleton
 
 
 def _params(params, options: dict) -> CDBNParams:
@@ -103,6 +112,8 @@ class CDBNSystem(SynthesisSystem):
         cmap = (system.options or {}).get("constraint_map") or {}
         self.constraint_names = tuple(dict.fromkeys(cmap.get(n, n) for n in AUDIO_CONSTRAINTS))
         self.constraint_map = tuple(self.constraint_names.index(cmap.get(n, n)) for n in AUDIO_CONSTRAINTS)
+        self.stream = self.cdbn.stream
+        self.produces_hands = self.stream == "hands"
 
     def fit_key(self, condition: str):
         return condition
@@ -118,8 +129,10 @@ class CDBNSystem(SynthesisSystem):
         mine = [c for c in clips if getattr(c, "character", character) == character]
         if not mine:
             raise CDBNError(f"no training clips of character {character!r}")
+        hands = self.stream == "hands"
+        rig = arm_rig(mine[0].motion.skeleton, fp) if hands else None
         for clip in mine:
-            m = head_rotation(clip.motion, fp)
+            m = arm_angles(clip.motion, fp, rig) if hands else head_rotation(clip.motion, fp)
             s = speech_features(_audio_of(clip), fp, len(m), clip.motion.fps,
                                 path=getattr(clip, "audio_path", None) or clip.session)
             lab = np.asarray(getattr(clip.own, "label", clip.own), np.int64)[: len(m)]
@@ -129,7 +142,8 @@ class CDBNSystem(SynthesisSystem):
         sn = Normalization.fit(np.concatenate(speech))
         mn = Normalization.fit(np.concatenate(motion))
         seqs = [np.concatenate([sn.apply(s), mn.apply(m)], axis=1) for s, m in zip(speech, motion)]
-        sd, md = tuple(range(6)), tuple(range(6, 9))
+        layout = SPEECH_NAMES + HAND_NAMES if hands else FEATURE_LAYOUT
+        sd, md = tuple(range(6)), tuple(range(6, len(layout)))
         tp = self.cdbn.train
         if constrained:
             counts = np.bincount(np.concatenate(codes), minlength=len(self.constraint_names))
@@ -141,10 +155,11 @@ class CDBNSystem(SynthesisSystem):
                                 f"(counts {dict(zip(self.constraint_names, counts.tolist()))}); map them onto "
                                 "others with system.options.constraint_map")
             tm = train_cdbn(seqs, codes, Ns, sd, md, tp, self.constraint_names, self.cdbn.constrain.merge_threshold,
-                            self.cdbn.constrain.shared_state, FEATURE_LAYOUT)
+                            self.cdbn.constrain.shared_state, layout)
         else:
-            tm = train_jdbn(seqs, self.cdbn.jdbn_states, sd, md, tp, FEATURE_LAYOUT)
-        return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0)
+            tm = train_jdbn(seqs, self.cdbn.jdbn_states, sd, md, tp, layout)
+        return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0,
+                       self.stream, rig)
 
     def synthesize(self, model: CDBNFit, window: WindowInput, condition: str) -> WindowResult:
         t0 = time.perf_counter()
@@ -162,11 +177,18 @@ class CDBNSystem(SynthesisSystem):
             if lab.ndim != 1 or len(lab) != n:
                 lab = np.zeros(n, np.int64)
             cons = np.asarray(model.constraint_map, np.int32)[lab]
-        angles, gamma = synthesize_head(model.trained.model, model.speech_norm.apply(raw), cons,
-                                        self.cdbn.synth.posterior, model.motion_norm.mean, model.motion_norm.sd)
-        q = keypoint_smooth(angles, window.fps, self.cdbn.synth.keypoints_per_second)
-        motion = head_into_motion(model.template, q, self.cdbn.features.head_joints,
-                                  f"cdbn:{window.session}:{window.role}")
+        name = f"cdbn:{window.session}:{window.role}"
+        if model.stream == "hands":
+            gamma = state_posteriors(model.trained.model, model.speech_norm.apply(raw), cons, self.cdbn.synth.posterior)
+            angles = model.motion_norm.invert(expected_motion(model.trained.model, gamma))
+            q = keypoint_smooth_joints(arm_quaternions(angles, model.rig), window.fps,
+                                       self.cdbn.synth.hand_keypoints_per_second)
+            motion = arms_into_motion(model.template, q, model.rig, name)
+        else:
+            angles, gamma = synthesize_head(model.trained.model, model.speech_norm.apply(raw), cons,
+                                            self.cdbn.synth.posterior, model.motion_norm.mean, model.motion_norm.sd)
+            q = keypoint_smooth(angles, window.fps, self.cdbn.synth.keypoints_per_second)
+            motion = head_into_motion(model.template, q, self.cdbn.features.head_joints, name)
         ent = -np.sum(gamma * np.log(np.maximum(gamma, 1e-12)), axis=1)
         return WindowResult(True, motion=motion, seconds=time.perf_counter() - t0,
                             diagnostics={"states": model.trained.model.num_states,

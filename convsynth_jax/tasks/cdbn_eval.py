@@ -1,7 +1,8 @@
 """Task ``cdbn_eval``: jDBN versus CDBN on the semi-synthetic corpus (Sec. VIII): 10-fold
 cross-validation with a validation fold choosing the number of states; writes ``summary.json``,
 ``table_head.csv`` (Table IV analogue), ``table_gestures.csv`` (Table VI analogue),
-``per_turn.csv``, ``constraint_tests.json`` (Sec. V), figures (``fig6_init.png``,
+``per_turn.csv``, optionally ``table_hands.csv`` (Table V analogue, ``cdbn.eval.hands.bvh_dir``),
+``constraint_tests.json`` (Sec. V), figures (``fig6_init.png``,
 ``fig9_states.png``, ``trajectories.png``), ``model_jdbn.npz``/``model_cdbn.npz`` (trained on the
 training partitions of the first test fold) and ``heldout.npz`` (that fold's held-out turns)."""
 from __future__ import annotations
@@ -36,6 +37,7 @@ def run(cfg, out_dir: Path) -> dict:
     out_dir = Path(out_dir)
     p = params(cfg)
     ev = dict(p.extra.get("eval") or {})
+    hands_cfg = ev.pop("hands", None)
     ep = EvalParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in ev.items()})
     root = ensure_corpus(cfg, p)
     raw = load_semisynthetic_turns(root, p.constraints, p.features)
@@ -44,7 +46,7 @@ def run(cfg, out_dir: Path) -> dict:
     res = run_evaluation(turns, norms, p, ep)
     f1 = res["fold1"]
     n_cdbn = res["chosen_states"]["cdbn"]
-    dist = transition_distances(f1["train"], p, n_cdbn, f1["cdbn"])
+    dist = transition_distances(f1["train"], p, n_cdbn, ep)
     fig6_turns = f1["train"]
     comp = init_comparison(fig6_turns, p, ep.fig6_states)
     # Sec. V statistics on the original head rotation
@@ -84,6 +86,17 @@ def run(cfg, out_dir: Path) -> dict:
                          {"jDBN": nm.invert(f1["jdbn_synth"][k]), "CDBN": nm.invert(f1["cdbn_synth"][k])},
                          test[k].constraints, p.constraints, out_dir / "trajectories.png")
     pooled = cca(np.concatenate([t.speech for t in turns]), mot)
+    hands = None
+    if hands_cfg and hands_cfg.get("bvh_dir"):
+        # hand model (Table V analogue, ours to make optional: it adds minutes): real Bandai2 raise/wave
+        # arm motion, gesture constraints, paired with the real speech of hands.wav (unrelated to it)
+        from ..cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns, hand_evaluation
+
+        ht, rig = bandai_hand_turns(hands_cfg["bvh_dir"], hands_cfg["wav"], p.features,
+                                    max_clips=hands_cfg.get("max_clips"), seed=ep.seed)
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in (hands_cfg.get("eval") or {}).items()}
+        hands = hand_evaluation(ht, rig, BANDAI_CONSTRAINTS, {"seed": ep.seed, **kw}, p)
+        pd.DataFrame(hands["table"]).to_csv(out_dir / "table_hands.csv", index=False, float_format="%.4f")
     return {"success": True, "corpus_root": str(root), "turns": len(turns),
             "frames": int(sum(len(t.speech) for t in turns)), "feature_seconds": t_feat,
             "chosen_states": res["chosen_states"], "validation_curves": res["validation_curves"],
@@ -96,4 +109,4 @@ def run(cfg, out_dir: Path) -> dict:
             "models": {kind: {"states": int(f1[kind].model.num_states), "parameters": int(f1[kind].num_parameters),
                               "heldout_loglik_per_frame": float(held[kind])} for kind in ("jdbn", "cdbn")},
             "jdbn_heldout_loglik_per_frame": float(held["jdbn"]), "cdbn_heldout_loglik_per_frame": float(held["cdbn"]),
-            "test_folds": res["test_folds"], "eval_seconds": time.perf_counter() - t0}
+            "test_folds": res["test_folds"], "hands": hands, "eval_seconds": time.perf_counter() - t0}

@@ -1,0 +1,103 @@
+"""The CDBN hand stream (cdbn/hands.py): 10-D arm/forearm features, their inverse, key-point
+smoothing per joint, the hand model in system=cdbn (cdbn.stream=hands), and the real Bandai rig."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from convsynth_jax.cdbn.hands import (
+    arm_angles,
+    arm_quaternions,
+    arm_rig,
+    keypoint_smooth_joints,
+    swing_of,
+)
+from convsynth_jax.cdbn.params import FeatureParams, num_parameters
+from convsynth_jax.errors import CDBNError
+
+BANDAI = Path(__file__).resolve().parent / "data" / "dataset-2_raise-up-right-hand_normal_016.bvh"
+
+
+def test_swing_twist_against_a_plain_construction():
+    """swing_of on r = S * T (S perpendicular to the axis, T about it) returns S."""
+    rng = np.random.default_rng(0)
+    axis = np.array([0.0, -1.0, 0.0])
+    perp = rng.normal(size=(50, 3))
+    perp -= (perp @ axis)[:, None] * axis
+    perp *= (rng.uniform(0.1, 1.5, 50) / np.linalg.norm(perp, axis=1))[:, None]
+    S = Rotation.from_rotvec(perp)
+    T = Rotation.from_rotvec(rng.uniform(-1.2, 1.2, 50)[:, None] * axis)
+    got = swing_of(S * T, axis)
+    np.testing.assert_allclose((got * S.inv()).magnitude(), 0.0, atol=1e-9)
+
+
+def test_features_round_trip_on_the_real_bandai_rig():
+    from convsynth_jax.io.bvh import load_bvh
+
+    mo = load_bvh(BANDAI)
+    rig = arm_rig(mo.skeleton, FeatureParams())
+    assert [mo.skeleton.names[j] for j in rig.joints] == ["UpperArm_L", "LowerArm_L", "UpperArm_R", "LowerArm_R"]
+    a = arm_angles(mo, FeatureParams(), rig)
+    assert a.shape == (mo.num_frames, 10) and np.isfinite(a).all()
+    q = arm_quaternions(a, rig)
+    for k, j in enumerate(rig.joints):
+        want = Rotation.from_quat(np.asarray(mo.rotations[:, j], np.float64)[:, [1, 2, 3, 0]])
+        have = Rotation.from_quat(q[:, k][:, [1, 2, 3, 0]])
+        if k % 2 == 0:          # upper arm: exact
+            np.testing.assert_allclose((have * want.inv()).magnitude(), 0.0, atol=1e-6)
+        else:                   # forearm: the swing (twist dropped); the wrist lands where it did
+            axis = rig.axes[k // 2]
+            np.testing.assert_allclose(have.apply(np.tile(axis, (len(q), 1))), want.apply(np.tile(axis, (len(q), 1))),
+                                       atol=1e-6)
+    # a right-hand raise moves the right arm far more than the left
+    assert a[:, 5:8].std(0).sum() > 3 * a[:, 0:3].std(0).sum()
+    assert num_parameters(12, 6, a.shape[1]) == 1247           # the paper's 12-state hand model
+
+
+def test_missing_arm_joint_is_a_project_error():
+    from convsynth_jax.io.bvh import load_bvh
+
+    mo = load_bvh(BANDAI)
+    with pytest.raises(CDBNError, match="no joint named any of"):
+        arm_rig(mo.skeleton, FeatureParams(arm_joints=("Nope", "LowerArm_L", "UpperArm_R", "LowerArm_R")))
+
+
+def test_keypoint_smoothing_keeps_key_frames_and_slerps_between():
+    rng = np.random.default_rng(1)
+    T = 61
+    r = Rotation.from_rotvec(rng.normal(scale=0.5, size=(T * 2, 3)))
+    q = r.as_quat()[:, [3, 0, 1, 2]].reshape(T, 2, 4)
+    out = keypoint_smooth_joints(q, 30.0, 12.0)
+    step = 30.0 / 12.0
+    keys = np.unique(np.concatenate([np.round(np.arange(0, T - 1, step)).astype(int), [T - 1]]))
+    for j in range(2):
+        a = Rotation.from_quat(out[keys, j][:, [1, 2, 3, 0]])
+        b = Rotation.from_quat(q[keys, j][:, [1, 2, 3, 0]])
+        np.testing.assert_allclose((a * b.inv()).magnitude(), 0.0, atol=1e-9)
+        # a frame between two keys lies on the great arc between them (plain slerp)
+        k0, k1 = keys[3], keys[4]
+        t = k0 + 1
+        q0 = Rotation.from_quat(q[k0, j][[1, 2, 3, 0]])
+        q1 = Rotation.from_quat(q[k1, j][[1, 2, 3, 0]])
+        frac = (t - k0) / (k1 - k0)
+        want = q0 * Rotation.from_rotvec(frac * (q0.inv() * q1).as_rotvec())
+        got = Rotation.from_quat(out[t, j][[1, 2, 3, 0]])
+        assert (got * want.inv()).magnitude() < 1e-9
+
+
+def test_bandai_hand_turns_pair_real_motion_with_real_speech():
+    from convsynth_jax.cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns
+
+    wav = Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "speech" / "acoustic_corpus.wav"
+    if not wav.is_file():
+        pytest.skip("needs ../shared/data/speech")
+    turns, rig = bandai_hand_turns(BANDAI.parent, wav, FeatureParams())
+    assert len(turns) >= 2 and rig.joints
+    for t in turns:
+        assert t.speech.shape == (len(t.motion), 6) and t.motion.shape[1] == 10
+        assert np.isfinite(t.observations()).all()
+        c = t.constraints
+        assert c[0] == 0 and c[-1] == 0 and set(np.unique(c)) == {0, BANDAI_CONSTRAINTS.index("raise")}

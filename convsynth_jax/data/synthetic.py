@@ -107,7 +107,7 @@ DEFAULTS: dict = {
                                   # frames the two arms swap (mirrored) or one joint jumps; listed in
                                   # glitches.csv, never in events.csv
     "glitch_frames": [2, 5],      # glitch length in frames (inclusive range)
-    "posture_shift_sd": 4.2,      # degrees: before each of its turns a participant shifts to a new rest
+    "posture_shift_sd": 3.7,      # degrees: before each of its turns a participant shifts to a new rest
                                   # posture (offset of spine, neck, head and arms), away from its candidate
                                   # windows (off: 0.0)
     "posture_shift_seconds": [0.6, 1.2],  # duration of a posture shift

@@ -43,7 +43,7 @@ from ..errors import ConfigError
 from ..io.audio import save_wav
 from ..io.bvh import save_bvh
 from ..io.transcripts import save_transcript_tsv
-from ..rotations import euler_deg_to_quat_np, quat_multiply_np, yaw_to_quat_np
+from ..rotations import quat_multiply_np, yaw_to_quat_np
 from ..skeleton import Motion
 from ..utils import _umask
 from .skeleton_seated import INDEX, NAMES, SEAT_HEIGHT, base_pose_degrees, seated_skeleton
@@ -107,20 +107,30 @@ DEFAULTS: dict = {
                                   # frames the two arms swap (mirrored) or one joint jumps; listed in
                                   # glitches.csv, never in events.csv
     "glitch_frames": [2, 5],      # glitch length in frames (inclusive range)
-    "posture_shift_sd": 4.2,      # degrees: before each of its turns a participant shifts to a new rest
+    "posture_shift_sd": 3.7,      # degrees: before each of its turns a participant shifts to a new rest
                                   # posture (offset of spine, neck, head and arms), away from its candidate
                                   # windows (off: 0.0)
     "posture_shift_seconds": [0.6, 1.2],  # duration of a posture shift
     "calibrate_rates": True,      # plant with p' such that the realized window rates (other movements landing
                                   # in windows, movements lost to neighbours) match the configured ones, p'
                                   # measured on the corpus's own plan (see planting_probabilities; off: False)
-    "calibration_passes": 10,     # fixed-point passes of the calibration (the best one is kept)
+    "calibrate_against": "detector",  # what measures the realized rates during calibration: "detector" (ours,
+                                  # default) renders each pass's motion and counts with the annotation pipeline's
+                                  # own speed detector and counter (stats.cooccurrence.hypothesis_matches on the
+                                  # planted audio segments, default AnnotateParams), so Table 1 as the pipeline
+                                  # measures it matches the configured rates; "windows" counts the planted
+                                  # movement intervals with window_matches (no rendering, fast, but it treats a
+                                  # movement that touches a window as used up to its end, which the detector
+                                  # does not: it over-trims the next window, and a corpus calibrated that way
+                                  # measures 5-11 points above the configured hand rates)
+    "calibration_passes": 5,      # fixed-point passes of the calibration at most (the best one is kept)
+    "calibration_tolerance": 0.01,  # stop the passes once every realized rate is this close to the configured one
     "quota_planting": True,       # plant exactly round(p * N) caused movements over the corpus (spread over
                                   # the sessions in proportion) instead of N independent Bernoulli(p) draws,
                                   # so realized rates carry no sampling error (off: False)
 }
 # bumped whenever the generator's output changes for the same parameters (part of the parameter hash)
-GENERATOR_VERSION = 3
+GENERATOR_VERSION = 4
 
 
 def _merge(base: dict, over) -> dict:
@@ -147,6 +157,9 @@ def resolve_config(config=None) -> dict:
     unknown = sorted(set(cfg) - set(DEFAULTS))
     if unknown:
         raise ConfigError(f"corpus.generator: unknown key(s) {unknown}; known: {sorted(DEFAULTS)}")
+    if cfg["calibrate_against"] not in CALIBRATION_MEASURES:
+        raise ConfigError(f"corpus.generator.calibrate_against: {cfg['calibrate_against']!r}; expected one of "
+                          f"{list(CALIBRATION_MEASURES)}")
     for role, c in cfg["characters"].items():
         lh, rh, either = c["p_pc_lh"], c["p_pc_rh"], c["p_pc_either"]
         if not (max(lh, rh) <= either <= min(1.0, lh + rh)):
@@ -159,7 +172,10 @@ def resolve_config(config=None) -> dict:
 def config_hash(cfg: dict) -> str:
     """Hash of the resolved parameters and the generator version (a cached corpus is reused only if
     it matches)."""
-    blob = json.dumps({"generator_version": GENERATOR_VERSION, "config": cfg}, sort_keys=True)
+    blob = {"generator_version": GENERATOR_VERSION, "config": cfg}
+    if cfg.get("calibrate_rates") and cfg.get("calibrate_against") == "detector":
+        blob["detector"] = detector_settings()  # the corpus depends on the detector it was calibrated with
+    blob = json.dumps(blob, sort_keys=True)
     return hashlib.sha1(blob.encode()).hexdigest()[:16]
 
 
@@ -385,15 +401,31 @@ def _glitches(rng, n: int, fps: float, per_minute: float, frames) -> list[dict]:
     return sorted(out, key=lambda g: g["start_frame"])
 
 
+def _zxy_deg_to_quat(euler: np.ndarray) -> np.ndarray:
+    """(..., 3) BVH Euler angles in degrees, channel order Z X Y (intrinsic, Z outermost) -> (..., 4)
+    (w, x, y, z) quaternions qz * qx * qy: the generator's fast path (about 30 times faster than
+    SciPy's ``from_euler``, which ``rotations.euler_deg_to_quat_np`` uses and a test compares with)."""
+    h = np.deg2rad(np.asarray(euler, np.float64)) / 2
+    c, s = np.cos(h), np.sin(h)
+    cz, cx, cy = c[..., 0], c[..., 1], c[..., 2]
+    sz, sx, sy = s[..., 0], s[..., 1], s[..., 2]
+    # qz * qx = (cz cx, cz sx, sz sx, sz cx), then times qy = (cy, 0, sy, 0)
+    w, x, y, z = cz * cx, cz * sx, sz * sx, sz * cx
+    return np.stack([w * cy - y * sy, x * cy - z * sy, w * sy + y * cy, z * cy + x * sy], axis=-1)
+
+
 def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: float, scale: float,
             cfg: dict, shifts: list[float] = ()) -> tuple[Motion, list[dict]]:
     """The participant's motion and its glitches (see ``_glitches``)."""
     skel = seated_skeleton(scale)
     t = np.arange(n) / fps
+    # streams of their own: the number of posture shifts (which follows the planted movements) does
+    # not change the idle motion, the noise or the glitches
+    posture_rng, glitch_rng, rng = (np.random.default_rng(rng.integers(2 ** 63)) for _ in range(3))
     euler = np.broadcast_to(base_pose_degrees(), (n, len(NAMES), 3)).copy()  # (F, J, [Z, X, Y])
     # people sit differently from one conversation to the next, shift their posture at their turns,
     # and drift slowly
-    off = _posture_offsets(rng, n, fps, list(shifts), cfg["posture_sd"], cfg["posture_shift_sd"],
+    off = _posture_offsets(posture_rng, n, fps, list(shifts), cfg["posture_sd"], cfg["posture_shift_sd"],
                            cfg["posture_shift_seconds"])
     for i, j in enumerate(POSTURE_JOINTS):
         euler[:, INDEX[j]] += off[:, i]
@@ -424,10 +456,10 @@ def _motion(rng, role: str, events: list[dict], n: int, fps: float, energy: floa
             osc = np.sin(2 * np.pi * cyc * x) * np.sin(np.pi * x) * ((t >= s) & (t <= e))
             euler[:, INDEX["Head"], 1] += amp * 11.0 * osc
             euler[:, INDEX["Neck"], 1] += amp * 3.0 * osc
-    glitches = _glitches(rng, n, fps, cfg["glitches_per_minute"], cfg["glitch_frames"])
+    glitches = _glitches(glitch_rng, n, fps, cfg["glitches_per_minute"], cfg["glitch_frames"])
     for g in glitches:
         euler[g["start_frame"]:g["end_frame"], INDEX[g["joint"]], g["channel"]] += g["degrees"]
-    quats = euler_deg_to_quat_np(euler, "ZXY")
+    quats = _zxy_deg_to_quat(euler)
     trans = np.broadcast_to(skel.offsets, (n, len(NAMES), 3)).copy()
     z0 = -60.0 if role == ROLES[0] else 60.0
     trans[:, 0] = (0.0, SEAT_HEIGHT, z0)
@@ -451,49 +483,62 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
     p_lh_only = ch["p_pc_either"] - ch["p_pc_rh"]
     p_rh_only = ch["p_pc_either"] - ch["p_pc_lh"]
     events = []
+    # every random choice below draws from a stream of its own, and the attributes of a segment's
+    # movement are drawn for every candidate segment whether it gets one or not, so planting with
+    # other probabilities changes which segments cause a movement and nothing else (the calibration
+    # compares corpora planted with nearby probabilities: its measure must not jump with the draws)
+    st = {k: np.random.default_rng(rng.integers(2 ** 63))
+          for k in ("attributes", "PC", "LR", "HP", "separate", "replant", "spontaneous")}
+    pcs = [s for s in segs if s.role == role and s.kind == "PC"]
+    lrs = [s for s in segs if s.role == role and s.kind == "LR"]
+    hps = [s for s in segs if s.role == partner and s.kind == "HP"]
+    a = st["attributes"]
+    g_attr = {id(s): (a.uniform(0.75, 1.25), {k: (a.normal(0, 0.05), a.uniform(-8, 14)) for k in ("LH", "RH")})
+              for s in pcs}
+    n_attr = {id(s): (a.uniform(0.1, 0.3), a.normal(0, 0.04), a.uniform(0.8, 1.2), int(a.integers(1, 4)))
+              for s in lrs + hps}
 
-    def gesture(kind, seg, amp):
+    def gesture(kind, seg):
+        amp, hands = g_attr[id(seg)]
+        jitter, spread = hands[kind]
         dur = float(np.clip(seg.end - seg.start, 0.6, 1.5))
-        peak = seg.peak + rng.normal(0, 0.05)
+        peak = seg.peak + jitter
         start = max(seg.start - 0.1, peak - 0.45 * dur)
         end = start + dur
         return {"kind": kind, "start": start, "peak": peak, "end": end, "amp": amp,
-                "spread": rng.uniform(-8, 14), "source": seg.kind, "cause_start": seg.start}
+                "spread": spread, "source": seg.kind, "cause_start": seg.start}
 
     def nod(seg):
-        dur = float(np.clip(seg.end - seg.start + rng.uniform(0.1, 0.3), 0.45, 1.0))
-        mid = 0.5 * (seg.start + seg.end) + rng.normal(0, 0.04)
+        extra, jitter, amp, cycles = n_attr[id(seg)]
+        dur = float(np.clip(seg.end - seg.start + extra, 0.45, 1.0))
+        mid = 0.5 * (seg.start + seg.end) + jitter
         return {"kind": "Nod", "start": mid - dur / 2, "peak": mid, "end": mid + dur / 2,
-                "amp": rng.uniform(0.8, 1.2), "cycles": int(rng.integers(1, 4)), "source": seg.kind,
-                "cause_start": seg.start}
+                "amp": amp, "cycles": cycles, "source": seg.kind, "cause_start": seg.start}
 
     # which segments cause a movement: per segment kind, a category per segment (PC: both hands, LH
     # only, RH only, none; LR / partner's HP: nod or none), either drawn independently or as an exact
     # quota (stochastic rounding of p * n, randomly assigned)
-    pcs = [s for s in segs if s.role == role and s.kind == "PC"]
-    lrs = [s for s in segs if s.role == role and s.kind == "LR"]
-    hps = [s for s in segs if s.role == partner and s.kind == "HP"]
     quota = bool(cfg["quota_planting"])
     off = offsets or {}
-    pc_cat = _categories(rng, len(pcs), [p_both, p_lh_only, p_rh_only], quota, off.get("PC", 0))
-    lr_nod = _categories(rng, len(lrs), [ch["p_lr_nod"]], quota, off.get("LR", 0)) == 0
-    hp_nod = _categories(rng, len(hps), [ch["p_ph_nod"]], quota, off.get("HP", 0)) == 0
+    pc_cat = _categories(st["PC"], len(pcs), [p_both, p_lh_only, p_rh_only], quota, off.get("PC", 0))
+    lr_nod = _categories(st["LR"], len(lrs), [ch["p_lr_nod"]], quota, off.get("LR", 0)) == 0
+    hp_nod = _categories(st["HP"], len(hps), [ch["p_ph_nod"]], quota, off.get("HP", 0)) == 0
     causes = {id(s): c for s, c in zip(pcs, pc_cat)}
     causes.update({id(s): 0 if n else -1 for s, n in zip(lrs, lr_nod)})
     causes.update({id(s): 0 if n else -1 for s, n in zip(hps, hp_nod)})
     for seg in segs:
         cat = causes.get(id(seg), -1)
         if seg.kind == "PC" and seg.role == role:
-            amp = rng.uniform(0.75, 1.25)
             if cat in (0, 1):
-                events.append(gesture("LH", seg, amp))
+                events.append(gesture("LH", seg))
             if cat in (0, 2):
-                events.append(gesture("RH", seg, amp))
+                events.append(gesture("RH", seg))
         elif cat == 0:
             events.append(nod(seg))
 
     def settle(evs):
-        evs = _separate(evs, cfg["min_event_gap"], cfg["coarticulation_gap"], cfg["coarticulation_hold"], rng)
+        evs = _separate(evs, cfg["min_event_gap"], cfg["coarticulation_gap"], cfg["coarticulation_hold"],
+                        st["separate"])
         return [e for e in evs if e["start"] > 0.05 and e["end"] < duration - 0.05]
 
     events = settle(events)
@@ -505,14 +550,14 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
                 free = [sg for sg in pool if sg.start not in have]
                 need = min(target - len(have), len(free))
                 if need > 0:
-                    events += [nod(free[i]) for i in rng.choice(len(free), need, replace=False)]
+                    events += [nod(free[i]) for i in st["replant"].choice(len(free), need, replace=False)]
                     added = True
             if not added:
                 break
             events = settle(events)
     # spontaneous movements: a Poisson process on the time away from this participant's candidate
     # windows (its own segments and the partner's hesitations) and away from its caused events
-    sp_rng = np.random.default_rng(rng.integers(2 ** 63))
+    sp_rng = st["spontaneous"]
     busy = [_window(s) for s in segs if s.role == role or (s.role == partner and s.kind == "HP")]
     busy += [(e["start"] - SPONTANEOUS_MARGIN, e["end"] + SPONTANEOUS_MARGIN) for e in events]
     free = _free_intervals(busy, 1.0, duration - 1.5)
@@ -639,8 +684,8 @@ def _quota_offsets(cfg: dict) -> list[dict]:
 
 def _plan(idx: int, cfg: dict, probs: dict, offsets: list[dict] | None = None) -> dict:
     """Conversation and planted movements of session ``idx`` (no rendering); ``probs``: per role the
-    planting probabilities (keys of HYPOTHESIS_KEYS); ``offsets``: ``_quota_offsets``. The session's
-    generator continues into rendering."""
+    planting probabilities (keys of HYPOTHESIS_KEYS); ``offsets``: ``_quota_offsets``. Rendering
+    draws from streams of its own (``_render_rng``)."""
     rng, emotion, segs = _session_start(idx, cfg)
     energy = EMOTIONS[emotion][0]
     duration = float(cfg["session_seconds"])
@@ -649,8 +694,23 @@ def _plan(idx: int, cfg: dict, probs: dict, offsets: list[dict] | None = None) -
         ch = {**cfg["characters"][role], **probs[role]}
         events[role], free_seconds[role] = _plant_events(rng, segs, role, ROLES[1 - k], {**cfg, "characters": {role: ch}},
                                                          duration, offsets[idx][role] if offsets else None)
-    return {"rng": rng, "name": f"session{idx + 1:02d}", "emotion": emotion, "energy": energy, "duration": duration,
-            "segs": segs, "events": events, "free_seconds": free_seconds}
+    return {"index": idx, "name": f"session{idx + 1:02d}", "emotion": emotion, "energy": energy,
+            "duration": duration, "segs": segs, "events": events, "free_seconds": free_seconds}
+
+
+def _render_rng(cfg: dict, idx: int, role: str, what: str) -> np.random.Generator:
+    """The generator of one participant's motion or audio in session ``idx``: a stream of its own, so
+    the motion renders the same whether or not the audio is rendered (calibration renders motion only)."""
+    return np.random.default_rng([int(cfg["seed"]), idx, ROLES.index(role), {"motion": 1, "audio": 2}[what]])
+
+
+def _render_motion(plan: dict, role: str, cfg: dict) -> tuple[Motion, list[dict]]:
+    """The motion of ``role`` in a planned session and its glitches (what gets written to its BVH)."""
+    events = plan["events"][role]
+    shifts = _shift_times(plan["segs"], role, events, plan["duration"], float(cfg["posture_shift_seconds"][1]))
+    n = int(round(plan["duration"] * float(cfg["fps"])))
+    return _motion(_render_rng(cfg, plan["index"], role, "motion"), role, events, n, float(cfg["fps"]),
+                   plan["energy"], cfg["characters"][role]["scale"], cfg, shifts)
 
 
 # hypothesis -> (audio kind, movement kinds, whose audio, configuration key); paper Table 1
@@ -691,19 +751,76 @@ def window_matches(audio: np.ndarray, channel: np.ndarray, movements: np.ndarray
 
 
 def _plan_matches(plan: dict, role: str, hypothesis: str) -> tuple[np.ndarray, np.ndarray]:
-    """(matched, caused) flags over the hypothesis' audio segments of one planned session."""
+    """(matched, caused) flags over the hypothesis' audio segments of one planned session, matched as
+    ``window_matches`` sees the planted movement intervals (``calibrate_against="windows"``)."""
     akind, kinds, whose, _ = HYPOTHESIS_KEYS[hypothesis]
     owner = role if whose == "own" else ROLES[1 - ROLES.index(role)]
     chan = [sg for sg in plan["segs"] if sg.role == owner]
     audio = [sg for sg in chan if sg.kind == akind]
     evs = [e for e in plan["events"][role] if e["kind"] in kinds]
-    caused = {e.get("cause_start") for e in evs if e["source"] == akind}
     m = window_matches([(a.start, a.end) for a in audio], [(c.start, c.end) for c in chan],
                        [(e["start"], e["end"]) for e in evs])
-    return m, np.array([a.start in caused for a in audio], bool)
+    return m, _caused(plan, role, hypothesis, audio)
 
 
-CALIBRATION_DAMPING = 0.6  # step size of the calibration passes after the first (full) one
+def _caused(plan: dict, role: str, hypothesis: str, audio: list[Segment]) -> np.ndarray:
+    """Which of the ``audio`` segments caused a movement of the hypothesis' kinds of ``role``."""
+    akind, kinds, _, _ = HYPOTHESIS_KEYS[hypothesis]
+    caused = {e.get("cause_start") for e in plan["events"][role] if e["kind"] in kinds and e["source"] == akind}
+    return np.array([a.start in caused for a in audio], bool)
+
+
+def detector_settings() -> dict:
+    """The annotation settings the ``detector`` calibration counts with (``AnnotateParams`` defaults:
+    the paper's Eq. 1-2 and the pipeline's window trimming); part of the corpus parameter hash."""
+    from ..annotate.params import AnnotateParams
+
+    ap = AnnotateParams()
+    return {"alpha_s": float(ap.alpha_s), "alpha_w": float(ap.alpha_w), "extend_trim": bool(ap.extend_trim),
+            "up_axis": int(ap.up_axis)}
+
+
+def _segment_frame(segs: list[Segment]) -> tuple[pd.DataFrame, list[Segment]]:
+    """DataFrame[kind, start, end] of one participant's segments, in time order, and those segments."""
+    segs = sorted(segs, key=lambda sg: sg.start)
+    return pd.DataFrame({"kind": [sg.kind for sg in segs], "start": [sg.start for sg in segs],
+                         "end": [sg.end for sg in segs]}), segs
+
+
+def _detector_matches(plan: dict, cfg: dict) -> dict:
+    """{(role, hypothesis): (matched, caused)} of one planned session as the annotation pipeline counts
+    it (``calibrate_against="detector"``): each participant's motion is rendered exactly as it will be
+    written, its joint speeds and Eq. 1 recording thresholds computed, and every hypothesis counted by
+    ``stats.cooccurrence.hypothesis_matches`` over the planted audio segments (Table 1 counts over the
+    detected ones; the two differ where clause segmentation does)."""
+    from ..annotate.motion import joint_speeds, recording_thresholds
+    from ..annotate.params import AnnotateParams
+    from ..stats.cooccurrence import hypothesis_matches
+
+    st = detector_settings()
+    ap = AnnotateParams(alpha_s=st["alpha_s"], alpha_w=st["alpha_w"], extend_trim=st["extend_trim"],
+                        up_axis=st["up_axis"])
+    frames = {r: _segment_frame([sg for sg in plan["segs"] if sg.role == r]) for r in ROLES}
+    out = {}
+    for k, role in enumerate(ROLES):
+        motion, _ = _render_motion(plan, role, cfg)
+        speeds = joint_speeds(motion, ap)
+        thr = recording_thresholds(speeds, ap.alpha_s)
+        (own, own_segs), (partner, partner_segs) = frames[role], frames[ROLES[1 - k]]
+        for h, (akind, _, whose, _) in HYPOTHESIS_KEYS.items():
+            hit, _ = hypothesis_matches(speeds, own, partner, motion.fps, h, thresholds=thr, alpha_w=ap.alpha_w,
+                                        extend_trim=ap.extend_trim)
+            audio = [sg for sg in (own_segs if whose == "own" else partner_segs) if sg.kind == akind]
+            out[(role, h)] = (hit, _caused(plan, role, h, audio))
+    return out
+
+
+def _window_matches_all(plan: dict, cfg: dict) -> dict:
+    return {(r, h): _plan_matches(plan, r, h) for r in ROLES for h in HYPOTHESIS_KEYS}
+
+
+# how the calibration measures a planned session's realized rates (generator key calibrate_against)
+CALIBRATION_MEASURES = {"detector": _detector_matches, "windows": _window_matches_all}
 
 
 def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
@@ -712,34 +829,39 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
     a nod for a listener response) or spontaneous ones also land in windows of segments that caused
     nothing, at a rate q, and a share m of the causing segments' windows miss their movement (the
     previous window's movement runs into them, or it was dropped for coming too close to another),
-    so the realized window rate (``window_matches``) is about p' (1 - m) + (1 - p') q. Both are
-    measured on this very corpus's plan (same seed and conversations, no rendering) and p' is moved
-    by the remaining error, p' <- p' + s (p - realized(p')) (s = 1 in the first pass, then
-    ``CALIBRATION_DAMPING``), for ``calibration_passes`` passes. Since the
-    plan is a deterministic function of p', the pass with the smallest largest error is the corpus
-    that gets written; the report gives each pass's p', realized rates, q and m, and the chosen pass."""
+    so the realized window rate is about p' (1 - m) + (1 - p') q. The realized rates are measured on
+    this very corpus (same seed and conversations) by ``calibrate_against``: ``detector`` renders the
+    motion and counts with the annotation pipeline's detector and counter (``_detector_matches``),
+    ``windows`` counts the planned movement intervals (``window_matches``, no rendering). p' is moved
+    by the remaining error, p' <- p' + (p - realized(p')) (planting is nested in p', see
+    ``_plant_events``, so nearby p' give nearby corpora and the full step converges in a few passes),
+    for ``calibration_passes`` passes or until every realized rate is within
+    ``calibration_tolerance`` of the configured one. Since the corpus is a deterministic
+    function of p', the pass with the smallest largest error is the corpus that gets written; the
+    report gives each pass's p', realized rates, q and m, and the chosen pass."""
     conf = {r: {HYPOTHESIS_KEYS[h][3]: float(cfg["characters"][r][HYPOTHESIS_KEYS[h][3]]) for h in HYPOTHESIS_KEYS}
             for r in ROLES}
     if not cfg["calibrate_rates"]:
         return conf, {}
-    probs, report = copy.deepcopy(conf), {"passes": []}
+    measure = CALIBRATION_MEASURES[cfg["calibrate_against"]]
+    probs, report = copy.deepcopy(conf), {"measure": cfg["calibrate_against"], "passes": []}
+    if cfg["calibrate_against"] == "detector":
+        report["detector"] = detector_settings()
     offsets = _quota_offsets(cfg)
     best = (np.inf, conf)
     for _ in range(int(cfg["calibration_passes"])):
-        plans = [_plan(i, cfg, probs, offsets) for i in range(int(cfg["num_sessions"]))]
+        flags = [measure(_plan(i, cfg, probs, offsets), cfg) for i in range(int(cfg["num_sessions"]))]
         new, rows, worst = copy.deepcopy(conf), {}, 0.0
         for r in ROLES:
             for h, (_, _, _, key) in HYPOTHESIS_KEYS.items():
-                flags = [_plan_matches(pl, r, h) for pl in plans]
-                m = np.concatenate([f[0] for f in flags])
-                c = np.concatenate([f[1] for f in flags])
+                m = np.concatenate([f[(r, h)][0] for f in flags])
+                c = np.concatenate([f[(r, h)][1] for f in flags])
                 q = float(m[~c].mean()) if (~c).any() else 0.0
                 miss = float(1.0 - m[c].mean()) if c.any() else 0.0
                 realized = float(m.mean()) if m.size else conf[r][key]
                 worst = max(worst, abs(realized - conf[r][key]))
                 # fixed-point step: shift p' by the remaining error of the realized rate
-                step = 1.0 if not report["passes"] else CALIBRATION_DAMPING
-                new[r][key] = float(np.clip(probs[r][key] + step * (conf[r][key] - realized), 0.0, 1.0))
+                new[r][key] = float(np.clip(probs[r][key] + conf[r][key] - realized, 0.0, 1.0))
                 rows[f"{r} {h}"] = {"planted_with": round(probs[r][key], 4), "realized": round(realized, 4),
                                     "q": round(q, 4), "miss": round(miss, 4)}
             pr = new[r]  # keep the PC probabilities consistent: max(lh, rh) <= either <= lh + rh
@@ -748,6 +870,8 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
         report["passes"].append({"max_abs_error": round(worst, 4), "rows": rows})
         if worst < best[0]:  # a plan is a deterministic function of p': the best pass is the corpus
             best = (worst, probs)
+        if worst <= float(cfg["calibration_tolerance"]):
+            break
         probs = new
     report["chosen_pass"] = int(np.argmin([ps["max_abs_error"] for ps in report["passes"]]))
     probs = best[1]
@@ -756,22 +880,21 @@ def planting_probabilities(cfg: dict) -> tuple[dict, dict]:
 
 def _session(idx: int, cfg: dict, probs: dict, offsets: list[dict], out: Path) -> tuple[list[dict], list[dict], dict]:
     plan = _plan(idx, cfg, probs, offsets)
-    rng, name, duration, segs = plan["rng"], plan["name"], plan["duration"], plan["segs"]
-    fps, sr = float(cfg["fps"]), int(cfg["sample_rate"])
-    n = int(round(duration * fps))
+    name, duration, segs = plan["name"], plan["duration"], plan["segs"]
+    sr = int(cfg["sample_rate"])
     rows, glitch_rows = [], []
     for role in ROLES:
         ch = cfg["characters"][role]
         own = [s for s in segs if s.role == role]
         events = plan["events"][role]
-        shifts = _shift_times(segs, role, events, duration, float(cfg["posture_shift_seconds"][1]))
-        motion, gl = _motion(rng, role, events, n, fps, plan["energy"], ch["scale"], cfg, shifts)
+        motion, gl = _render_motion(plan, role, cfg)
         glitch_rows += [{"session": name, "participant": role, **g} for g in gl]
         save_bvh(motion, out / f"{name}_{role}.bvh", precision=4)
         words = [(w[0], w[1], w[2]) for s in own for w in s.words]
         save_transcript_tsv(pd.DataFrame(words, columns=["start", "end", "word"]), out / f"{name}_{role}.tsv")
         if cfg["write_audio"]:
-            sig, _ = _render_voice(own, ch["f0"], duration, sr, rng, cfg["accent_rise"])
+            sig, _ = _render_voice(own, ch["f0"], duration, sr, _render_rng(cfg, idx, role, "audio"),
+                                   cfg["accent_rise"])
             save_wav(out / f"{name}_{role}.wav", sig, sr)
         for s in own:
             rows.append({"session": name, "participant": role, "kind": s.kind, "start": s.start, "peak": s.peak,

@@ -42,7 +42,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError, GraphError, LabelError
-from .constraints import (Constraints, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
+from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
 from .feasible import feasibility, kept_edges
 from .result import SearchResult, failed_segment_at, failure_reason
@@ -338,7 +338,7 @@ def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int
                                    max_candidates=max(int(params.retry_max_candidates), int(params.max_candidates)))
         attempts += [(wide, t) for t in temps]
     feas = None
-    if params.lookahead:
+    if params.lookahead and constrained(constraints):
         feas, ok = lookahead(graph, constraints, int(params.max_degree))
         if not ok:
             res = _beam_search_once(graph, constraints, params, seed, temps[0], None)

@@ -21,7 +21,7 @@ import time
 
 import numpy as np
 
-from .constraints import (Constraints, is_peak_state, median_synthetic_cost, paper_channel_step, segment_info,
+from .constraints import (Constraints, constrained, is_peak_state, median_synthetic_cost, paper_channel_step, segment_info,
                           state_ok_matrix)
 from .result import SearchResult, failed_segment_at, failure_reason, path_stats
 from .params import SearchParams
@@ -90,7 +90,7 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
                             time.perf_counter() - t_begin, "dfs", failure=failure_reason(c, frame, "dfs"))
 
     feas = None
-    if params.lookahead:   # ours: keep only steps that can still complete the window (search/feasible.py)
+    if params.lookahead and constrained(c):   # ours: keep only steps that can still complete the window (search/feasible.py)
         from .beam import lookahead
 
         f_dev, solvable = lookahead(graph, c, max_deg)

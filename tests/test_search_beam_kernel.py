@@ -230,6 +230,7 @@ def test_lookahead_kernel_equals_reference(seed, matching):
     ref = reference_feasibility(g, cons, 24)
     np.testing.assert_array_equal(got, ref)
     assert _prepare(g, 24).edges[0].shape[0] > g.num_states   # padded with the padding state
+    assert (np.asarray(_prepare(g, 24).edges[2]) < g.num_states).any()   # hub states use the wide table
     assert not got[:-1].all()                     # the windows constrain something
     if matching == "labels" and seed != 2:
         assert ok                                 # the clip the input was copied from is a path

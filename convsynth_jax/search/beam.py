@@ -44,13 +44,12 @@ import numpy as np
 from ..errors import ConfigError, GraphError, LabelError
 from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
-from .feasible import feasibility, kept_edges
+from .feasible import edge_tables, feasibility
 from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
 
 FRAME_BUCKET = 16
 STATE_BUCKET = 4096  # graphs are padded to a multiple of this many states, so LOO folds share compiles
-EDGE_BUCKET = 1 << 16  # the look-ahead's edge list is padded to a multiple of this many edges
 
 
 def padded_states(num_states: int) -> int:
@@ -107,7 +106,7 @@ class _Prepared(NamedTuple):
     median_syn: float        # median synthetic edge cost: the temperature's unit
     device: tuple            # (packed targets+labels, costs, degrees, state codes), padded to STATE_BUCKET
     paper_device: tuple      # (synthetic flags (S, D), segment info (S, 5)) for search.matching=paper
-    edges: tuple             # kept edges for the look-ahead (feasible.kept_edges; starts/ends padded)
+    edges: tuple             # kept edges for the look-ahead (feasible.edge_tables)
 
 
 _CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)
@@ -129,16 +128,14 @@ def _prepare(graph, max_degree) -> _Prepared:
         return jnp.asarray(np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]))
 
     info = segment_info(graph)
-    starts, ends, src, dst, esyn = kept_edges(adj, syn, deg)
-    E = np.int32(dst.size)
-    epad = -dst.size % EDGE_BUCKET     # padding edges: from and to the last padding state
-    last = padded_states(graph.num_states) - 1
-    src, dst = (np.concatenate([x, np.full(epad, last, np.int32)]) for x in (src, dst))
-    esyn = np.concatenate([esyn, np.zeros(epad, bool)])
+    S_pad = padded_states(graph.num_states)
+    tables = edge_tables(np.concatenate([adj, np.zeros((pad, adj.shape[1]), adj.dtype)]),
+                         np.concatenate([syn, np.zeros((pad, syn.shape[1]), bool)]),
+                         np.concatenate([deg, np.zeros(pad, deg.dtype)]), S_pad - 1)
     prep = _Prepared(cost, syn, median_synthetic_cost(graph),
                      (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)),
                      (padrows(syn, False), padrows(info, 0)),
-                     (padrows(starts, E), padrows(ends, E), jnp.asarray(src), jnp.asarray(dst), jnp.asarray(esyn)))
+                     tuple(jnp.asarray(x) for x in tables))
     _CACHE.append((graph, max_degree, prep))
     del _CACHE[:-4]
     return prep

@@ -56,25 +56,40 @@ def enters_mid(info, own_label, par_label, own_codes, par_codes):
     return (cons_o & (info[..., 0] > 0)) | (cons_p & (info[..., 3] > 0))
 
 
-def kept_edges(adj: np.ndarray, syn: np.ndarray, deg: np.ndarray):
-    """The kept edges of a padded adjacency (``beam.padded_adjacency``), flattened in CSR order:
-    (starts (S,), ends (S,), sources (E,), targets (E,), synthetic (E,))."""
+SMALL = 4            # states with at most this many kept edges use the narrow table
+BIG_BUCKET = 1024    # the wide table's row count is padded to a multiple of this
+
+
+def edge_tables(adj: np.ndarray, syn: np.ndarray, deg: np.ndarray, pad_state: int):
+    """The kept edges of a padded adjacency (``beam.padded_adjacency``, S rows) as two gather tables
+    for the look-ahead (a gather and a row sum is much faster than a scatter on CPU): every state's
+    first SMALL targets (S, SMALL), and for the states with more edges (rows ``big``) all D of them.
+    Missing edges point at ``pad_state`` (a padding state, never completable). Returns
+    (small targets, small synthetic, big rows, big targets, big synthetic)."""
     S, D = adj.shape
-    keep = np.arange(D)[None, :] < deg[:, None]
-    ends = np.cumsum(deg).astype(np.int32)
-    starts = (ends - deg).astype(np.int32)
-    src = np.repeat(np.arange(S, dtype=np.int32), deg)
-    return starts, ends, src, adj[keep].astype(np.int32), syn[keep]
+    rank = np.arange(D)[None, :]
+    t = np.where(rank < deg[:, None], adj, pad_state).astype(np.int32)
+    y = np.where(rank < deg[:, None], syn, False)
+    k = min(SMALL, D)
+    big = np.flatnonzero(deg > k).astype(np.int32)
+    n = big.size + (-big.size % BIG_BUCKET)
+    big_rows = np.full(n, pad_state, np.int32)
+    big_rows[:big.size] = big
+    big_t = np.full((n, D), pad_state, np.int32)
+    big_t[:big.size] = t[big]
+    big_y = np.zeros((n, D), bool)
+    big_y[:big.size] = y[big]
+    return t[:, :k], y[:, :k], big_rows, big_t, big_y
 
 
 @partial(jax.jit, static_argnames=("F", "paper"))
 def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, F: int, paper: bool):
     """(Tp, S) uint8 bit masks; see the module docstring. The frames from num_frames - 1 on are all ones.
-    The OR over a state's kept edges is a scatter-add of per-flag counts packed into the bytes of an
-    int32 (a state keeps at most 255 edges, so no byte overflows)."""
+    The OR over a state's kept edges is a sum of per-flag counts packed into the bytes of an int32
+    (a state keeps at most 255 edges, so no byte overflows). The last state must be a padding state."""
     from .beam import unpack_code
 
-    starts, ends, src, dst, syn = edges
+    small_t, small_y, big, big_t, big_y = edges
     own_y, par_y, peak_y = unpack_code(state_code)
     S = state_code.shape[0]
     two = jnp.array([[False, True]])                                      # a channel's flag values
@@ -82,9 +97,11 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     oy, py, pky, iy = own_y[:, None], par_y[:, None], peak_y[:, None], info[:, None, :]
     if paper:
         own_a, par_a, codes, tol = paper_arrs
-        static = ~syn | ~(leaves_mid(info, own_y, par_y, codes[0], codes[1])[src]
-                          | enters_mid(info, own_y, par_y, codes[0], codes[1])[dst])
-        dst = jnp.where(static, dst, S - 1)   # a statically forbidden edge points at a padding state (never good)
+        lv = leaves_mid(info, own_y, par_y, codes[0], codes[1])
+        en = enters_mid(info, own_y, par_y, codes[0], codes[1])
+        # a statically forbidden edge (contiguity) points at the padding state
+        small_t = jnp.where(~small_y | ~(lv[:, None] | en[small_t]), small_t, S - 1)
+        big_t = jnp.where(~big_y | ~(lv[big][:, None] | en[big_t]), big_t, S - 1)
     fl = jnp.arange(F, dtype=jnp.int32)
     shift = (8 * fl)[None, :]
 
@@ -102,10 +119,10 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
             ok = lab & (~check[t] | f1b)
             f1 = f1b.astype(jnp.int32)
         A = ok & jnp.take_along_axis(G_next, f1, axis=1)                 # (S, F): arriving at t is completable
-        A = A.at[S - 1].set(False)                                        # the padding state of forbidden edges
-        # materialized once per frame: else XLA may fuse the rule into the edge gather (per edge)
+        A = A.at[S - 1].set(False)                                        # the padding state of missing edges
+        # materialized once per frame: else XLA may fuse the rule into the edge gathers (per edge)
         packed = jax.lax.optimization_barrier((A.astype(jnp.int32) << shift).sum(1))
-        cnt = jnp.zeros(S, jnp.int32).at[src].add(packed[dst], indices_are_sorted=True)
+        cnt = packed[small_t].sum(1).at[big].set(packed[big_t].sum(1))
         G = (((cnt[:, None] >> shift) & 255) > 0) | (t - 1 >= num_frames - 1)
         return G, (G.astype(jnp.int32) << fl[None, :]).sum(1).astype(jnp.uint8)
 

@@ -1,4 +1,6 @@
 """The JAX beam kernel against its slow NumPy reference (same noise, same documented rules)."""
+import dataclasses
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -175,13 +177,60 @@ def test_wide_retry_finds_what_a_narrow_beam_misses():
     wider beam; its path satisfies the paper checker."""
     g, audio = hub_graph(np.random.default_rng(1))
     own, par = input_from_clip(audio, "c1", 40)
-    narrow = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=0)
+    narrow = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=0,
+                          lookahead=False)
     cons = build_constraints(own, par, 40, FPS, narrow)
     assert not beam_search(g, cons, narrow, seed=1).success
     wide = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=64,
-                        retry_max_candidates=1024)
+                        retry_max_candidates=1024, lookahead=False)
     res = beam_search(g, cons, wide, seed=1)
     assert res.success
     rep = check_path([g.clip_names[g.clip[s]] for s in res.path], [int(g.frame[s]) for s in res.path], audio, own,
                      par, FPS, 0.1)
     assert rep["met"] == rep["total"] and any(d["kind"] in ("PC", "LR") for d in rep["details"])
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_lookahead_solves_with_a_narrow_beam_what_it_misses_without(matching):
+    """search.lookahead (default): the same narrow beam, one attempt, no retries, succeeds on the window
+    where it dies without the look-ahead (it cannot see that its paths must wait for a clause start);
+    the path passes the independent checker."""
+    g, audio = hub_graph(np.random.default_rng(1))
+    own, par = input_from_clip(audio, "c1", 40)
+    narrow = SearchParams(beam_size=8, max_candidates=8, max_degree=24, retry_temperatures=[], retry_beam_size=0,
+                          matching=matching)
+    cons = build_constraints(own, par, 40, FPS, narrow)
+    if matching == "paper":
+        assert not beam_search(g, cons, dataclasses.replace(narrow, lookahead=False), seed=1).success
+    res = beam_search(g, cons, narrow, seed=1)
+    assert res.success
+    rep = check_path([g.clip_names[g.clip[s]] for s in res.path], [int(g.frame[s]) for s in res.path], audio, own,
+                     par, FPS, 0.1, matching=matching)
+    assert rep["met"] == rep["total"] and any(d["kind"] in ("PC", "LR") for d in rep["details"])
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+@pytest.mark.parametrize("seed", range(3))
+def test_lookahead_kernel_equals_reference(seed, matching):
+    """The JAX look-ahead (feasible._feasible_kernel) against the slow one (Python sets, one edge at a
+    time): the same completable (state, flags) bits at every frame, on windows copied from the database
+    and on ones shifted so that some are unsolvable."""
+    from convsynth_jax.search.beam import _prepare, lookahead
+    from convsynth_jax.search.feasible import reference_feasibility
+
+    rng = np.random.default_rng(seed)
+    g, audio = hub_graph(rng)
+    own, par = input_from_clip(audio, f"c{seed % 5}", 30)
+    if seed == 2:   # shifted by 0.3 s: the copied clause lengths no longer fit every placement
+        own = own.assign(start=own.start + 0.3, end=own.end + 0.3, peak=own.peak + 0.3)
+    cfg = SearchParams(max_degree=24, matching=matching)
+    cons = build_constraints(own, par, 30, FPS, cfg)
+    feas, ok = lookahead(g, cons, 24)
+    got = np.asarray(feas)[:30, :g.num_states]
+    ref = reference_feasibility(g, cons, 24)
+    np.testing.assert_array_equal(got, ref)
+    assert _prepare(g, 24).edges[0].shape[0] > g.num_states   # padded with the padding state
+    assert (np.asarray(_prepare(g, 24).edges[2]) < g.num_states).any()   # hub states use the wide table
+    assert not got[:-1].all()                     # the windows constrain something
+    if matching == "labels" and seed != 2:
+        assert ok                                 # the clip the input was copied from is a path

@@ -42,13 +42,20 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import ConfigError, GraphError, LabelError
-from .constraints import (Constraints, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
+from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
+from .feasible import edge_tables, feasibility
 from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
 
 FRAME_BUCKET = 16
 STATE_BUCKET = 4096  # graphs are padded to a multiple of this many states, so LOO folds share compiles
+
+
+def padded_states(num_states: int) -> int:
+    """State count of the kernels' arrays: a multiple of STATE_BUCKET with at least one padding state
+    (no edges, never a start state; the look-ahead points forbidden edges at the last one)."""
+    return num_states + 1 + (-(num_states + 1) % STATE_BUCKET)
 
 
 def padded_adjacency(graph, max_degree: int = 64):
@@ -99,6 +106,7 @@ class _Prepared(NamedTuple):
     median_syn: float        # median synthetic edge cost: the temperature's unit
     device: tuple            # (packed targets+labels, costs, degrees, state codes), padded to STATE_BUCKET
     paper_device: tuple      # (synthetic flags (S, D), segment info (S, 5)) for search.matching=paper
+    edges: tuple             # kept edges for the look-ahead (feasible.edge_tables)
 
 
 _CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)
@@ -114,15 +122,20 @@ def _prepare(graph, max_degree) -> _Prepared:
     adj, cost, syn, deg = padded_adjacency(graph, max_degree)
     code = state_codes(graph)
     packed = (adj.astype(np.int64) << CODE_BITS | code[adj]).astype(np.int32)
-    pad = -graph.num_states % STATE_BUCKET   # padding states: no edges, never a start state
+    pad = padded_states(graph.num_states) - graph.num_states   # padding states: no edges, never a start state
 
     def padrows(x, v):
         return jnp.asarray(np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]))
 
     info = segment_info(graph)
+    S_pad = padded_states(graph.num_states)
+    tables = edge_tables(np.concatenate([adj, np.zeros((pad, adj.shape[1]), adj.dtype)]),
+                         np.concatenate([syn, np.zeros((pad, syn.shape[1]), bool)]),
+                         np.concatenate([deg, np.zeros(pad, deg.dtype)]), S_pad - 1)
     prep = _Prepared(cost, syn, median_synthetic_cost(graph),
                      (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)),
-                     (padrows(syn, False), padrows(info, 0)))
+                     (padrows(syn, False), padrows(info, 0)),
+                     tuple(jnp.asarray(x) for x in tables))
     _CACHE.append((graph, max_degree, prep))
     del _CACHE[:-4]
     return prep
@@ -149,27 +162,42 @@ def _paper_step(label_x, info_x, own_y, par_y, info_y, syn, first, t, flag, own_
     return ok_o & ok_p, fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
 
 
-@partial(jax.jit, static_argnames=("beam", "M", "H", "paper"))
-def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, reqs, pw, reset, check, temp,
-                 num_frames, num_states, paper_dev, paper_arrs, beam: int, M: int, H: int, paper: bool = False):
-    """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,)).
-    ``paper``: paper_dev = (synthetic (S, D), segment info (S, 5)), paper_arrs = (own per-frame arrays
-    (7 x (Tp,)), partner per-frame arrays, (own codes, partner codes), tol); else both unused."""
-    S, D = packed.shape
-    B = beam
-    flat_packed, flat_cost = packed.reshape(-1), adj_cost.reshape(-1)
+def start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper: bool):
+    """(valid (S,), flags (S,)) of every state as the path's frame-0 state (both kernels)."""
+    S = state_code.shape[0]
     own0, par0, peak0 = unpack_code(state_code)
     valid0 = label_ok(own0, par0, tuple(r[0] for r in reqs))
     if paper:
-        flat_syn, info = paper_dev[0].reshape(-1), paper_dev[1]
         own_a, par_a, codes, tol = paper_arrs
-        ok0, flag0 = _paper_step((own0, par0), info, own0, par0, info, jnp.zeros(S, bool), jnp.ones(S, bool), 0, jnp.zeros(S, jnp.int32),
-                                 tuple(a[0] for a in own_a), tuple(a[0] for a in par_a), codes, tol)
+        ok0, flag0 = _paper_step((own0, par0), info, own0, par0, info, jnp.zeros(S, bool), jnp.ones(S, bool), 0,
+                                 jnp.zeros(S, jnp.int32), tuple(a[0] for a in own_a), tuple(a[0] for a in par_a),
+                                 codes, tol)
         valid0 &= ok0
     else:
         flag0 = pw[0] & peak0
         valid0 &= jnp.where(check[0], flag0, True)
-    valid0 &= jnp.arange(S) < num_states
+    return valid0 & (jnp.arange(S) < num_states), flag0
+
+
+@partial(jax.jit, static_argnames=("beam", "M", "H", "paper", "prune"))
+def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, reqs, pw, reset, check, temp,
+                 num_frames, num_states, paper_dev, paper_arrs, feas, beam: int, M: int, H: int, paper: bool = False,
+                 prune: bool = False):
+    """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,)).
+    ``paper``: paper_dev = (synthetic (S, D), segment info (S, 5)), paper_arrs = (own per-frame arrays
+    (7 x (Tp,)), partner per-frame arrays, (own codes, partner codes), tol); else both unused.
+    ``prune``: feas (Tp, S) uint8 is the look-ahead (feasible.py): a candidate (state, flags) at frame
+    t is kept only if bit ``flags`` of feas[t, state] is set; else feas is unused."""
+    S, D = packed.shape
+    B = beam
+    flat_packed, flat_cost = packed.reshape(-1), adj_cost.reshape(-1)
+    if paper:
+        flat_syn, info = paper_dev[0].reshape(-1), paper_dev[1]
+        own_a, par_a, codes, tol = paper_arrs
+    valid0, flag0 = start_rule(state_code, paper_dev[1] if paper else None, reqs, pw, check, paper_arrs, num_states,
+                               paper)
+    if prune:
+        valid0 &= ((feas[0] >> flag0.astype(jnp.uint8)) & 1) == 1
     top0, states0 = jax.lax.top_k(jnp.where(valid0, init_noise, -jnp.inf), B)
     alive0 = jnp.isfinite(top0)
     slots = jnp.arange(M, dtype=jnp.int32)
@@ -205,6 +233,8 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
             f_new = jnp.where(reset_t, False, flag[row]) | (pw_t & peak)
             valid &= jnp.where(check_t, f_new, True)
             key = cand * 2 + f_new.astype(jnp.int32)
+        if prune:
+            valid &= ((feas[t][cand] >> f_new.astype(jnp.uint8)) & 1) == 1
         noise = jax.lax.dynamic_slice(pool, (off_t,), (M,))
         score = jnp.where(valid, -c / temp + noise, -jnp.inf)
         # keep only the best candidate per (state, flags): same future, so the rest is redundant
@@ -240,34 +270,100 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
     return path, rank, alive_any
 
 
+def padded_inputs(c: Constraints):
+    """The per-frame constraint arrays of the kernels, padded to Tp frames (a multiple of FRAME_BUCKET):
+    (reqs, peak_window, peak_reset, peak_check, paper arrays or None). Padding frames constrain nothing."""
+    T = c.num_frames
+    Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
+
+    def padb(x, v):
+        x = np.asarray(x)
+        return np.concatenate([x, np.full((Tp - T,) + x.shape[1:], v, x.dtype)])
+
+    reqs = tuple(padb(r, -1) for r in requirement_arrays(c))
+    paper_arrs = None
+    if c.paper is not None:
+        pa = c.paper
+        # padding frames: no window, free entries, no flag check
+        own_a = tuple(padb(a, v) for a, v in zip(pa.own(), (-1, 0, 0, 0, True, False, False)))
+        par_a = tuple(padb(a, v) for a, v in zip(pa.partner(), (-1, 0, 0, 0, True, False, False)))
+        paper_arrs = (own_a, par_a, (np.int32(pa.own_codes), np.int32(pa.par_codes)), np.int32(c.tol))
+    return reqs, padb(c.peak_window, False), padb(c.peak_reset, False), padb(c.peak_check, False), paper_arrs
+
+
+@partial(jax.jit, static_argnames=("paper",))
+def _solvable(feas0, state_code, info, reqs, pw, check, paper_arrs, num_states, paper: bool):
+    valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
+    return jnp.any(valid0 & (((feas0 >> flag0.astype(jnp.uint8)) & 1) == 1))
+
+
+def lookahead(graph, constraints: Constraints, max_degree: int):
+    """(feas (Tp, S_pad) uint8 device array, solvable): the look-ahead of ``search.lookahead``
+    (:mod:`convsynth_jax.search.feasible`) over the beam's edge set (each state's ``max_degree``
+    cheapest out-edges) and whether any start state can complete the window."""
+    prep = _prepare(graph, max_degree)
+    if prep.adj_cost.shape[1] > 255:
+        raise ConfigError(f"search.lookahead counts edges in bytes: search.max_degree must be <= 255 "
+                          f"(got {max_degree})")
+    inputs = padded_inputs(constraints)
+    feas = feasibility(prep, constraints, inputs)
+    reqs, pw, _, check, paper_arrs = inputs
+    paper = constraints.paper is not None
+    ok = _solvable(feas[0], prep.device[3], prep.paper_device[1], reqs, pw, check, paper_arrs,
+                   np.int32(graph.num_states), paper=paper)
+    return feas, bool(ok)
+
+
 def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
     """Beam search at ``search.temperature``; if no path survives, retry at each of
     ``search.retry_temperatures`` (hotter sampling: more diverse, at the price of more synthetic
     transitions), then at every temperature again with ``search.retry_beam_size`` paths and
     ``search.retry_max_candidates`` slots (0: no wide retry). The result reports the time of all
-    attempts."""
+    attempts.
+
+    With ``search.lookahead`` (ours, default) candidates that cannot complete the window are dropped
+    (:func:`lookahead`), so the first attempt succeeds whenever the window is solvable (unless the
+    candidate budget drops every completable edge); an unsolvable window is reported at once, after
+    one attempt without the look-ahead that names where its paths die (no retries: they cannot
+    succeed)."""
     t0 = time.perf_counter()
+    _check_sizes(params)
     temps = [float(params.temperature)] + [float(t) for t in (params.retry_temperatures or [])]
     attempts = [(params, t) for t in temps]
     if int(params.retry_beam_size) > 0:
         wide = dataclasses.replace(params, beam_size=int(params.retry_beam_size),
                                    max_candidates=max(int(params.retry_max_candidates), int(params.max_candidates)))
         attempts += [(wide, t) for t in temps]
+    feas = None
+    if params.lookahead and constrained(constraints):
+        feas, ok = lookahead(graph, constraints, int(params.max_degree))
+        if not ok:
+            res = _beam_search_once(graph, constraints, params, seed, temps[0], None)
+            if not res.success:
+                res.failure = (f"{res.failure}; look-ahead: no path of the graph (each state's "
+                               f"{int(params.max_degree)} cheapest edges) meets every constraint of the window")
+            res.seconds = time.perf_counter() - t0
+            return res
     for k, (p, temp) in enumerate(attempts):
-        res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp)
+        res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp, feas)
         if res.success:
             break
     res.seconds = time.perf_counter() - t0
     return res
 
 
-def _beam_search_once(graph, constraints: Constraints, params: SearchParams, seed: int,
-                      temperature: float) -> SearchResult:
-    t0 = time.perf_counter()
+def _check_sizes(params: SearchParams):
     max_deg, beam, budget = int(params.max_degree), int(params.beam_size), int(params.max_candidates)
     if min(max_deg, beam, budget) < 1:
         raise ConfigError(f"search.max_degree, search.beam_size and search.max_candidates must be >= 1 "
                           f"(got {max_deg}, {beam}, {budget})")
+    return max_deg, beam, budget
+
+
+def _beam_search_once(graph, constraints: Constraints, params: SearchParams, seed: int,
+                      temperature: float, feas=None) -> SearchResult:
+    t0 = time.perf_counter()
+    max_deg, beam, budget = _check_sizes(params)
     prep = _prepare(graph, max_deg)
     dev = prep.device
     c = constraints
@@ -275,27 +371,15 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     B, M, N, H = sizes(graph.num_states, beam, prep.adj_cost.shape[1], budget, 4 if paper else 2)
     temp = max(temperature * prep.median_syn, 1e-6)
     T = c.num_frames
-    Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
+    reqs, pw, reset, check, paper_arrs = padded_inputs(c)
+    Tp = pw.shape[0]
     S_pad = dev[0].shape[0]
     init_noise, pool, offsets = noise(seed, S_pad, N, M, Tp)
-
-    def padb(x, v):
-        x = np.asarray(x)
-        return np.concatenate([x, np.full((Tp - T,) + x.shape[1:], v, x.dtype)])
-
-    reqs = tuple(padb(r, -1) for r in requirement_arrays(c))
-    if paper:
-        pa = c.paper
-        # padding frames: no window, free entries, no flag check
-        own_a = tuple(padb(a, v) for a, v in zip(pa.own(), (-1, 0, 0, 0, True, False, False)))
-        par_a = tuple(padb(a, v) for a, v in zip(pa.partner(), (-1, 0, 0, 0, True, False, False)))
-        paper_arrs = (own_a, par_a, (np.int32(pa.own_codes), np.int32(pa.par_codes)), np.int32(c.tol))
-        paper_dev = prep.paper_device
-    else:
-        paper_arrs = paper_dev = None
-    out = _beam_kernel(init_noise, pool, offsets, *dev, reqs, padb(c.peak_window, False), padb(c.peak_reset, False),
-                       padb(c.peak_check, False), np.float32(temp), np.int32(T), np.int32(graph.num_states),
-                       paper_dev, paper_arrs, beam=B, M=M, H=H, paper=paper)
+    paper_dev = prep.paper_device if paper else None
+    prune = feas is not None
+    out = _beam_kernel(init_noise, pool, offsets, *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
+                       np.int32(graph.num_states), paper_dev, paper_arrs, feas if prune else np.zeros((1, 1), np.uint8),
+                       beam=B, M=M, H=H, paper=paper, prune=prune)
     path, rank, alive_any = (np.asarray(x)[:T] for x in out)
     if not alive_any.all():
         fail = int(np.argmin(alive_any))

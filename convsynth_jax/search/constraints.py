@@ -370,3 +370,11 @@ def median_synthetic_cost(graph) -> float:
 def is_peak_state(graph) -> np.ndarray:
     """(S,) bool: the state's source frame is the F0 peak of its own PC segment."""
     return (graph.own_label == PC) & (graph.own_peak == graph.frame)
+
+
+def constrained(c: Constraints) -> bool:
+    """Does the window constrain anything (else every path completes and the look-ahead is skipped)?"""
+    free = all((np.asarray(r) < 0).all() for r in requirement_arrays(c))
+    flags = c.peak_check.any() or (c.paper is not None and (c.paper.own_check.any() or c.paper.par_check.any()
+                                                           or not c.paper.own_free.all() or not c.paper.par_free.all()))
+    return not (free and not flags)

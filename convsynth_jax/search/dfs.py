@@ -8,17 +8,20 @@ window closes; at most ``max_paths_per_start`` complete block paths are kept per
 likelier: Gumbel top-k on -cost / temperature); their end states start the next block. The best
 complete path is returned; if no path survives a block the search reports which one.
 
-With ``search.matching=paper`` each step also applies the paper's whole-segment rule (entry windows,
+With ``search.lookahead`` (ours, default) a step is taken only if the window can still be completed
+from it (:mod:`convsynth_jax.search.feasible`, the beam's look-ahead) and an unsolvable window fails
+at once. With ``search.matching=paper`` each step also applies the paper's whole-segment rule (entry windows,
 contiguity, placement; :func:`convsynth_jax.search.constraints.paper_channel_step`, the same rule
 as the beam kernel's) and a candidate carries the two entry flags instead of the peak flag.
 """
 from __future__ import annotations
 
+import dataclasses
 import time
 
 import numpy as np
 
-from .constraints import (Constraints, is_peak_state, median_synthetic_cost, paper_channel_step, segment_info,
+from .constraints import (Constraints, constrained, is_peak_state, median_synthetic_cost, paper_channel_step, segment_info,
                           state_ok_matrix)
 from .result import SearchResult, failed_segment_at, failure_reason, path_stats
 from .params import SearchParams
@@ -86,11 +89,32 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
         return SearchResult(False, None, float("inf"), 0, c.total, 0, frame, failed_segment_at(c, frame),
                             time.perf_counter() - t_begin, "dfs", failure=failure_reason(c, frame, "dfs"))
 
+    feas = None
+    if params.lookahead and constrained(c):   # ours: keep only steps that can still complete the window (search/feasible.py)
+        from .beam import lookahead
+
+        f_dev, solvable = lookahead(graph, c, max_deg)
+        if not solvable:   # the search without it names the constraint where its paths die
+            res = stochastic_greedy_search(graph, c, dataclasses.replace(params, lookahead=False), seed)
+            if not res.success:
+                res.failure += ("; look-ahead: no path of the graph (each state's "
+                                f"{max_deg} cheapest edges) meets every constraint of the window")
+            res.seconds = time.perf_counter() - t_begin
+            return res
+        feas = np.asarray(f_dev)
+
+    def completable(t, u, fl):
+        if feas is None:
+            return True
+        bits = int(fl[0]) | (int(fl[1]) << 1) if isinstance(fl, tuple) else int(fl)
+        return bool(feas[t, u] >> bits & 1)
+
     if paper is not None:
-        first = np.array([s for s in np.flatnonzero(ok[0]) if paper(0, s, s, False, (False, False), True)[0]],
-                         np.int64)
+        first = np.array([s for s in np.flatnonzero(ok[0]) if paper(0, s, s, False, (False, False), True)[0]
+                          and completable(0, s, paper(0, s, s, False, (False, False), True)[1])], np.int64)
     else:
-        first = np.flatnonzero(ok[0])
+        first = np.array([s for s in np.flatnonzero(ok[0])
+                          if completable(0, s, bool(c.peak_window[0] and peak[s]))], np.int64)
     if first.size == 0:
         return fail(0)
     starts = rng.choice(first, size=min(n_start, first.size), replace=False)
@@ -130,6 +154,8 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
                         f2 = (False if c.peak_reset[t] else fl) or bool(c.peak_window[t] and peak[u])
                         if c.peak_check[t] and not f2:
                             continue
+                    if not completable(t, u, f2):
+                        continue
                     expansions += 1
                     stack.append((u, t + 1, cst + float(w), f2, seg + [u]))
         if not found:

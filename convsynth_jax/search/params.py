@@ -27,6 +27,10 @@ class SearchParams:
     # of the right length at the right frame
     retry_beam_size: int = 2048
     retry_max_candidates: int = 16384
+    # ours: keep only candidates that can still complete the window (exact backward reachability over
+    # (state, flags), search/feasible.py): the beam then solves every solvable window at its first
+    # attempt, and an unsolvable one is known at once (no retries); the DFS prunes the same way
+    lookahead: bool = True
     n_start: int = 50             # DFS: random start states (our bound; the paper gives none)
     n_save: int = 200             # DFS: candidates kept per segment (paper: 200)
     max_paths_per_start: int = 20  # DFS: our bound

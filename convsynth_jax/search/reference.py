@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .beam import FRAME_BUCKET, STATE_BUCKET, noise, sizes
+from .beam import FRAME_BUCKET, noise, padded_states, sizes
 from .constraints import NO_PEAK, Constraints, is_peak_state, median_synthetic_cost, requirement_arrays
 from .params import SearchParams
 
@@ -67,9 +67,25 @@ def _paper_channel(c, t, frame_arrs, codes, x_seg, y_seg, synthetic, first, flag
 
 def reference_beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0,
                           temperature: float | None = None) -> ReferenceBeamResult:
-    """One attempt at ``temperature`` (default ``search.temperature``), as ``beam._beam_search_once``."""
+    """One attempt at ``temperature`` (default ``search.temperature``), as ``beam._beam_search_once``;
+    with ``search.lookahead`` as ``beam.beam_search`` does it: candidates outside the look-ahead
+    (:func:`convsynth_jax.search.feasible.reference_feasibility`) are dropped, and an unsolvable
+    window gets one attempt without it."""
     if temperature is None:
         temperature = float(params.temperature)
+    feas = None
+    if params.lookahead:
+        from .feasible import reference_feasibility
+
+        feas = reference_feasibility(graph, constraints, int(params.max_degree))
+    return _reference_once(graph, constraints, params, seed, temperature, feas)
+
+
+def _flag_bits(flag) -> int:
+    return int(flag[0]) | (int(flag[1]) << 1) if isinstance(flag, tuple) else int(flag)
+
+
+def _reference_once(graph, constraints, params, seed, temperature, feas) -> ReferenceBeamResult:
     max_deg = int(params.max_degree)
     S = graph.num_states
     # each state's edges, cheapest first (ties: CSR order), at most D of them
@@ -118,7 +134,7 @@ def reference_beam_search(graph, constraints: Constraints, params: SearchParams,
     temp = np.float32(max(temperature * median_synthetic_cost(graph), 1e-6))
     T = constraints.num_frames
     Tp = max(int(np.ceil(T / FRAME_BUCKET) * FRAME_BUCKET), FRAME_BUCKET)
-    S_pad = S + (-S % STATE_BUCKET)
+    S_pad = padded_states(S)
     init_noise, pool, offsets = (np.asarray(x) for x in noise(seed, S_pad, N, M, Tp))
     own_l, par_l = np.asarray(graph.own_label), np.asarray(graph.partner_label)
     peak = is_peak_state(graph)
@@ -136,6 +152,11 @@ def reference_beam_search(graph, constraints: Constraints, params: SearchParams,
         flag0 = [bool(c.peak_window[0] and peak[s]) for s in range(S)]
         valid0 = [s for s in range(S) if _requirement_ok(own_l[s], par_l[s], req(0))
                   and (not c.peak_check[0] or flag0[s])]
+    if feas is not None:
+        kept0 = [s for s in valid0 if feas[0, s] >> _flag_bits(flag0[s]) & 1]
+        if not kept0:   # unsolvable: the attempt without the look-ahead names where the paths die
+            return _reference_once(graph, constraints, params, seed, temperature, None)
+        valid0 = kept0
     valid0.sort(key=lambda s: (-float(init_noise[s]), s))
     # beam entries: (state, cost, flag, index of the parent entry in the previous frame's beam)
     beam = [(s, np.float32(0.0), flag0[s], -1) for s in valid0[:B]]
@@ -159,6 +180,8 @@ def reference_beam_search(graph, constraints: Constraints, params: SearchParams,
                     f = (False if c.peak_reset[t] else flag) or bool(c.peak_window[t] and peak[target])
                     ok = _requirement_ok(own_l[target], par_l[target], req(t)) and (f or not c.peak_check[t])
                 score = np.float32(np.float32(-cc) / temp) + np.float32(pool[offsets[t] + slot])
+                if ok and feas is not None:
+                    ok = bool(feas[t, target] >> _flag_bits(f) & 1)
                 if ok:
                     cands.append((float(score), slot, target, cc, f, b))
                 slot += 1

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from convsynth_jax.data.skeleton_seated import seated_skeleton
@@ -123,3 +124,63 @@ def test_a_single_transition_is_the_plain_cross_fade():
         np.testing.assert_allclose(np.abs(np.sum(m.rotations[10 + k, 1:] * want, -1)), 1.0, atol=1e-9)
     np.testing.assert_allclose(np.abs(np.sum(m.rotations[14:, 1:] * motions["b"].rotations[24:35, 1:], -1)), 1.0,
                                atol=1e-9)
+
+
+def test_quintic_decay_boundary_conditions():
+    """The inertialization offset starts at x0 with slope v0 and ends at 0 with zero slope and
+    acceleration at frame n (checked on the polynomial by finite differences of a fine grid)."""
+    from convsynth_jax.synth.realize import quintic_decay
+
+    x0, v0, n = np.array([2.0, -1.0]), np.array([0.5, 0.3]), 10
+    np.testing.assert_allclose(quintic_decay(x0, v0, n, 0), x0)
+    h = 1e-4
+    f = lambda k: quintic_decay(x0, v0, n, k)  # noqa: E731
+    np.testing.assert_allclose((f(h) - f(0)) / h, v0, atol=1e-3)
+    np.testing.assert_allclose(f(n - h), 0.0, atol=1e-9)
+    np.testing.assert_allclose((f(n - h) - f(n - 2 * h)) / h, 0.0, atol=1e-6)
+    np.testing.assert_allclose(f(n), 0.0)
+
+
+def test_inertialize_keeps_value_and_velocity_and_ends_on_the_source():
+    """blend_method=inertialize: at a transition the displayed height and joint rotation continue the
+    previous stream's last value and velocity (no step, no velocity jump), and from blend_frames
+    after the transition the output is the new source exactly; a second transition one frame later
+    composes (no step larger than the first one's)."""
+    skel = seated_skeleton()
+    J = skel.num_joints
+    n = 50
+
+    def moving(name, rate, h0):
+        t = np.arange(n)
+        rot = np.zeros((n, J, 4))
+        rot[:, 1:] = Rotation.from_rotvec(np.c_[rate * t, 0 * t, 0 * t]).as_quat()[:, None, [3, 0, 1, 2]]
+        rot[:, 0] = [1, 0, 0, 0]
+        trans = np.broadcast_to(skel.offsets, (n, J, 3)).copy()
+        trans[:, 0, 1] = h0 + 0.5 * rate * 10 * t
+        return Motion(skel, rot, trans, 30.0, name)
+
+    motions = {"a": moving("a", 0.02, 90.0), "b": moving("b", -0.03, 80.0), "c": moving("c", 0.0, 100.0)}
+    clips, frames = ["a"] * 20 + ["b"] * 25, list(range(20)) + list(range(10, 35))
+    m = realize(clips, frames, motions, [20], blend_frames=8, blend_method="inertialize")
+    h = m.translations[:, 0, 1]
+    # the value and velocity carried over: frame 20 extrapolates frames 18-19 of a
+    assert h[20] == pytest.approx(2 * h[19] - h[18], abs=1e-9)
+    ang = _angle(m.rotations[1:, 1], m.rotations[:-1, 1])
+    assert ang[19] == pytest.approx(0.02, abs=1e-9)  # the step into frame 20 is a's own step
+    np.testing.assert_allclose(h[28:], [motions["b"].translations[f, 0, 1] for f in frames[28:]], atol=1e-9)
+    np.testing.assert_allclose(np.abs(np.sum(m.rotations[28:, 1:] * motions["b"].rotations[18:35, 1:], -1)), 1.0,
+                               atol=1e-9)
+    # back to back: a -> b at 20, b -> c at 21; no height step bigger than the largest source step
+    clips2, frames2 = ["a"] * 20 + ["b"] + ["c"] * 24, list(range(20)) + [10] + list(range(10, 34))
+    m2 = realize(clips2, frames2, motions, [20, 21], blend_frames=8, blend_method="inertialize")
+    steps = np.abs(np.diff(m2.translations[:, 0, 1]))
+    assert steps.max() <= 3.0, steps.max()  # the raw cut jumps 10-20 cm; the sources step 0.1-0.15 cm
+
+
+def test_unknown_blend_method_is_a_config_error():
+    from convsynth_jax.errors import ConfigError
+
+    skel = seated_skeleton()
+    m = _still_clip(skel, "a", (0, 0, 0), 90.0, 0.0)
+    with pytest.raises(ConfigError, match="blend_method"):
+        realize(["a"] * 5, list(range(5)), {"a": m}, [2], blend_frames=3, blend_method="spline")

@@ -9,3 +9,8 @@ class SynthParams:
     # cosine blend length after a synthetic transition (the paper gives none; ours: 12 frames = 0.4 s at
     # 30 fps; on leave-one-out fold 0 the largest seam_ratio was 1.87 with 6 frames, 0.84 with 12)
     blend_frames: int = 12
+    # how a synthetic transition is smoothed: "cosine" (the paper, Section 7.1: the previous clip's
+    # continuation cross-faded into the new source with cosine weights, slerp) or "inertialize"
+    # (ours: the offset between the displayed stream and the new source, in value and velocity,
+    # decayed to zero by a quintic over blend_frames frames; realize.inertialized_blend)
+    blend_method: str = "cosine"

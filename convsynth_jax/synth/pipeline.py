@@ -64,7 +64,7 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     syn_at = res.synthetic_at or []
     chair, yaw = CHAIRS.get(chair_index, CHAIRS[0])
     motion = realize(clips, frames, clip_motions, syn_at, chair=chair, chair_yaw_deg=yaw,
-                     blend_frames=int(synth.blend_frames))
+                     blend_frames=int(synth.blend_frames), blend_method=str(synth.blend_method))
     rng = np.random.default_rng(seed)
     peaks = [] if own_segments is None else own_segments.loc[own_segments["kind"] == "PC", "peak"].to_numpy()
     bt = blink_times(peaks, num_frames / fps, rng)

@@ -19,6 +19,7 @@ import numpy as np
 
 from ..rotations import (quat_conjugate_np, quat_multiply_np, quat_slerp_np, rotate_about_y_np, yaw_angle_np,
                          yaw_to_quat_np)
+from ..errors import ConfigError
 from ..skeleton import Motion
 
 
@@ -62,10 +63,82 @@ def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_f
     return out
 
 
+def _quat_log(q: np.ndarray) -> np.ndarray:
+    """Rotation vector (..., 3) of unit quaternions (..., 4) (w, x, y, z), the shorter way round."""
+    q = np.where(q[..., :1] < 0, -q, q)
+    v = q[..., 1:]
+    s = np.linalg.norm(v, axis=-1, keepdims=True)
+    ang = 2.0 * np.arctan2(s, q[..., :1])
+    return np.where(s > 1e-12, v * ang / np.maximum(s, 1e-300), 2.0 * v)
+
+
+def _quat_exp(r: np.ndarray) -> np.ndarray:
+    """Unit quaternion (..., 4) of rotation vectors (..., 3)."""
+    ang = np.linalg.norm(r, axis=-1, keepdims=True)
+    half = 0.5 * ang
+    k = np.where(ang > 1e-12, np.sin(half) / np.maximum(ang, 1e-300), 0.5)
+    return np.concatenate([np.cos(half), r * k], axis=-1)
+
+
+def quintic_decay(x0, v0, n: int, k):
+    """Offset at frame k (0 = the transition's frame) of an inertialization (Bollo 2016, ours here):
+    a quintic that starts at ``x0`` with slope ``v0`` (per frame) and the acceleration that keeps
+    its jerk low, and reaches 0 with zero slope and acceleration at frame ``n``; 0 from ``n`` on."""
+    x0, v0 = np.asarray(x0, np.float64), np.asarray(v0, np.float64)
+    if k >= n:
+        return np.zeros_like(x0)
+    t1 = float(n)
+    a0 = -(8.0 * v0 * t1 + 20.0 * x0) / t1 ** 2
+    A = -(a0 * t1 ** 2 + 6.0 * v0 * t1 + 12.0 * x0) / (2.0 * t1 ** 5)
+    B = (3.0 * a0 * t1 ** 2 + 16.0 * v0 * t1 + 30.0 * x0) / (2.0 * t1 ** 4)
+    C = -(3.0 * a0 * t1 ** 2 + 12.0 * v0 * t1 + 20.0 * x0) / (2.0 * t1 ** 3)
+    t = float(k)
+    return (((A * t + B) * t + C) * t + 0.5 * a0) * t * t + v0 * t + x0
+
+
+def inertialized_blend(source: np.ndarray, next_of, synthetic_at, blend_frames: int, rotations: bool
+                       ) -> np.ndarray:
+    """Inertialization across synthetic transitions (ours; option ``synth.blend_method=inertialize``).
+
+    At a transition arriving at t the displayed stream is extrapolated one and two frames on with its
+    own last velocity (out[t-1] - out[t-2]); the offsets from the new source at t and t + 1 give the
+    offset's value and slope, which a quintic (``quintic_decay``) takes to zero over ``blend_frames``
+    frames. The new source plays on top of the decaying offset, so no old clip is cross-faded in and
+    the new source's own motion is never damped. A transition inside an ongoing decay starts from the
+    displayed pose and velocity, so back-to-back transitions compose. Rotations offset on the left
+    as rotation vectors. next_of(t) -> value of the new source one frame after output frame t's."""
+    out = np.array(source, dtype=np.float64, copy=True)
+    T = out.shape[0]
+    syn = sorted({int(x) for x in synthetic_at if 0 < int(x) < T})
+    if blend_frames <= 0 or not syn:
+        return out
+    raw = np.array(source, dtype=np.float64, copy=True)
+    for i, t in enumerate(syn):
+        stop = syn[i + 1] if i + 1 < len(syn) else T
+        prev = out[t - 1]
+        prev2 = out[t - 2] if t >= 2 else out[t - 1]
+        s0, s1 = raw[t], next_of(t)
+        if rotations:
+            step = quat_multiply_np(prev, quat_conjugate_np(prev2))          # last displayed rotation step
+            e1 = quat_multiply_np(step, prev)
+            e2 = quat_multiply_np(step, e1)
+            o0 = _quat_log(quat_multiply_np(e1, quat_conjugate_np(s0)))
+            o1 = _quat_log(quat_multiply_np(e2, quat_conjugate_np(s1)))
+        else:
+            v = prev - prev2
+            o0, o1 = (prev + v) - s0, (prev + 2 * v) - s1
+        x0, v0 = o0, o1 - o0
+        for u in range(t, min(stop, T)):
+            o = quintic_decay(x0, v0, blend_frames, u - t)
+            out[u] = quat_multiply_np(_quat_exp(o), raw[u]) if rotations else raw[u] + o
+    return out
+
+
 def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0, 0.0, 0.0), chair_yaw_deg=0.0,
-            blend_frames: int = 6) -> Motion:
+            blend_frames: int = 6, blend_method: str = "cosine") -> Motion:
     """source_clips/source_frames: (T,) clip name and frame per output frame; motions: clip name ->
-    Motion; synthetic_at: output frames t whose transition (t-1 -> t) is synthetic."""
+    Motion; synthetic_at: output frames t whose transition (t-1 -> t) is synthetic; blend_method:
+    ``cosine`` (the paper's cross-fade, composed) or ``inertialize`` (ours)."""
     T = len(source_frames)
     m0 = motions[source_clips[0]]
     skel, fps = m0.skeleton, m0.fps
@@ -76,13 +149,29 @@ def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0
         c = source_clips[t - 1]
         return c, int(source_frames[t - 1]), motions[c].num_frames
 
-    # joints below the root, the root's tilt and its height: cross-faded after synthetic transitions
-    rot[:, 1:] = composed_blend(rot[:, 1:], lambda c, f: np.asarray(motions[c].rotations[f, 1:], np.float64),
-                                prev_of, synthetic_at, blend_frames, rotations=True)
-    tilt = composed_blend(_tilt(rot[:, 0]), lambda c, f: _tilt(np.asarray(motions[c].rotations[f, 0], np.float64)),
-                          prev_of, synthetic_at, blend_frames, rotations=True)
-    height = composed_blend(trans[:, 0, 1], lambda c, f: float(motions[c].translations[f, 0, 1]), prev_of,
-                            synthetic_at, blend_frames, rotations=False)
+    def get_rot(c, f):
+        return np.asarray(motions[c].rotations[f, 1:], np.float64)
+
+    def get_tilt(c, f):
+        return _tilt(np.asarray(motions[c].rotations[f, 0], np.float64))
+
+    def get_h(c, f):
+        return float(motions[c].translations[f, 0, 1])
+
+    if blend_method == "cosine":
+        # joints below the root, the root's tilt and its height: cross-faded after synthetic transitions
+        rot[:, 1:] = composed_blend(rot[:, 1:], get_rot, prev_of, synthetic_at, blend_frames, rotations=True)
+        tilt = composed_blend(_tilt(rot[:, 0]), get_tilt, prev_of, synthetic_at, blend_frames, rotations=True)
+        height = composed_blend(trans[:, 0, 1], get_h, prev_of, synthetic_at, blend_frames, rotations=False)
+    elif blend_method == "inertialize":
+        def next_of(get):  # the new source one frame after output frame t's (its velocity at t)
+            return lambda t: get(source_clips[t], min(int(source_frames[t]) + 1, motions[source_clips[t]].num_frames - 1))
+
+        rot[:, 1:] = inertialized_blend(rot[:, 1:], next_of(get_rot), synthetic_at, blend_frames, rotations=True)
+        tilt = inertialized_blend(_tilt(rot[:, 0]), next_of(get_tilt), synthetic_at, blend_frames, rotations=True)
+        height = inertialized_blend(trans[:, 0, 1], next_of(get_h), synthetic_at, blend_frames, rotations=False)
+    else:
+        raise ConfigError(f"synth.blend_method must be 'cosine' or 'inertialize', got {blend_method!r}")
     # root: per-source-frame local velocity and yaw rate
     q0, q1, d = np.zeros((T, 4)), np.zeros((T, 4)), np.zeros((T, 3))
     for t, (c, f) in enumerate(zip(source_clips, source_frames)):

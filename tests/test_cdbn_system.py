@@ -42,8 +42,25 @@ def system(cfg, **options):
     return make_system(cfg, SystemParams(**spec))
 
 
-def test_fit_and_synthesize_a_window(annotated):
+def _talking_window(held, n):
+    """The n-frame window (30-frame steps) with the most phonemic-clause frames of the held-out
+    character: the features need voiced frames, and a listening window is reported by the system as a
+    failure, not synthesized; where one lies depends on the tiny corpus's seed."""
+    from convsynth_jax.annotate.types import PC
     from convsynth_jax.io.audio import Audio, load_audio
+
+    fps = held.motion.fps
+    start = max(range(0, held.own.num_frames - n, 30), key=lambda s: int(np.sum(held.own.label[s:s + n] == PC)))
+    aud = load_audio(held.audio_path, channel=held.audio_channel)
+    a0 = round(start / fps * aud.sample_rate)
+    return start, WindowInput(held.session, held.role, held.character, start, n, fps, held.segments, held.partner_segments,
+                              own_frames=held.own.label[start:start + n], partner_frames=held.partner.label[start:start + n],
+                              own_audio=Audio(aud.samples[a0:a0 + round(n / fps * aud.sample_rate)], aud.sample_rate),
+                              seed=1)
+
+
+def test_fit_and_synthesize_a_window(annotated):
+
 
     cfg, ann = annotated
     condition = "cdbn"
@@ -56,18 +73,8 @@ def test_fit_and_synthesize_a_window(annotated):
     assert model.constrained
     assert model.trained.model.num_constraints == 4
     assert (model.trained.model.transitions == 0).any()          # sparse per-constraint transitions
-    from convsynth_jax.annotate.types import PC
-
-    # a window in which the held-out character talks (the features need voiced frames; a listening
-    # window is reported by the system as a failure, not synthesized; the tiny corpus seed decides where)
     fps, n = held.motion.fps, 300
-    start = max(range(0, held.own.num_frames - n, 30), key=lambda s: int(np.sum(held.own.label[s:s + n] == PC)))
-    aud = load_audio(held.audio_path, channel=held.audio_channel)
-    a0 = round(start / fps * aud.sample_rate)
-    window = WindowInput(held.session, held.role, held.character, start, n, fps, held.segments, held.partner_segments,
-                         own_frames=held.own.label[start:start + n], partner_frames=held.partner.label[start:start + n],
-                         own_audio=Audio(aud.samples[a0:a0 + round(n / fps * aud.sample_rate)], aud.sample_rate),
-                         seed=1)
+    start, window = _talking_window(held, n)
     res = sysm.synthesize(model, window, condition)
     assert res.success, res.failure
     mo = res.motion
@@ -109,7 +116,7 @@ def test_hand_stream_moves_the_arms(annotated):
     """cdbn.stream=hands (ours): the hand model of the paper (10-D arm/forearm angles) in system=cdbn."""
     from convsynth_jax.cdbn.hands import arm_angles
     from convsynth_jax.cdbn.params import FeatureParams
-    from convsynth_jax.io.audio import Audio, load_audio
+
 
     cfg, ann = annotated
     sysm = system(cfg, stream="hands")
@@ -119,18 +126,8 @@ def test_hand_stream_moves_the_arms(annotated):
     held = ann[sessions[-1]]["main-agent"]
     model = sysm.fit(train, train[0].character, "cdbn")
     assert len(model.trained.model.motion_dims) == 10 and model.trained.model.num_constraints == 4
-    from convsynth_jax.annotate.types import PC
-
-    # a window in which the held-out character talks (the features need voiced frames; a listening
-    # window is reported by the system as a failure, not synthesized; the tiny corpus seed decides where)
-    fps, n = held.motion.fps, 300
-    start = max(range(0, held.own.num_frames - n, 30), key=lambda s: int(np.sum(held.own.label[s:s + n] == PC)))
-    aud = load_audio(held.audio_path, channel=held.audio_channel)
-    a0 = round(start / fps * aud.sample_rate)
-    window = WindowInput(held.session, held.role, held.character, start, n, fps, held.segments, held.partner_segments,
-                         own_frames=held.own.label[start:start + n], partner_frames=held.partner.label[start:start + n],
-                         own_audio=Audio(aud.samples[a0:a0 + round(n / fps * aud.sample_rate)], aud.sample_rate),
-                         seed=1)
+    n = 300
+    start, window = _talking_window(held, n)
     res = sysm.synthesize(model, window, "cdbn")
     assert res.success, res.failure
     mo = res.motion

@@ -91,9 +91,9 @@ def test_keypoint_smoothing_keeps_key_frames_and_slerps_between():
 def test_bandai_hand_turns_pair_real_motion_with_real_speech():
     from convsynth_jax.cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns
 
-    wav = Path(__file__).resolve().parent.parent.parent / "shared" / "data" / "speech" / "acoustic_corpus.wav"
-    if not wav.is_file():
-        pytest.skip("needs ../shared/data/speech")
+    from conftest import shared_path
+
+    wav = shared_path("speech", "acoustic_corpus.wav")
     turns, rig = bandai_hand_turns(BANDAI.parent, wav, FeatureParams())
     assert len(turns) >= 2 and rig.joints
     for t in turns:

@@ -68,12 +68,10 @@ def test_synthesize_real_speech_with_constraints(corpus_args, tmp_path, speech_d
 def test_eval_with_the_hand_model_on_real_bandai_clips(corpus_args, tmp_path):
     """cdbn.eval.hands: the hand model (Table V analogue) on real Bandai2 raise/wave clips with real speech."""
     import shutil
-    from pathlib import Path
 
-    shared = Path(__file__).resolve().parent.parent.parent / "shared" / "data"
-    src, wav = shared / "bandai2" / "bvh", shared / "speech" / "acoustic_corpus.wav"
-    if not (src.is_dir() and wav.is_file()):
-        pytest.skip("needs ../shared/data/bandai2 and speech")
+    from conftest import shared_path
+
+    src, wav = shared_path("bandai2", "bvh"), shared_path("speech", "acoustic_corpus.wav")
     clips = tmp_path / "bvh"
     clips.mkdir()
     for kind in ("raise-up-right-hand", "wave-right-hand"):

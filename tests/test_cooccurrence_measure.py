@@ -64,6 +64,13 @@ def test_wilson_interval_against_the_formula():
     assert all(np.isnan(wilson_interval(0, 0)))
 
 
+def test_wilson_interval_ends_are_exact():
+    # statsmodels gives 5.6e-17 for the lower bound of 0/10: a report then prints "5.6e-17", not 0.
+    assert wilson_interval(0, 10)[0] == 0.0 and wilson_interval(0, 87)[0] == 0.0
+    assert wilson_interval(10, 10)[1] == 1.0 and wilson_interval(87, 87)[1] == 1.0
+    assert 0.0 < wilson_interval(1, 10)[0] < wilson_interval(1, 10)[1] < 1.0
+
+
 def test_paired_rate_test():
     a = np.array([1.0, 1.0, 0.5, 1.0, 1.0, 1.0, 0.5, 1.0, 1.0, 1.0])
     b = np.array([0.0, 0.5, 0.0, 0.0, 0.5, 0.0, 0.0, 0.0, 0.5, 0.5])

@@ -94,7 +94,10 @@ def permutation_test(a: np.ndarray, b: np.ndarray, n_permutations: int = 5000, s
 
 def wilson_interval(matched, total, confidence: float = 0.95) -> tuple[float, float]:
     """Wilson score interval of the proportion matched/total at ``confidence`` (statsmodels
-    ``proportion_confint(method="wilson")``); (nan, nan) when total is 0 or not a number."""
+    ``proportion_confint(method="wilson")``); (nan, nan) when total is 0 or not a number.
+
+    The bounds at the ends are exact: the Wilson interval's lower bound is 0 when nothing matched
+    and its upper bound 1 when everything did (statsmodels returns round-off such as 5.6e-17)."""
     from statsmodels.stats.proportion import proportion_confint
 
     if total is None or not np.isfinite(total) or total <= 0 or matched is None or not np.isfinite(matched):
@@ -102,6 +105,10 @@ def wilson_interval(matched, total, confidence: float = 0.95) -> tuple[float, fl
     if matched < 0 or matched > total:
         raise CountError("need 0 <= matched <= total", where=f"matched={matched}, total={total}")
     lo, hi = proportion_confint(int(matched), int(total), alpha=1.0 - confidence, method="wilson")
+    if int(matched) == 0:
+        lo = 0.0
+    if int(matched) == int(total):
+        hi = 1.0
     return float(lo), float(hi)
 
 

@@ -135,6 +135,33 @@ def test_playback_provenance_excludes_the_held_out_session(tiny):
     assert len(res.source_frame) == 450
 
 
+def test_playback_blends_as_the_synth_parameters_say(tiny):
+    # random_playback used to realize with the cosine blend whatever synth.blend_method said
+    from convsynth_jax.evaluation.loo import fit_fold, session_windows, window_input
+    from convsynth_jax.systems.base import make_system
+    from convsynth_jax.synth.pipeline import CHAIRS
+    from convsynth_jax.synth.realize import realize
+
+    p, ann, _ = tiny
+    p = dataclasses.replace(p, system=default_params(["system=random_playback"]).system,
+                            synth=dataclasses.replace(p.synth, blend_method="inertialize"))
+    system = make_system(p, p.system)
+    held = list(ann)[1]
+    models = fit_fold(system, ann, held, "none")
+    w = session_windows(ann[held], 30.0, 15.0, 14.0)[0]
+    role = list(ann[held])[0]
+    model = models[ann[held][role].character]
+    res = system.synthesize(model, window_input(ann[held], role, w, 30.0, 5), "none")
+    assert res.synthetic_at, "the window needs a jump for the blend to matter"
+    chair, yaw = CHAIRS[0]
+    args = (list(res.source_clip), list(res.source_frame), model.motions, list(res.synthetic_at))
+    kw = dict(chair=chair, chair_yaw_deg=yaw, blend_frames=int(p.synth.blend_frames))
+    want = realize(*args, **kw, blend_method="inertialize")
+    cosine = realize(*args, **kw, blend_method="cosine")
+    np.testing.assert_allclose(np.asarray(res.motion.rotations), np.asarray(want.rotations), atol=1e-6)
+    assert np.abs(np.asarray(cosine.rotations) - np.asarray(want.rotations)).max() > 1e-4
+
+
 def test_leave_one_out_needs_two_sessions(tiny):
     from convsynth_jax.evaluation.loo import run_fold
     from convsynth_jax.systems.base import make_system

@@ -2,8 +2,8 @@
 training motion, ignoring the audio.
 
 The window is filled with excerpts of ``min_excerpt_seconds``-``max_excerpt_seconds`` from random
-training clips and positions, concatenated and realized like a motion-graph path (cosine blends at
-each jump, root integrated from the chair), so it differs from the motion graph only in how source
+training clips and positions, concatenated and realized like a motion-graph path (blends at each jump
+as ``synth.blend_method`` says, root integrated from the chair), so it differs from the motion graph only in how source
 frames are chosen. It reports no constraints (0 of 0).
 """
 from __future__ import annotations
@@ -58,6 +58,7 @@ class RandomPlaybackSystem(SynthesisSystem):
             frames += list(range(start, start + length))
         chair, yaw = CHAIRS.get(window.chair_index, CHAIRS[0])
         motion = realize(clips, frames, model.motions, jumps, chair=chair, chair_yaw_deg=yaw,
-                         blend_frames=int(self.params.synth.blend_frames))
+                         blend_frames=int(self.params.synth.blend_frames),
+                         blend_method=str(self.params.synth.blend_method))
         return WindowResult(True, motion, time.perf_counter() - t0, 0, 0, None, clips, np.asarray(frames),
                             {"num_synthetic_transitions": len(jumps)}, jumps)

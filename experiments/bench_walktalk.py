@@ -12,7 +12,8 @@ Reported (goals from issue #12, never asserted):
   * the elbow-tracking study: every walk and run clip as a loop (24 + 52), every 6th single-peak
     gesture, naive / stylized / stylized+synced: per gait, the correlation over loops of the
     stroke's elbow bend with the loop's, per gesture, plain and partial given the loop's spread
-    (evaluate.elbow_partial_corr says why), for the default bounce order and the old one;
+    (evaluate.elbow_partial_corr says why), for the default, the old bounce order, the paper's band
+    alone and our within-gait option (splice.band_std=gait_min + splice.joint_limit_mode=soft);
   * optionally (--synthesized-dir, the output folder of task=synthesize) the demo with its
     gestures cut from that synthesized conversation.
 Joint-limit violations are printed in both readings (evaluate.limit_violations: frames with any

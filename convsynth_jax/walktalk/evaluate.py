@@ -420,7 +420,8 @@ def elbow_partial_corr(d: pd.DataFrame) -> tuple[list[float], list[float]]:
     of one ("normal") style whose mean bends spread by 1.6-1.7 deg per arm (std) while their
     spreads vary by 1.0-1.4 deg (x 3), and across the 52 runs mean and spread anti-correlate (-0.6
     to -0.8), so corr(mean,
-    mean + 2.45 std) is ~0.6 (walk) and ~0.3 (run) however exactly B_D is applied. Holding the
+    mean + 2.45 std) is ~0.6 (walk) and ~0.3 (run) however exactly B_D is applied, as long as each
+    loop's band is its own (``splice.band_std=gait_min``, ours, removes the spread term). Holding the
     spread fixed isolates the base-pose transfer the acceptance asks about. Constant stroke bends
     (naive) count as 0."""
     corr, slope = [], []

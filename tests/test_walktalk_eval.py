@@ -84,6 +84,15 @@ def test_walktalk_eval_on_fixtures(tmp_path):
                  "walktalk_contact_sheet.png", "summary.json"):
         assert (tmp_path / name).stat().st_size > 0
     assert summary["splices"] == 12
+    # both joint-limit readings, per gait x method, against the per-splice rows
+    readings = {(r["gait"], r["method"]): r for r in summary["joint_limit_readings"]}
+    assert set(readings) == {(g, m) for g in ("walk", "jog") for m in ("naive", "stylized", "stylized+synced")}
+    for (gait, method), r in readings.items():
+        d = df[(df["gait"] == gait) & (df["method"] == method)]
+        assert r["per_frame"]["value"] == pytest.approx(d["joint_limit_violation_frac"].mean())
+        assert r["per_cell"]["value"] == pytest.approx(d["limit_cell_frac"].mean())
+        assert r["met_per_frame"] == (r["per_frame"]["le_naive"] and r["per_frame"]["value"] < 0.01)
+    assert summary["limit_table_clips"] == {"walk": 1, "jog": 1, "gesture": 2}
 
 
 def test_spliced_lower_body_equals_locomotion_on_real_fixture():

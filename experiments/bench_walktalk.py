@@ -12,7 +12,8 @@ Reported (goals from issue #12, never asserted):
   * the elbow-tracking study: every walk and run clip as a loop (24 + 52), every 6th single-peak
     gesture, naive / stylized / stylized+synced: per gait, the correlation over loops of the
     stroke's elbow bend with the loop's, per gesture, plain and partial given the loop's spread
-    (evaluate.elbow_partial_corr says why), for the default bounce order and the old one;
+    (evaluate.elbow_partial_corr says why), for the default, the old bounce order, the paper's band
+    alone and our within-gait option (splice.band_std=gait_min + splice.joint_limit_mode=soft);
   * optionally (--synthesized-dir, the output folder of task=synthesize) the demo with its
     gestures cut from that synthesized conversation.
 Joint-limit violations are printed in both readings (evaluate.limit_violations: frames with any
@@ -23,6 +24,7 @@ Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results
 
     python experiments/bench_walktalk.py [--quick] [--skip-ablation] [--skip-elbow] [--synthesized-dir DIR]
     python experiments/bench_walktalk.py --elbow-diagnosis   # why the within-gait elbow figure is low
+    python experiments/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
 """
 from __future__ import annotations
 
@@ -73,7 +75,8 @@ def bench_eval(data_dir: Path) -> dict:
         wall = time.perf_counter() - t0
     return {"eval_s": wall, "eval_load_s": s["load_seconds"], "eval_splice_metrics_s": s["eval_seconds"],
             "eval_splices": s["splices"], "eval_gestures": s["gestures"], "per_gait_method": s["per_gait_method"],
-            "limits_in_sample_violation": s["limits_in_sample_violation"], "loop_contact_frac": s["loop_contact_frac"]}
+            "limits_in_sample_violation": s["limits_in_sample_violation"], "loop_contact_frac": s["loop_contact_frac"],
+            "joint_limit_readings": s["joint_limit_readings"], "limit_table_clips": s["limit_table_clips"]}
 
 
 def bench_demo(data_dir: Path, synthesized_dir: str | None = None) -> dict:
@@ -109,7 +112,9 @@ def bench_ablation(data_dir: Path) -> list[dict]:
     lib.gestures = lib.gestures[::5]
     variants = [(f"c={c}", {"c": c}) for c in (1.0, 1.5, 2.0, 3.0, 5.0)]
     variants += [("c=3.0 paper band (respect_joint_limits=false)", {"respect_joint_limits": False}),
-                 ("c=3.0 bounce_fit=rescale", {"bounce_fit": "rescale"})]
+                 ("c=3.0 bounce_fit=rescale", {"bounce_fit": "rescale"}),
+                 ("c=3.0 joint_limit_mode=soft", {"joint_limit_mode": "soft"}),
+                 ("c=3.0 band_std=gait_min + joint_limit_mode=soft", {"band_std": "gait_min", "joint_limit_mode": "soft"})]
     for name, kw in variants:
         p = dataclasses.replace(base, splice=dataclasses.replace(base.splice, **kw))
         df = run_evaluation(lib, p, EvalParams(methods=("naive", "stylized+synced")))
@@ -123,6 +128,8 @@ def bench_ablation(data_dir: Path) -> list[dict]:
                              "loop_limit_cell_frac_mean": r["loop_limit_cell_frac_mean"],
                              "max_jerk_ratio_median": r["max_jerk_ratio_median"],
                              "jerk_ratio_le_2_rate": r["jerk_ratio_le_2_rate"],
+                             "dof_within_csigma_rate": r["dof_within_csigma_rate"],
+                             "peak_in_contact_rate": r["peak_in_contact_rate"],
                              "elbow_corr_per_gesture_mean": r["elbow_corr_per_gesture_mean"]})
     return rows
 
@@ -145,6 +152,10 @@ def bench_elbow(data_dir: Path) -> dict:
     paper = dataclasses.replace(p, splice=dataclasses.replace(p.splice, respect_joint_limits=False))
     df = elbow_tracking(lib, paper, gestures=lib.gestures[::6], methods=("stylized", "stylized+synced"))
     out["paper_band"] = elbow_tracking_summary(df)
+    # our option for within-gait tracking: the gait's narrowest band, soft range-of-motion limit
+    opt = dataclasses.replace(p, splice=dataclasses.replace(p.splice, band_std="gait_min", joint_limit_mode="soft"))
+    df = elbow_tracking(lib, opt, gestures=lib.gestures[::6], methods=("stylized", "stylized+synced"))
+    out["gait_min_soft"] = elbow_tracking_summary(df)
     return out
 
 
@@ -167,54 +178,87 @@ def loop_spread(lib) -> dict:
     return out
 
 
-def elbow_diagnosis(data_dir: Path) -> dict:
-    """Why the within-gait elbow correlation is low: the same loops and gestures as bench_elbow,
-    stylization variants from B_D alone (c huge, no range-of-motion cut) to the default, and three
-    ways to measure the loop's elbow bend (its mean over the loop, the bend of its mean pose B_L,
-    the loop over the stroke's own frames). Per gait and variant: the plain per-gesture correlation
-    with each loop measure, and the partial one given the loop's bend spread."""
+def elbow_variants(sp) -> dict:
+    """Stylization variants of the elbow study, {name: (SpliceParams, method)}: from B_D alone (c
+    huge, no range-of-motion cut) through the paper's band and the default to our options (soft
+    range-of-motion limit, the gait's narrowest band)."""
+    rep = dataclasses.replace
+    return {
+        "B_D alone (c=1e6, no cut)": (rep(sp, c=1e6, respect_joint_limits=False), "stylized"),
+        "paper band c=3 (no cut)": (rep(sp, respect_joint_limits=False), "stylized"),
+        "c=3 + range-of-motion cut": (sp, "stylized"),
+        "+ bounce, bounce_fit=rescale (old)": (rep(sp, bounce_fit="rescale"), "stylized+synced"),
+        "+ bounce, bounce_fit=reserve (default)": (sp, "stylized+synced"),
+        "soft range of motion (joint_limit_mode=soft), synced": (rep(sp, joint_limit_mode="soft"), "stylized+synced"),
+        "band_std=gait_min, synced": (rep(sp, band_std="gait_min"), "stylized+synced"),
+        "band_std=gait_min + soft range of motion, synced": (rep(sp, band_std="gait_min", joint_limit_mode="soft"),
+                                                              "stylized+synced"),
+    }
+
+
+def elbow_diagnosis(data_dir: Path, every: int = 6, variants: dict | None = None) -> dict:
+    """Why the within-gait elbow correlation is low, and what raises it: every walk and run clip as
+    a loop, every ``every``-th single-peak gesture, the stylization variants of
+    :func:`elbow_variants` through the library's study (evaluate.elbow_tracking), with three ways to
+    measure the loop's elbow bend (its mean over the loop, the bend of its mean pose B_L, the loop
+    over the stroke's own frames). Per gait and variant: the plain per-gesture correlation with each
+    loop measure, and the partial one given the loop's bend spread with its slope."""
     import numpy as np
-    import pandas as pd
+
+    from convsynth_jax.walktalk.evaluate import (
+        _per_gesture_corr,
+        elbow_partial_corr,
+        elbow_tracking,
+        load_library,
+    )
+    from convsynth_jax.walktalk.params import WalkTalkParams
+
+    p = WalkTalkParams()
+    t0 = time.perf_counter()
+    lib = load_library(p, data_dir, 10_000, single_peak_only=True)
+    variants = elbow_variants(p.splice) if variants is None else variants
+    df = elbow_tracking(lib, p, gestures=lib.gestures[::every], variants=variants, loop_measures=True)
+    out = []
+    for (gait, name), d in df.groupby(["gait", "method"], sort=False):
+        rec = {"gait": gait, "variant": name, "loops": len(lib.loops[gait]), "gestures": int(d["gesture"].nunique())}
+        for meas, col in (("mean", "loop_bend"), ("pose", "loop_pose_bend"), ("phase", "loop_phase_bend")):
+            dd = d.rename(columns={"bend": "elbow_bend_deg", col: "loop_elbow_bend_deg"})
+            rec[f"plain_vs_loop_{meas}"] = float(np.mean(_per_gesture_corr(dd)))
+        dd = d.rename(columns={"bend": "elbow_bend_deg", "loop_bend": "loop_elbow_bend_deg",
+                               "loop_bend_sd": "loop_elbow_bend_sd_deg"})
+        pc, sl = elbow_partial_corr(dd)
+        rec.update({"partial_given_sd": float(np.mean(pc)), "slope_median": float(np.median(sl))})
+        out.append(rec)
+    return {"per_gait_variant": out, "loops_spread": loop_spread(lib), "seconds": time.perf_counter() - t0}
+
+
+def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
+    """Where the per-frame joint-limit reading (evaluate.limit_violations) fails: every
+    ``every``-th single-peak gesture x the evaluation's loops, naive and stylized+synced, per gait:
+    the share of t_Pb..t_Re frames failing, split by cause (a gesturing-arm DOF, the gesturing
+    hand in the torso, the idle hand in the torso) and by phase (preparation incl. the pad,
+    stroke+holds, retraction incl. the pad), beside the loop alone over the same frames; and the
+    rate for the stroke frames alone, where the splice writes the gesture only."""
+    import numpy as np
 
     from convsynth_jax.walktalk.body import joint_positions
     from convsynth_jax.walktalk.evaluate import (
-        _per_gesture_corr,
+        EvalParams,
+        _segment_distance,
         dof_limits,
-        elbow_bend,
-        elbow_partial_corr,
-        lc_bend,
+        limit_violations,
         load_library,
     )
     from convsynth_jax.walktalk.locomotion import tile_contact, tile_loop
     from convsynth_jax.walktalk.params import WalkTalkParams
-    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
-    from convsynth_jax.walktalk.splice import euler_to_joint_quats
+    from convsynth_jax.walktalk.pipeline import splice_gesture
 
-    p = WalkTalkParams()
-    lib = load_library(p, data_dir, 10_000, single_peak_only=True)
+    p, ep = WalkTalkParams(), EvalParams()
+    lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
+    limits = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
-    sp = p.splice
-    variants = {
-        "B_D alone (c=1e6, no cut)": (dataclasses.replace(sp, c=1e6, respect_joint_limits=False), "stylized"),
-        "paper band c=3 (no cut)": (dataclasses.replace(sp, respect_joint_limits=False), "stylized"),
-        "c=3 + range-of-motion cut": (sp, "stylized"),
-        "+ bounce, bounce_fit=rescale (old)": (dataclasses.replace(sp, bounce_fit="rescale"), "stylized+synced"),
-        "+ bounce, bounce_fit=reserve (default)": (sp, "stylized+synced"),
-    }
-    body = lib.body
-    tmpl = lib.gestures[0].gesture.motion
-    sk = tmpl.skeleton
-
-    def bend_of_pose(euler_elbow, j):   # geometric bend of one elbow pose (3,) radians
-        from convsynth_jax.walktalk.body import quat_to_matrix_np
-
-        q = euler_to_joint_quats(euler_elbow[None, None], tmpl, (j,))[0, 0]
-        hand = [k for k in range(sk.num_joints) if sk.parents[k] == j][0]
-        u, v = sk.offsets[j], quat_to_matrix_np(q) @ sk.offsets[hand]
-        return float(np.degrees(np.arccos(np.clip(u @ v / np.linalg.norm(u) / np.linalg.norm(v), -1, 1))))
-
-    rows = []
-    for gc in lib.gestures[::6]:
+    acc: dict = {}
+    for gc in lib.gestures[::every]:
         g = gc.gesture
         for gait, lcs in lib.loops.items():
             for lc in lcs:
@@ -223,33 +267,46 @@ def elbow_diagnosis(data_dir: Path) -> dict:
                 u = (n + 20 + g.phases.peaks[0]) / p.fps + p.splice.lead_s
                 loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
                 lpos = joint_positions(loco)
-                for name, (vp, method) in variants.items():
-                    r = splice_gesture(lc, gc, u, T, vp, METHODS[method], loco=loco, contact=contact, limits=rom)
-                    st = slice(r.phases.sb, r.phases.se + 1)
-                    pos = joint_positions(r.motion.slice(r.phases.sb, r.phases.se + 1))
-                    vals = {k: [] for k in ("bend", "mean", "pose", "phase", "sd")}
-                    for s in g.sides:
-                        je = body.joints[f"elbow_{s}"]
-                        vals["bend"].append(elbow_bend(pos, body, s).mean())
-                        vals["mean"].append(lc_bend(lc, s))
-                        vals["sd"].append(lc_bend(lc, s, sd=True))
-                        vals["pose"].append(bend_of_pose(lc.stats.mean[lc.joints.index(je)], je))
-                        vals["phase"].append(elbow_bend(lpos[st], body, s).mean())
-                    rows.append({"gesture": g.name, "gait": gait, "variant": name,
-                                 **{k: float(np.mean(v)) for k, v in vals.items()}})
-    df = pd.DataFrame(rows)
+                for method in ("naive", "stylized+synced"):
+                    r = splice_gesture(lc, gc, u, T, p.splice, method, loco=loco, contact=contact, limits=rom)
+                    ph = r.phases
+                    fr = np.arange(ph.pb, ph.re + 1)
+                    phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
+                    for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
+                        dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, ep.torso_radius_cm)
+                        tg = np.zeros(len(fr), bool)
+                        ti = np.zeros(len(fr), bool)
+                        for s in ("l", "r"):
+                            dist = _segment_distance(pos[fr, lib.body.joints[f"hand_{s}"]], pos[fr, lib.body.joints["hips"]],
+                                                     pos[fr, lib.body.joints["neck"]])
+                            if s in g.sides:
+                                tg |= dist < ep.torso_radius_cm
+                            else:
+                                ti |= dist < ep.torso_radius_cm
+                        key = (gait, method, who)
+                        d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
+                                                 **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
+                                                 **{f"{q}_any": 0 for q in ("prep", "stroke", "retraction")}})
+                        bad = dof | tg | ti
+                        d["frames"] += len(fr)
+                        d["any"] += int(bad.sum())
+                        d["dof"] += int(dof.sum())
+                        d["torso_gesturing"] += int(tg.sum())
+                        d["torso_idle"] += int(ti.sum())
+                        for q in ("prep", "stroke", "retraction"):
+                            d[f"{q}_frames"] += int((phase == q).sum())
+                            d[f"{q}_any"] += int((bad & (phase == q)).sum())
     out = []
-    for (gait, name), d in df.groupby(["gait", "variant"], sort=False):
-        rec = {"gait": gait, "variant": name, "loops": len(lib.loops[gait]), "gestures": int(d["gesture"].nunique())}
-        for meas in ("mean", "pose", "phase"):
-            dd = d.rename(columns={"bend": "elbow_bend_deg", meas: "loop_elbow_bend_deg", "sd": "loop_elbow_bend_sd_deg"})
-            rec[f"plain_vs_loop_{meas}"] = float(np.mean(_per_gesture_corr(dd)))
-        dd = d.rename(columns={"bend": "elbow_bend_deg", "mean": "loop_elbow_bend_deg", "sd": "loop_elbow_bend_sd_deg"})
-        pc, sl = elbow_partial_corr(dd)
-        rec.update({"partial_given_sd": float(np.mean(pc)), "slope_median": float(np.median(sl))})
+    for (gait, method, who), d in acc.items():
+        rec = {"gait": gait, "method": method, "motion": who, "frames": d["frames"]}
+        for k in ("any", "dof", "torso_gesturing", "torso_idle"):
+            rec[f"{k}_frac"] = d[k] / d["frames"]
+        for q in ("prep", "stroke", "retraction"):
+            rec[f"{q}_share_of_frames"] = d[f"{q}_frames"] / d["frames"]
+            rec[f"{q}_frac"] = d[f"{q}_any"] / max(d[f"{q}_frames"], 1)
         out.append(rec)
-    spread = loop_spread(lib)
-    return {"per_gait_variant": out, "loops_spread": spread}
+    return {"per_gait_method": out, "gestures": len(lib.gestures[::every]),
+            "limit_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)}}
 
 
 def main():
@@ -262,6 +319,8 @@ def main():
     ap.add_argument("--out", default="bench_walktalk.json", help="file name under experiments/results/")
     ap.add_argument("--elbow-diagnosis", action="store_true", help="only the elbow-tracking diagnosis "
                     "(writes experiments/results/bench_walktalk_elbow_diagnosis.json)")
+    ap.add_argument("--limits-breakdown", action="store_true", help="only where the per-frame joint-limit "
+                    "reading fails (writes experiments/results/bench_walktalk_limits_breakdown.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -273,6 +332,15 @@ def main():
     result = {"machine": {"platform": platform.platform(), "python": platform.python_version(),
                           "jax": jax.__version__, "devices": [str(d) for d in jax.devices()]},
               "data_dir": str(data_dir), "goals": GOALS}
+    if a.limits_breakdown:
+        result.update(limits_breakdown(data_dir))
+        result["load_average"] = list(os.getloadavg())
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(RESULTS / "bench_walktalk_limits_breakdown.json", result)
+        for r in result["per_gait_method"]:
+            print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
+        print(result["limit_clips"], result["load_average"])
+        return
     if a.elbow_diagnosis:
         result.update(elbow_diagnosis(data_dir))
         result["load_average"] = list(os.getloadavg())
@@ -298,7 +366,7 @@ def main():
     print(json.dumps({k: v for k, v in result.items() if k not in ("per_gait_method", "ablation_c", "elbow_tracking")},
                      indent=2, default=float))
     print_table(result)
-    for key in ("per_gait_method", "bounce_fit_rescale", "paper_band"):
+    for key in ("per_gait_method", "bounce_fit_rescale", "paper_band", "gait_min_soft"):
         for r in result.get("elbow_tracking", {}).get(key, []):
             print(key, {k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
     if "ablation_c" in result:
@@ -324,6 +392,11 @@ def print_table(result: dict) -> None:
               f"({pct(r['loop_hand_in_torso_gesturing_frac_mean'])}) | {r['max_jerk_ratio_median']:.2f} "
               f"({r['max_jerk_ratio_max']:.2f}) | {r['foot_slide_cm_max']:.2f} | "
               f"{r['elbow_corr_per_gesture_mean']:.2f} / {r['elbow_partial_corr_per_gesture_mean']:.2f} |")
+    for r in result.get("joint_limit_readings", []):
+        f, c = r["per_frame"], r["per_cell"]
+        print(f"joint limits {r['gait']} {r['method']}: per frame {pct(f['value'])} (loop alone {pct(f['loop_alone'])}, "
+              f"naive {pct(f['naive'])}) met={r['met_per_frame']}; per cell {pct(c['value'])} + hand in torso "
+              f"{pct(c['hand_in_torso'])} (naive {pct(c['naive'])} + {pct(c['hand_in_torso_naive'])}) met={r['met_per_cell']}")
     for r in result.get("elbow_tracking", {}).get("per_gait_method", []):
         print(f"elbow, all loops: {r['gait']} {r['method']} ({r['loops']} loops, {r['gestures']} gestures): plain "
               f"{r['elbow_corr_per_gesture_mean']:.3f} (median {r['elbow_corr_per_gesture_median']:.3f}), partial "

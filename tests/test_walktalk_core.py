@@ -464,3 +464,127 @@ def test_bounce_reserve_stays_in_band_without_rescaling_the_gesture(loop):
     assert gains[3.0] == pytest.approx(1.0)          # room enough: R' = R + k dH exactly
     assert 0.0 < gains[0.3] < 1.0                    # a band narrower than the bounce: scaled to fit
     assert np.ptp(loop.root_height) * np.radians(k) > 0.3 * 2 * lc.stats.std[idx][elbow, dof]
+
+
+def test_soft_joint_limit_planted():
+    """joint_limit_mode=soft (ours): the band side is a smooth, strictly growing function of the
+    paper's c sigma that never passes the range of motion and never exceeds the hard cut. Planted:
+    room 1.0 rad, width 0.1: a band far inside keeps its size (within 0.1 * log(1 + e^-9)), a band
+    at the limit is cut by 0.1 * log 2, one far past it tends to the limit; two bands past the
+    limit that the hard cut makes equal stay ordered (the stroke still follows the loop)."""
+    from convsynth_jax.walktalk.splice import JointLimits, LoopStats, soft_cap, stylize_bands
+
+    band = np.array([0.1, 1.0, 1.5, 3.0, 10.0])
+    got = soft_cap(band, 1.0, 0.1)
+    np.testing.assert_allclose(got[0], 0.1 - 0.1 * np.log1p(np.exp(-9.0)), atol=1e-6)
+    np.testing.assert_allclose(got[1], 1.0 - 0.1 * np.log(2.0))
+    np.testing.assert_allclose(got[-1], 1.0, atol=1e-12)
+    assert np.all(got <= np.minimum(band, 1.0)) and np.all(np.diff(got) > 0)
+    assert got[3] < got[4] and np.minimum(band, 1.0)[3] == np.minimum(band, 1.0)[4]
+    assert soft_cap(0.0, 0.05, 0.1) == 0.0   # floored at 0, never a negative band
+    # through stylize_bands: B_L 2, std 1, c 3 (paper 3 each side), limits ref 2, lo -1.5, hi 10
+    stats = LoopStats(np.full((1, 3), 2.0), np.ones((1, 3)))
+    lim = JointLimits((7,), np.full((1, 3), 2.0), np.full((1, 3), -1.5), np.full((1, 3), 10.0))
+    hard = stylize_bands(stats, 3.0, lim, (7,))
+    soft = stylize_bands(stats, 3.0, lim, (7,), mode="soft", softness_deg=np.degrees(0.1))
+    np.testing.assert_allclose(hard[0], 1.5)
+    np.testing.assert_allclose(soft[0], soft_cap(3.0, 1.5, 0.1))
+    np.testing.assert_allclose(soft[1], soft_cap(3.0, 10.0, 0.1))
+    with pytest.raises(WalkTalkError, match="joint_limit_mode"):
+        SpliceParams(joint_limit_mode="clip")
+    with pytest.raises(WalkTalkError, match="softness"):
+        SpliceParams(joint_limit_softness_deg=0.0)
+    with pytest.raises(WalkTalkError, match="band_std"):
+        SpliceParams(band_std="gait")
+
+
+def test_gait_min_band_moves_the_stroke_by_the_base_pose_only():
+    """band_std=gait_min (ours). Planted: two jog loops, elbows at 60 and 70 deg mean, swinging
+    +-10 and +-5 deg. With the paper's band (each loop's own std) the raised arm's stroke lands on
+    B_L + c sigma_L of its loop, so the elbow's excursion past B_L differs by the ratio of the
+    stds (2x); with the gait's smallest std both loops get the same excursion and the stroke
+    differs by B_L's difference alone, still within each loop's own +- c sigma."""
+    from convsynth_jax.walktalk.pipeline import share_gait_band
+
+    loops = [extract_loop(synthetic_jog(periods=3.5, elbow_mean_deg=m, elbow_amp_deg=a)[0], GaitParams())
+             for m, a in ((60.0, 10.0), (70.0, 5.0))]
+    body = find_body(loops[0].motion.skeleton)
+    lcs = share_gait_band([loop_context(lp, body) for lp in loops])
+    np.testing.assert_allclose(lcs[0].gait_min_std, np.minimum(lcs[0].stats.std, lcs[1].stats.std))
+    gc = gesture_context(make_gesture(synthetic_gesture(), GaitParams(), PhaseParams()), body)
+    idx = [lcs[0].joints.index(j) for j in gc.joints]
+    elbow = gc.joints.index(body.joints["elbow_r"])
+    dof = lcs[0].elbow_dof["r"]
+    # the planted gesture lifts the upper arm only: give its forearm a flexion the band must rescale
+    ge = gc.euler.copy()
+    prof = np.sin(np.linspace(0, np.pi, len(ge))) ** 2
+    ge[:, elbow, dof] = gc.rest[elbow, dof] + np.radians(80.0) * prof
+    gc = dataclasses.replace(gc, euler=ge)
+    exc = {}
+    for band in ("loop", "gait_min"):
+        p = SpliceParams(band_std=band)
+        for i, lc in enumerate(lcs):
+            r = splice_gesture(lc, gc, 3.0, 200, p, "stylized")
+            dev = r.styled_euler[:, elbow, dof] - lc.stats.mean[idx][elbow, dof]
+            exc[band, i] = float(np.max(np.abs(dev)))
+            assert np.all(np.abs(r.styled_euler - lc.stats.mean[idx]) <= 3.0 * lc.stats.std[idx] + 1e-5)
+    sd = [lc.stats.std[idx][elbow, dof] for lc in lcs]
+    assert sd[0] > 1.5 * sd[1]
+    np.testing.assert_allclose(exc["loop", 0] / exc["loop", 1], sd[0] / sd[1], rtol=1e-4)
+    np.testing.assert_allclose(exc["gait_min", 0], exc["gait_min", 1], rtol=1e-4)
+    np.testing.assert_allclose(exc["gait_min", 0], 3.0 * sd[1], rtol=1e-4)
+    # a loop alone (no gait set shared) keeps its own band
+    solo = loop_context(loops[0], body)
+    r = splice_gesture(solo, gc, 3.0, 200, SpliceParams(band_std="gait_min"), "stylized")
+    np.testing.assert_allclose(np.max(np.abs(r.styled_euler[:, elbow, dof] - solo.stats.mean[idx][elbow, dof])),
+                               3.0 * sd[0], rtol=1e-4)
+
+
+def test_splice_arrays_window_equals_full_timeline_kernel():
+    """splice_arrays runs the kernel only over the frames where w > 0 (speed, ours): bit for bit
+    the kernel over the whole timeline, including the frames outside (the locomotion in float32);
+    no frame with w > 0 also works (the locomotion)."""
+    from convsynth_jax.walktalk.splice import splice_kernel
+
+    rng = np.random.default_rng(7)
+    T, J = 90, 5
+    lq = Rotation.random(T * J, random_state=8).as_quat().reshape(T, J, 4)
+    gq = Rotation.random(T * J, random_state=9).as_quat().reshape(T, J, 4)
+    w = np.zeros(T)
+    w[30:61] = rng.uniform(0.01, 1, 31)
+    w[40:50] = 1.0
+    arm = np.array([True, False, True, True, False])
+    full = np.asarray(splice_kernel(lq.astype(np.float32), gq.astype(np.float32), w.astype(np.float32), arm))
+    np.testing.assert_array_equal(splice_arrays(lq, gq, w, arm), full)
+    np.testing.assert_array_equal(splice_arrays(lq, gq, np.zeros(T), arm), lq.astype(np.float32))
+
+
+def _seam_slide_ref(motion, n_loop, p, body, pos, window=5):
+    """The obvious loop (the former seam_foot_slide) the vectorized one is checked against."""
+    from convsynth_jax.walktalk.locomotion import _horizontal_speed, foot_down
+
+    worst = 0.0
+    for side in ("l", "r"):
+        for key in (f"foot_{side}", f"toes_{side}"):
+            x = pos[:, body.joints[key]]
+            down = foot_down(x[:, 1], _horizontal_speed(x, motion.fps), p)
+            for s in range(n_loop, motion.num_frames, n_loop):
+                for t in range(max(1, s - window), min(motion.num_frames, s + window + 1)):
+                    if down[t - 1] and down[t]:
+                        worst = max(worst, float(np.linalg.norm(x[t, [0, 2]] - x[t - 1, [0, 2]])))
+    return worst
+
+
+def test_seam_foot_slide_vectorized_vs_loop(jog):
+    from convsynth_jax.walktalk.locomotion import seam_foot_slide
+
+    m = jog[0]
+    body = find_body(m.skeleton)
+    pos = joint_positions(m)
+    rng = np.random.default_rng(1)
+    for n_loop in (7, 20, 31, 200):
+        noisy = pos + rng.normal(0, 0.3, pos.shape)   # slides of different sizes near every seam
+        for window in (1, 5):
+            assert seam_foot_slide(m, n_loop, GaitParams(), body, noisy, window) == pytest.approx(
+                _seam_slide_ref(m, n_loop, GaitParams(), body, noisy, window), abs=1e-12)
+    assert seam_foot_slide(m, 10_000, GaitParams(), body, pos) == 0.0

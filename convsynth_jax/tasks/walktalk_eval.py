@@ -16,6 +16,7 @@ from ..walktalk.evaluate import (
     EvalParams,
     dof_limits,
     in_sample_violations,
+    limit_readings,
     load_library,
     resolve_data_dir,
     run_evaluation,
@@ -57,6 +58,10 @@ def run(cfg, out_dir: Path) -> dict:
             "loops": {g: [f"{Path(lc.loop.source).name}[{lc.loop.start}:{lc.loop.start + lc.loop.num_frames}]"
                           for lc in v] for g, v in lib.loops.items()},
             "skipped_clips": lib.skipped, "splices": len(df), "per_gait_method": summary,
+            # the joint-limit acceptance in both readings (evaluate.limit_readings), with the limit
+            # table's clips per kind (walks, runs, gestures, limits-only walk-turns)
+            "joint_limit_readings": limit_readings(summary),
+            "limit_table_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)},
             "limits_in_sample_violation": in_sample_violations(lib, scored),
             "loop_contact_frac": {g: float(np.mean([lc.loop.contact.mean() for lc in v])) for g, v in lib.loops.items() if v},
             "load_seconds": t1 - t0, "eval_seconds": t2 - t1, "figures": figures}

@@ -31,6 +31,7 @@ from .pipeline import (
     LoopContext,
     gesture_context,
     loop_context,
+    share_gait_band,
     splice_gesture,
 )
 from .splice import JointLimits, joint_euler, joint_limits
@@ -89,7 +90,9 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
                  single_peak_only: bool = False) -> Library:
     """Loops (``loops_per_gait`` per gait, files spread over the sorted list; clips with too few
     cycles are skipped and reported) and gestures (all matching clips, phases detected, the CSV
-    override applied)."""
+    override applied). ``source_euler`` (the joint-limit table's input) holds the arm DOFs of every
+    walk, run and gesture clip found, multi-peak gestures included, plus the ``limit_globs`` clips
+    (walk-turns); with ``max_gestures`` only the gestures loaded."""
     data_dir = Path(data_dir)
     body, ref, loops, skipped, source, kinds = None, None, {}, [], [], []
     for gait, pattern in (("walk", p.walk_glob), ("jog", p.jog_glob)):
@@ -113,7 +116,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
                 skipped.append(str(e))
                 continue
             got.append(loop_context(lp, body))
-        loops[gait] = got
+        loops[gait] = share_gait_band(got)   # used only with splice.band_std=gait_min
     gfiles = sorted({f for g in p.gesture_globs for f in data_dir.glob(g)})
     if max_gestures is not None and not single_peak_only:
         gfiles = _spread(gfiles, max_gestures)   # a sample across gesture kinds
@@ -132,6 +135,13 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
         gestures.append(gesture_context(g, body, round(p.splice.transition_pad_s * p.fps)))
         if max_gestures is not None and len(gestures) >= max_gestures:
             break
+    # clips for the joint-limit table only (walk-turns): "per-DOF percentiles over all clips"
+    seen = {f for pattern in (p.walk_glob, p.jog_glob) for f in data_dir.glob(pattern)} | set(gfiles)
+    for f in sorted({f for g in p.limit_globs for f in data_dir.glob(g)} - seen):
+        m = load_bvh(f, fps=p.fps)
+        check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
+        source.append(joint_euler(m, _arm_joints(body)))
+        kinds.append("limits only")
     return Library(body, loops, gestures, skipped, source, kinds)
 
 
@@ -197,14 +207,17 @@ def loop_source_jerk(lc: LoopContext, sides) -> float:
     return float(wrist_jerk(joint_positions(m), lc.body, sides, m.fps).max())
 
 
-def limit_violations(m, pos, ph, joints, body: Body, limits: JointLimits, torso_radius_cm: float):
+def limit_violations(m, pos, ph, joints, body: Body, limits: JointLimits, torso_radius_cm: float, euler=None):
     """Per frame t_Pb..t_Re of ``m`` (positions ``pos``): (DOF of ``joints`` outside its limits,
     a hand inside the torso), two (n,) bool arrays. The *frame* reading of the joint-limit metric
     (the acceptance as first written): a frame violates if any of the arm(s)' 12-24 DOFs is out,
     or either hand (the idle one too) is inside the torso. See :func:`limit_cells` for why it
-    cannot mean "< 1% of frames"."""
+    cannot mean "< 1% of frames". ``euler``: the DOFs of ``joints`` over t_Pb..t_Re when already
+    computed (:func:`joint_euler` of that slice)."""
     frames = np.arange(ph.pb, ph.re + 1)
-    dof_bad = np.any(limits.violations(joint_euler(m.slice(ph.pb, ph.re + 1), joints), joints), axis=(1, 2))
+    if euler is None:
+        euler = joint_euler(m.slice(ph.pb, ph.re + 1), joints)
+    dof_bad = np.any(limits.violations(euler, joints), axis=(1, 2))
     torso_bad = np.zeros(len(frames), bool)
     for s in ("l", "r"):
         dist = _segment_distance(pos[frames, body.joints[f"hand_{s}"]], pos[frames, body.joints["hips"]],
@@ -213,7 +226,7 @@ def limit_violations(m, pos, ph, joints, body: Body, limits: JointLimits, torso_
     return dof_bad, torso_bad
 
 
-def limit_cells(m, pos, ph, joints, sides, body: Body, limits: JointLimits, torso_radius_cm: float):
+def limit_cells(m, pos, ph, joints, sides, body: Body, limits: JointLimits, torso_radius_cm: float, euler=None):
     """The *cell* reading of the joint-limit metric (ours, the one the "< 1%" goal can mean):
     (DOF cells of ``joints`` outside their limits, (n, A, 3) bool; gesturing hand(s) ``sides``
     inside the torso, (n,) bool) over the frames the splice changes, t_Pb < t < t_Re (where the
@@ -230,11 +243,16 @@ def limit_cells(m, pos, ph, joints, sides, body: Body, limits: JointLimits, tors
     and "< 1%" reads as "no more out-of-range than the recorded motion". Only the DOFs the splice
     writes (the gesturing arm(s); lower body, torso and the idle arm are the loop's, bit for bit)
     and the frames it blends are counted, and only the gesturing hands for the torso test (the idle
-    hand of a jog loop crosses the 12 cm torso cylinder on ~2% of frames by itself)."""
+    hand of a jog loop crosses the 12 cm torso cylinder on ~2% of frames by itself). ``euler``: as
+    :func:`limit_violations` (t_Pb..t_Re; the inner frames are taken from it)."""
     frames = np.arange(ph.pb + 1, ph.re)
     if len(frames) == 0:
         return np.zeros((0, len(joints), 3), bool), np.zeros(0, bool)
-    cells = limits.violations(joint_euler(m.slice(frames[0], frames[-1] + 1), joints), joints)
+    if euler is None:
+        e = joint_euler(m.slice(frames[0], frames[-1] + 1), joints)
+    else:
+        e = euler[1:-1]
+    cells = limits.violations(e, joints)
     torso = np.zeros(len(frames), bool)
     for s in sides:
         dist = _segment_distance(pos[frames, body.joints[f"hand_{s}"]], pos[frames, body.joints["hips"]],
@@ -259,16 +277,19 @@ def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits
         lo, hi = max(0, b - 2 * JERK_WINDOW), min(len(jerk), b + JERK_WINDOW + 1)
         if hi > lo:
             near.append(jerk[lo:hi].max())
-    dof_bad, torso_bad = limit_violations(m, pos, ph, gc.joints, body, limits, ep.torso_radius_cm)
-    cells, torso_g = limit_cells(m, pos, ph, gc.joints, g.sides, body, limits, ep.torso_radius_cm)
+    eu = joint_euler(m.slice(ph.pb, ph.re + 1), gc.joints)   # one conversion for both readings
+    dof_bad, torso_bad = limit_violations(m, pos, ph, gc.joints, body, limits, ep.torso_radius_cm, eu)
+    cells, torso_g = limit_cells(m, pos, ph, gc.joints, g.sides, body, limits, ep.torso_radius_cm, eu)
     key = (ph.pb, ph.re)
     if loop_cache is None or key not in loop_cache:
         # FK of the loop over t_Pb..t_Re only (same for the methods that place the gesture alike)
         seg = loco.slice(ph.pb, ph.re + 1)
         seg_ph = ph.shifted(-ph.pb)
         seg_pos = joint_positions(seg)
-        ld, lt = limit_violations(seg, seg_pos, seg_ph, gc.joints, body, limits, ep.torso_radius_cm)
-        lc_cells, lc_torso = limit_cells(seg, seg_pos, seg_ph, gc.joints, g.sides, body, limits, ep.torso_radius_cm)
+        seg_eu = joint_euler(seg, gc.joints)
+        ld, lt = limit_violations(seg, seg_pos, seg_ph, gc.joints, body, limits, ep.torso_radius_cm, seg_eu)
+        lc_cells, lc_torso = limit_cells(seg, seg_pos, seg_ph, gc.joints, g.sides, body, limits, ep.torso_radius_cm,
+                                         seg_eu)
         if loop_cache is None:
             loop_cache = {}
         loop_cache[key] = (ld | lt, lc_cells, lc_torso)
@@ -399,7 +420,8 @@ def elbow_partial_corr(d: pd.DataFrame) -> tuple[list[float], list[float]]:
     of one ("normal") style whose mean bends spread by 1.6-1.7 deg per arm (std) while their
     spreads vary by 1.0-1.4 deg (x 3), and across the 52 runs mean and spread anti-correlate (-0.6
     to -0.8), so corr(mean,
-    mean + 2.45 std) is ~0.6 (walk) and ~0.3 (run) however exactly B_D is applied. Holding the
+    mean + 2.45 std) is ~0.6 (walk) and ~0.3 (run) however exactly B_D is applied, as long as each
+    loop's band is its own (``splice.band_std=gait_min``, ours, removes the spread term). Holding the
     spread fixed isolates the base-pose transfer the acceptance asks about. Constant stroke bends
     (naive) count as 0."""
     corr, slope = [], []
@@ -476,13 +498,22 @@ def summarize(df: pd.DataFrame) -> list[dict]:
 
 
 def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("naive", "stylized", "stylized+synced"),
-                   limits: JointLimits | None = None) -> pd.DataFrame:
+                   limits: JointLimits | None = None, variants: dict | None = None,
+                   loop_measures: bool = False) -> pd.DataFrame:
     """The elbow-bend study alone (no other metric), for many loops per gait: one row per gesture x
     loop x method with the mean elbow bend of the gesturing arm(s) over the stroke (``bend``) and of
-    the loop (``loop_bend``), degrees. The correlation over the loops of one gait, per gesture, is
-    the paper's claim that the stroke's elbow follows the locomotion's (Sec. 4.1, Fig. 6); with
-    three loops per gait that correlation is mostly noise, hence this lighter pass over all loops."""
+    the loop (``loop_bend``; ``loop_bend_sd`` its std over the loop), degrees. The correlation over
+    the loops of one gait, per gesture, is the paper's claim that the stroke's elbow follows the
+    locomotion's (Sec. 4.1, Fig. 6); with three loops per gait that correlation is mostly noise,
+    hence this lighter pass over all loops.
+
+    ``variants``: {name: (SpliceParams, method name)} replaces ``methods`` (column ``method`` holds
+    the variant's name), for ablations on the same loops and gestures. ``loop_measures`` adds two
+    other measures of the loop's bend: ``loop_pose_bend`` (the bend of the mean pose B_L) and
+    ``loop_phase_bend`` (the loop's own bend over the stroke's frames)."""
     limits = dof_limits(lib, p.splice.joint_limit_percentiles) if limits is None else limits
+    if variants is None:
+        variants = {name: (p.splice, name) for name in methods}
     rows = []
     for gc in (lib.gestures if gestures is None else gestures):
         g = gc.gesture
@@ -492,15 +523,38 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
                 T = g.motion.num_frames + 2 * n + 40
                 u = (n + 20 + g.phases.peaks[0]) / p.fps + p.splice.lead_s
                 loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
-                for name in methods:
-                    r = splice_gesture(lc, gc, u, T, p.splice, METHODS[name], loco=loco, contact=contact, limits=limits)
-                    pos = joint_positions(r.motion.slice(r.phases.sb, r.phases.se + 1))
-                    rows.append({"gesture": Path(g.name).stem, "gait": gait, "loop": Path(lc.loop.source).stem,
-                                 "method": name,
-                                 "bend": float(np.mean([elbow_bend(pos, lib.body, s).mean() for s in g.sides])),
-                                 "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides])),
-                                 "loop_bend_sd": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides]))})
+                lpos = joint_positions(loco) if loop_measures else None
+                base = {"gesture": Path(g.name).stem, "gait": gait, "loop": Path(lc.loop.source).stem,
+                        "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides])),
+                        "loop_bend_sd": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides]))}
+                if loop_measures:
+                    base["loop_pose_bend"] = float(np.mean([pose_bend(lc, s) for s in g.sides]))
+                for name, (sp, method) in variants.items():
+                    r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=limits)
+                    st = slice(r.phases.sb, r.phases.se + 1)
+                    pos = joint_positions(r.motion.slice(st.start, st.stop))
+                    row = {**base, "method": name,
+                           "bend": float(np.mean([elbow_bend(pos, lib.body, s).mean() for s in g.sides]))}
+                    if loop_measures:
+                        row["loop_phase_bend"] = float(np.mean([elbow_bend(lpos[st], lib.body, s).mean()
+                                                                for s in g.sides]))
+                    rows.append(row)
     return pd.DataFrame(rows)
+
+
+def pose_bend(lc: LoopContext, side: str) -> float:
+    """Elbow bend (degrees) of the loop's mean arm pose B_L (the forearm's mean Euler angles applied
+    to the skeleton's rest offsets), one of the loop measures of :func:`elbow_tracking`."""
+    from .body import quat_to_matrix_np
+    from .splice import euler_to_joint_quats
+
+    m = lc.loop.motion
+    sk = m.skeleton
+    j = lc.body.joints[f"elbow_{side}"]
+    q = euler_to_joint_quats(lc.stats.mean[lc.joints.index(j)][None, None], m, (j,))[0, 0]
+    child = [k for k in range(sk.num_joints) if sk.parents[k] == j][0]   # the forearm's first child
+    u, v = sk.offsets[j], quat_to_matrix_np(q) @ sk.offsets[child]
+    return float(np.degrees(np.arccos(np.clip(u @ v / np.linalg.norm(u) / np.linalg.norm(v), -1, 1))))
 
 
 def elbow_tracking_summary(df: pd.DataFrame) -> list[dict]:
@@ -514,4 +568,35 @@ def elbow_tracking_summary(df: pd.DataFrame) -> list[dict]:
                               "loop_bend_sd": "loop_elbow_bend_sd_deg"})
         out.append({"gait": gait, "method": method, "loops": int(d["loop"].nunique()),
                     "gestures": int(d["gesture"].nunique()), **_elbow_summary(d)})
+    return out
+
+
+def limit_readings(summary: list[dict]) -> list[dict]:
+    """The joint-limit acceptance ("<= naive and < 1%") in its two readings, per gait and method,
+    from :func:`summarize`'s rows: ``per_frame`` (:func:`limit_violations`: a frame t_Pb..t_Re of
+    the splice fails if a DOF of the gesturing arm(s) is out or either hand is inside the torso)
+    and ``per_cell`` (:func:`limit_cells`: DOF x frame cells of the gesturing arm(s) over the
+    blended frames, and the gesturing hand(s) inside the torso, each counted apart). Each gives the
+    splice's value, the loop alone over the same frames and joints, naive's value, and whether
+    ``<= naive`` and ``< 1%`` hold."""
+    naive = {r["gait"]: r for r in summary if r["method"] == "naive"}
+    out = []
+    for r in summary:
+        if r["gait"] == "all":
+            continue
+        nv = naive.get(r["gait"], r)
+        frame = {"value": r["violation_frac_mean"], "loop_alone": r["loop_violation_frac_mean"],
+                 "naive": nv["violation_frac_mean"]}
+        frame["le_naive"] = frame["value"] <= frame["naive"] + 1e-12
+        frame["lt_1pct"] = frame["value"] < 0.01
+        cell = {"value": r["limit_cell_frac_mean"], "loop_alone": r["loop_limit_cell_frac_mean"],
+                "naive": nv["limit_cell_frac_mean"], "hand_in_torso": r["hand_in_torso_gesturing_frac_mean"],
+                "hand_in_torso_loop_alone": r["loop_hand_in_torso_gesturing_frac_mean"],
+                "hand_in_torso_naive": nv["hand_in_torso_gesturing_frac_mean"]}
+        cell["le_naive"] = (cell["value"] <= cell["naive"] + 1e-12
+                            and cell["hand_in_torso"] <= cell["hand_in_torso_naive"] + 1e-12)
+        cell["lt_1pct"] = cell["value"] < 0.01 and cell["hand_in_torso"] < 0.01
+        out.append({"gait": r["gait"], "method": r["method"], "per_frame": frame, "per_cell": cell,
+                    "met_per_frame": frame["le_naive"] and frame["lt_1pct"],
+                    "met_per_cell": cell["le_naive"] and cell["lt_1pct"]})
     return out

@@ -223,14 +223,19 @@ def seam_foot_slide(motion: Motion, n_loop: int, p: GaitParams, body: Body | Non
     lies inside the motion."""
     body = body or find_body(motion.skeleton, motion.name)
     pos = joint_positions(motion) if positions is None else positions
+    n = motion.num_frames
+    near = np.zeros(n, bool)          # frames t whose step t-1 -> t lies within ``window`` of a seam
+    for s in range(n_loop, n, n_loop):
+        near[max(1, s - window):min(n, s + window + 1)] = True
+    if not near.any():
+        return 0.0
     worst = 0.0
-    seams = list(range(n_loop, motion.num_frames, n_loop))
     for side in ("l", "r"):
         for key in (f"foot_{side}", f"toes_{side}"):
             x = pos[:, body.joints[key]]
             down = foot_down(x[:, 1], _horizontal_speed(x, motion.fps), p)
-            for s in seams:
-                for t in range(max(1, s - window), min(motion.num_frames, s + window + 1)):
-                    if down[t - 1] and down[t]:
-                        worst = max(worst, float(np.linalg.norm(x[t, [0, 2]] - x[t - 1, [0, 2]])))
+            both = near[1:] & down[1:] & down[:-1]
+            if both.any():
+                step = np.linalg.norm(np.diff(x[:, [0, 2]], axis=0), axis=1)
+                worst = max(worst, float(step[both].max()))
     return worst

@@ -57,6 +57,16 @@ class SpliceParams:
     # percentiles of every loaded clip's arm DOFs (the same table the evaluation scores against)
     respect_joint_limits: bool = True
     joint_limit_percentiles: tuple = (0.5, 99.5)
+    # (ours) how the band meets the range of motion: "hard" = each side cut at the limit (min);
+    # "soft" = a smooth saturation (softplus of width joint_limit_softness_deg) that approaches the
+    # limit without reaching it, so a loop whose band would pass the limit still moves the stroke
+    joint_limit_mode: str = "hard"
+    joint_limit_softness_deg: float = 10.0
+    # (ours) the std the band is built from: "loop" = the loop's own (paper); "gait_min" = per DOF
+    # the smallest std over the loaded loops of the same gait (never more than the loop's own, so
+    # strokes stay within the loop's +- c sigma; the stroke's excursion past B_L is then the same
+    # on every loop of a gait and only B_L moves it: the within-gait elbow tracking option)
+    band_std: str = "loop"
 
     def __post_init__(self):
         if not self.c > 0:
@@ -64,6 +74,15 @@ class SpliceParams:
         if self.bounce_fit not in ("reserve", "rescale"):
             raise WalkTalkError(f"bounce_fit must be reserve or rescale, got {self.bounce_fit!r}",
                                 where="walktalk.splice.bounce_fit")
+        if self.joint_limit_mode not in ("hard", "soft"):
+            raise WalkTalkError(f"joint_limit_mode must be hard or soft, got {self.joint_limit_mode!r}",
+                                where="walktalk.splice.joint_limit_mode")
+        if not self.joint_limit_softness_deg > 0:
+            raise WalkTalkError(f"joint_limit_softness_deg must be > 0, got {self.joint_limit_softness_deg}",
+                                where="walktalk.splice.joint_limit_softness_deg")
+        if self.band_std not in ("loop", "gait_min"):
+            raise WalkTalkError(f"band_std must be loop or gait_min, got {self.band_std!r}",
+                                where="walktalk.splice.band_std")
         if self.max_shift_s < 0 or self.lead_s < 0:
             raise WalkTalkError("lead_s and max_shift_s must be >= 0", where="walktalk.splice")
 
@@ -101,6 +120,9 @@ class WalkTalkParams:
     walk_glob: str = "*_walk_normal_*.bvh"
     jog_glob: str = "*_run_normal_*.bvh"
     gesture_globs: tuple = ("*raise-up-*.bvh", "*wave-*.bvh")
+    # clips pooled into the range-of-motion / joint-limit table only (never spliced): with the walks,
+    # runs and gestures above, "every clip" of the bandai2 set the issue names (walk-turns included)
+    limit_globs: tuple = ("*_walk-turn-*.bvh",)
     phases_csv: str = ""              # optional CSV overriding detected phases
     seed: int = 0
     gait: GaitParams = GaitParams()

@@ -59,6 +59,9 @@ class LoopContext:
     euler: np.ndarray
     stats: LoopStats
     elbow_dof: dict
+    # (A, 3) per-DOF smallest std over the loaded loops of this loop's gait (``band_std=gait_min``,
+    # ours; set by :func:`share_gait_band`); None = the loop's own
+    gait_min_std: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -75,6 +78,23 @@ def loop_context(loop: Loop, body: Body | None = None) -> LoopContext:
     e = joint_euler(loop.motion, joints)
     dofs = {s: elbow_dof(e[:, joints.index(body.joints[f"elbow_{s}"])]) for s in ("l", "r")}
     return LoopContext(loop, body, joints, e, loop_stats(e), dofs)
+
+
+def share_gait_band(loops: list) -> list:
+    """The loops of one gait, each given the per-DOF minimum of their stds (``gait_min_std``), for
+    ``band_std=gait_min`` (ours). Being a minimum, it never exceeds a loop's own std."""
+    if not loops:
+        return loops
+    m = np.min([lc.stats.std for lc in loops], axis=0)
+    return [dataclasses.replace(lc, gait_min_std=m) for lc in loops]
+
+
+def band_stats(lc: LoopContext, p: SpliceParams, idx) -> LoopStats:
+    """B_L and the std the c-sigma band is built from (``p.band_std``), rows ``idx``."""
+    std = lc.stats.std
+    if p.band_std == "gait_min" and lc.gait_min_std is not None:
+        std = lc.gait_min_std
+    return LoopStats(lc.stats.mean[idx], std[idx])
 
 
 def pad_gesture(g: Gesture, frames: int) -> Gesture:
@@ -136,14 +156,15 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
         check_placement(offset, g.motion.num_frames, num_frames, g.name)
     stylized = m.stylize and (g.kind != "deictic" or p.stylize_deictic)
     if stylized:
-        st = LoopStats(lc.stats.mean[idx], lc.stats.std[idx])
+        st = band_stats(lc, p, idx)
         lim = limits if p.respect_joint_limits else None
+        bands = dict(mode=p.joint_limit_mode, softness_deg=p.joint_limit_softness_deg)
         if bounce and p.bounce_fit == "reserve":
             # (ours) keep room in the elbow's band for the bounce on both sides, so adding it
             # afterwards stays inside the band without rescaling the gesture a second time; the
             # bounce takes at most half of either side of the band (else it is scaled down, bounce_gain)
             lo, hi = bounce_reserve(lc.loop.root_height, p.k_bounce)
-            down, up = stylize_bands(st, p.c, lim, gc.joints)
+            down, up = stylize_bands(st, p.c, lim, gc.joints, **bands)
             reserve = (np.zeros_like(st.mean), np.zeros_like(st.mean))
             for s in g.sides:
                 a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
@@ -153,7 +174,7 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
             for s in g.sides:
                 a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
                 reserve[0][a, lc.elbow_dof[s]], reserve[1][a, lc.elbow_dof[s]] = bounce_gain * lo, bounce_gain * hi
-        e = stylize(e, st, gc.rest, p.c, lim, gc.joints, reserve)
+        e = stylize(e, st, gc.rest, p.c, lim, gc.joints, reserve, **bands)
     styled = e
     if bounce:
         d_b = bounce_gain * bounce_offsets(lc.loop.root_height, p.k_bounce, offset, g.motion.num_frames)
@@ -164,7 +185,7 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
         if lim is not None and p.bounce_fit == "rescale":
             # (ours) the bounce must not push an elbow the stylization brought to its limit past
             # it: the bounced deviation is rescaled once more into the same bands (B_D = 0 now)
-            e = stylize(e, st, st.mean, p.c, lim, gc.joints)
+            e = stylize(e, st, st.mean, p.c, lim, gc.joints, **bands)
     gest_q = place_gesture_arms(loco, g, e, gc.joints, offset)
     ph = g.phases.shifted(offset)
     w = splice_weights(num_frames, ph, p.ease)

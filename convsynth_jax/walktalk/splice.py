@@ -113,37 +113,58 @@ def joint_limits(eulers, joints, percentiles=(0.5, 99.5), tolerance_deg: float =
                        np.percentile(d, percentiles[1], axis=0) + tol)
 
 
-def stylize_bands(stats: LoopStats, c: float, limits: JointLimits | None = None, joints=None):
+def soft_cap(band, room, width):
+    """Smooth version of ``min(band, room)`` (ours, ``joint_limit_mode=soft``): ``room - width *
+    softplus((room - band) / width)``, floored at 0. It is <= min(band, room) everywhere, equals
+    ``band`` up to ``width * log(1 + exp(-(room - band) / width))`` far inside the limit, tends to
+    ``room`` (never reaching it) as the band grows past it, and grows strictly with ``band``: a loop
+    whose band would cross the limit still moves the stroke, where the hard cut pins it at the limit."""
+    band, room = np.asarray(band, dtype=np.float64), np.asarray(room, dtype=np.float64)
+    x = (room - band) / width
+    softplus = np.logaddexp(0.0, x)
+    return np.maximum(room - width * softplus, 0.0)
+
+
+def stylize_bands(stats: LoopStats, c: float, limits: JointLimits | None = None, joints=None,
+                  mode: str = "hard", softness_deg: float = 10.0):
     """Allowed deviation below and above B_L per DOF, (A, 3) each, >= 0.
 
     The paper's band is +- c std of the loop (Sec. 4.1). With ``limits`` (ours) each side is also
     cut where it would leave the range of motion of the clip library: with c = 3 the band of a jog
     loop, whose elbows are already flexed ~90 deg, reaches ~140 deg of flexion (no clip goes past
-    ~120), so a raise-hand gesture was spliced with the elbow folded beyond its limit."""
+    ~120), so a raise-hand gesture was spliced with the elbow folded beyond its limit. ``mode``:
+    "hard" cuts each side at the limit (min), "soft" (ours) saturates it smoothly toward the limit
+    (:func:`soft_cap`, width ``softness_deg``)."""
     down = up = c * np.asarray(stats.std, dtype=np.float64)
     if limits is not None:
         idx = limits.rows(joints)
         off = wrap_angle(np.asarray(stats.mean) - limits.ref[idx])   # B_L inside the limit frame
-        down = np.minimum(down, np.maximum(off - limits.lo[idx], 0.0))
-        up = np.minimum(up, np.maximum(limits.hi[idx] - off, 0.0))
+        room_dn, room_up = np.maximum(off - limits.lo[idx], 0.0), np.maximum(limits.hi[idx] - off, 0.0)
+        if mode == "soft":
+            w = np.radians(softness_deg)
+            down, up = soft_cap(down, room_dn, w), soft_cap(up, room_up, w)
+        elif mode == "hard":
+            down, up = np.minimum(down, room_dn), np.minimum(up, room_up)
+        else:
+            raise WalkTalkError(f"unknown joint-limit mode {mode!r}", where="walktalk.splice.joint_limit_mode")
     return down, up
 
 
 def stylize(gesture_euler, stats: LoopStats, b_g, c: float, limits: JointLimits | None = None,
-            joints=None, reserve=None) -> np.ndarray:
+            joints=None, reserve=None, mode: str = "hard", softness_deg: float = 10.0) -> np.ndarray:
     """:func:`stylize_kernel` padded to a bucket length (edge frames repeat, so maxima do not change);
     ``limits`` (with the ``joints`` of the A rows) narrows the band, see :func:`stylize_bands`.
     ``reserve`` (ours): a pair (below, above) of (A, 3) arrays >= 0 taken off the band's two sides,
     room kept free for a disturbance added afterwards (the elbow bounce, see
-    :func:`bounce_reserve`)."""
+    :func:`bounce_reserve`). ``mode``, ``softness_deg``: how the band meets ``limits``."""
     f = gesture_euler.shape[0]
     p = bucket(f)
     x = np.pad(gesture_euler, ((0, p - f), (0, 0), (0, 0)), mode="edge")
-    down, up = stylize_bands(stats, c, limits, joints)
+    down, up = stylize_bands(stats, c, limits, joints, mode, softness_deg)
     if reserve is not None:
         down = np.maximum(down - reserve[0], 0.0)
         up = np.maximum(up - reserve[1], 0.0)
-    f32 = partial(jnp.asarray, dtype=jnp.float32)
+    f32 = partial(np.asarray, dtype=np.float32)   # NumPy in, jit transfers (jnp.asarray dispatches a cast)
     return np.asarray(stylize_kernel(f32(x), f32(stats.mean), f32(down), f32(up), f32(b_g)),
                       dtype=np.float64)[:f]
 
@@ -215,14 +236,22 @@ def bucket(n: int, minimum: int = 64) -> int:
 
 
 def splice_arrays(loco_q: np.ndarray, gest_q: np.ndarray, w: np.ndarray, arm_mask: np.ndarray) -> np.ndarray:
-    """Pad to a bucket length, run :func:`splice_kernel`, cut back. Shapes as the kernel."""
-    t = loco_q.shape[0]
-    p = bucket(t)
-    pad = ((0, p - t), (0, 0), (0, 0))
-    out = splice_kernel(jnp.asarray(np.pad(loco_q, pad, mode="edge"), dtype=jnp.float32),
-                        jnp.asarray(np.pad(gest_q, pad, mode="edge"), dtype=jnp.float32),
-                        jnp.asarray(np.pad(w, (0, p - t)), dtype=jnp.float32), jnp.asarray(arm_mask))
-    return np.asarray(out)[:t]
+    """:func:`splice_kernel` over the frames where ``w > 0`` (padded to a bucket length); every other
+    frame is the kernel's output there anyway, the locomotion in float32, and is copied. Shapes as
+    the kernel; float32 out."""
+    out = np.array(loco_q, dtype=np.float32)
+    on = np.flatnonzero(np.asarray(w) > 0)
+    if on.size == 0:
+        return out
+    lo, hi = int(on[0]), int(on[-1]) + 1
+    n = hi - lo
+    p = bucket(n)
+    pad = ((0, p - n), (0, 0), (0, 0))
+    f32 = partial(np.asarray, dtype=np.float32)
+    res = splice_kernel(f32(np.pad(loco_q[lo:hi], pad, mode="edge")), f32(np.pad(gest_q[lo:hi], pad, mode="edge")),
+                        f32(np.pad(np.asarray(w)[lo:hi], (0, p - n))), np.asarray(arm_mask, dtype=bool))
+    out[lo:hi] = np.asarray(res)[:n]
+    return out
 
 
 def bounce_offsets(root_height: np.ndarray, k: float, offset: int, frames: int) -> np.ndarray:

@@ -229,8 +229,15 @@ def test_lookahead_kernel_equals_reference(seed, matching):
     got = np.asarray(feas)[:30, :g.num_states]
     ref = reference_feasibility(g, cons, 24)
     np.testing.assert_array_equal(got, ref)
-    assert _prepare(g, 24).edges[0].shape[0] > g.num_states   # padded with the padding state
-    assert (np.asarray(_prepare(g, 24).edges[2]) < g.num_states).any()   # hub states use the wide table
+    prep = _prepare(g, 24)
+    codes = None if cons.paper is None else (cons.paper.own_codes, cons.paper.par_codes)
+    e = prep.lookahead_edges(codes)
+    src = np.asarray(e.src)
+    n_flat = int((src < g.num_states).sum())
+    assert np.asarray(e.has_next)[:g.num_states].any() and n_flat > 0   # both the shift and the flat list
+    assert (np.asarray(e.entry) < g.num_states).any()                    # entry states get the full rule
+    if codes is not None:   # the static contiguity rule dropped some synthetic edges
+        assert n_flat < int((np.asarray(prep.lookahead_edges(None).src) < g.num_states).sum())
     assert not got[:-1].all()                     # the windows constrain something
     if matching == "labels" and seed != 2:
         assert ok                                 # the clip the input was copied from is a path

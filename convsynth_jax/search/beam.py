@@ -35,7 +35,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -44,7 +43,7 @@ import numpy as np
 from ..errors import ConfigError, GraphError, LabelError
 from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
-from .feasible import edge_tables, feasibility
+from .feasible import feasibility, lookahead_edges
 from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
 
@@ -99,14 +98,26 @@ def unpack_code(x):
     return x & 15, (x >> 4) & 15, ((x >> 8) & 1).astype(bool)
 
 
-class _Prepared(NamedTuple):
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Prepared:
     """A graph made ready for the kernel (cached per graph object; graphs are immutable)."""
     adj_cost: np.ndarray     # (S, D) host copies, for the path's statistics
     adj_syn: np.ndarray
     median_syn: float        # median synthetic edge cost: the temperature's unit
     device: tuple            # (packed targets+labels, costs, degrees, state codes), padded to STATE_BUCKET
     paper_device: tuple      # (synthetic flags (S, D), segment info (S, 5)) for search.matching=paper
-    edges: tuple             # kept edges for the look-ahead (feasible.edge_tables)
+    host: tuple              # padded (targets, synthetic, degrees, segment info, own labels, partner labels)
+    num_states: int
+    _edges: dict = dataclasses.field(default_factory=dict)
+
+    def lookahead_edges(self, codes=None):
+        """The look-ahead's edge lists (feasible.LookaheadEdges, device arrays) for a ``paper`` window
+        with (own codes, partner codes), or for ``labels`` (None); built once per codes."""
+        key = None if codes is None else (int(codes[0]), int(codes[1]))
+        if key not in self._edges:
+            e = lookahead_edges(*self.host, self.num_states, key)
+            self._edges[key] = type(e)(*(jnp.asarray(x) for x in e))
+        return self._edges[key]
 
 
 _CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)
@@ -124,18 +135,18 @@ def _prepare(graph, max_degree) -> _Prepared:
     packed = (adj.astype(np.int64) << CODE_BITS | code[adj]).astype(np.int32)
     pad = padded_states(graph.num_states) - graph.num_states   # padding states: no edges, never a start state
 
+    def padh(x, v):
+        return np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)])
+
     def padrows(x, v):
-        return jnp.asarray(np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]))
+        return jnp.asarray(padh(x, v))
 
     info = segment_info(graph)
-    S_pad = padded_states(graph.num_states)
-    tables = edge_tables(np.concatenate([adj, np.zeros((pad, adj.shape[1]), adj.dtype)]),
-                         np.concatenate([syn, np.zeros((pad, syn.shape[1]), bool)]),
-                         np.concatenate([deg, np.zeros(pad, deg.dtype)]), S_pad - 1)
+    code_p = padh(code, 0)
+    host = (padh(adj, 0), padh(syn, False), padh(deg, 0), padh(info, 0), code_p & 15, (code_p >> 4) & 15)
     prep = _Prepared(cost, syn, median_synthetic_cost(graph),
-                     (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)),
-                     (padrows(syn, False), padrows(info, 0)),
-                     tuple(jnp.asarray(x) for x in tables))
+                     (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), jnp.asarray(code_p)),
+                     (padrows(syn, False), padrows(info, 0)), host, graph.num_states)
     _CACHE.append((graph, max_degree, prep))
     del _CACHE[:-4]
     return prep

@@ -7,7 +7,7 @@ import pytest
 
 from convsynth_jax.annotate.types import HP, LR, PC, FrameAudio
 from convsynth_jax.graph.types import MotionGraph
-from convsynth_jax.search.beam import beam_search, padded_adjacency
+from convsynth_jax.search.beam import beam_search, kept_edges, padded_adjacency
 from convsynth_jax.search.check import check_path
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.params import SearchParams
@@ -138,6 +138,30 @@ def test_padded_adjacency_keeps_the_cheapest_edges_in_order():
         np.testing.assert_array_equal(cost[s, :len(o)], c[o])
         np.testing.assert_array_equal(syn[s, :len(o)], y[o])
         assert np.isinf(cost[s, len(o):]).all()
+
+
+def test_flat_kept_edges_are_the_padded_adjacency_rows():
+    """The kernels' flat edge layout (beam.kept_edges) holds the same edges, in the same order, as the
+    padded adjacency checked above."""
+    g, _ = hub_graph(np.random.default_rng(3))
+    adj, cost, syn, deg = padded_adjacency(g, 6)
+    first, kdeg, tgt, fcost, fsyn, D = kept_edges(g, 6)
+    assert D == adj.shape[1] and (kdeg == deg).all() and tgt.size == deg.sum()
+    for s in range(g.num_states):
+        e = slice(first[s], first[s] + deg[s])
+        np.testing.assert_array_equal(tgt[e], adj[s, :deg[s]])
+        np.testing.assert_array_equal(fcost[e], cost[s, :deg[s]])
+        np.testing.assert_array_equal(fsyn[e], syn[s, :deg[s]])
+
+
+def test_host_prng_key_is_jax_prng_key():
+    """beam.prng_key builds the search's key on the host; it must be jax.random.PRNGKey's."""
+    import jax
+
+    from convsynth_jax.search.beam import prng_key
+
+    for seed in (0, 1, 12345, 2 ** 31 - 1, 2 ** 31 - 1 + 5000, 2 ** 32 - 1):
+        np.testing.assert_array_equal(np.asarray(prng_key(seed)), np.asarray(jax.random.PRNGKey(seed)))
 
 
 def test_bad_labels_and_settings_are_reported():

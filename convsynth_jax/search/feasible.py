@@ -64,7 +64,7 @@ ENTRY_BUCKET = 1024   # the entry-state list is padded to a multiple of this
 
 
 class LookaheadEdges(NamedTuple):
-    """The kept edges of a padded adjacency (``beam.padded_adjacency``) in the look-ahead's layout.
+    """The kept edges (``beam.kept_edges``) in the look-ahead's layout.
 
     An original transition x -> x + 1 (every state but a clip's last has one, always its cheapest)
     is a flag ``has_next`` (S,): its OR term is a shifted copy of the next frame's bits, no gather.
@@ -82,39 +82,43 @@ class LookaheadEdges(NamedTuple):
     entry: np.ndarray       # (n,) int32
 
 
-def lookahead_edges(adj: np.ndarray, syn: np.ndarray, deg: np.ndarray, info: np.ndarray, own_label, par_label,
-                    num_states: int, codes=None) -> LookaheadEdges:
-    """:class:`LookaheadEdges` of a padded adjacency with S rows (rows from ``num_states`` on are
-    padding states; the last one, S - 1, is where padded entries point). ``info``: (S, 5)
-    ``constraints.segment_info``; ``own_label``/``par_label`` (S,) codes;
-    ``codes``: (own codes, partner codes) of a ``paper`` window (its static contiguity rule is
-    applied), None for ``labels`` (every kept edge stays). Host NumPy."""
-    S, D = adj.shape
+def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np.ndarray, info: np.ndarray,
+                    state_code: np.ndarray, num_states: int, codes=None) -> LookaheadEdges:
+    """:class:`LookaheadEdges` of the kept edges in the beam's flat layout (``beam.kept_edges``: state
+    s's edges are tgt/syn[first[s] : first[s] + deg[s]]), for S states of which those from
+    ``num_states`` on are padding (the last one, S - 1, is where padded entries point). ``info``:
+    (S, 5) ``constraints.segment_info``; ``state_code`` (S,) ``beam.state_codes``; ``codes``: (own
+    codes, partner codes) of a ``paper`` window (its static contiguity rule is applied), None for
+    ``labels`` (every kept edge stays). Host NumPy."""
+    S = first.shape[0]
     pad_state = S - 1
-    kept = np.arange(D)[None, :] < deg[:, None]
-    nxt = kept & ~syn & (adj == np.arange(S)[:, None] + 1)
-    rest = kept & ~nxt
+    row = np.repeat(np.arange(S, dtype=np.int32), deg)               # kept edges are stored state after state
+    nxt = ~syn & (tgt == row + 1)
+    rest = ~nxt
     if codes is not None:
+        own_label, par_label = state_code & 15, (state_code >> 4) & 15
         lv = leaves_mid(info, own_label, par_label, int(codes[0]), int(codes[1]))
         en = enters_mid(info, own_label, par_label, int(codes[0]), int(codes[1]))
-        rest &= ~(syn & (lv[:, None] | en[adj]))
-    src, k = np.nonzero(rest)                       # row-major: sorted by source, then rank
-    tgt = adj[src, k]
+        rest &= ~(syn & (lv[row] | en[tgt]))
+    src, dst = row[rest], tgt[rest]                                   # sorted by source
+    has_next = np.zeros(S, bool)
+    has_next[row[nxt]] = True
     n = src.size + (-src.size % EDGE_BUCKET) if src.size else EDGE_BUCKET
     src_p = np.full(n, pad_state, np.int32)
     tgt_p = np.full(n, pad_state, np.int32)
-    src_p[:src.size], tgt_p[:src.size] = src, tgt
-    ent = np.flatnonzero((info[:, 0] == 0) | (info[:, 3] == 0))
-    ent = ent[ent < num_states]
+    src_p[:src.size], tgt_p[:src.size] = src, dst
+    ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
     m = ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET
     ent_p = np.full(m, pad_state, np.int32)
     ent_p[:ent.size] = ent
-    return LookaheadEdges(nxt.any(1), src_p, tgt_p, ent_p)
+    return LookaheadEdges(has_next, src_p, tgt_p, ent_p)
 
 
 @partial(jax.jit, static_argnames=("F", "paper"))
-def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, F: int, paper: bool):
-    """(Tp, S) uint8 bit masks; see the module docstring. The frames from num_frames - 1 on are all ones.
+def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states, F: int,
+                     paper: bool):
+    """((Tp, S) uint8 bit masks, solvable); see the module docstring. The frames from num_frames - 1 on
+    are all ones; solvable: some start state (``beam.start_rule``) with its frame-0 flags is completable.
     ``edges``: :class:`LookaheadEdges` (device arrays; for ``paper`` built with the window's codes).
     The last state must be a padding state.
 
@@ -128,7 +132,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
       ``paper_channel_step`` for the entry states only;
     * G[t-1][x] = A[x + 1] where x has its original transition (a shift), OR the max of the bytes
       A[y] over x's other edges (``segment_max`` over the list sorted by source)."""
-    from .beam import unpack_code
+    from .beam import start_rule, unpack_code
 
     has_next, src, tgt, entry = edges
     own_y, par_y, peak_y = unpack_code(state_code)
@@ -181,18 +185,20 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
 
     Tp = pw.shape[0]
     _, out = jax.lax.scan(step, jnp.full(S, all_ones), jnp.arange(Tp - 1, 0, -1, dtype=jnp.int32))
-    return jnp.concatenate([out[::-1], jnp.full((1, S), all_ones)])
+    feas = jnp.concatenate([out[::-1], jnp.full((1, S), all_ones)])
+    valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
+    return feas, jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
 
 
 def feasibility(prep, constraints: Constraints, padded_inputs):
-    """(Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring) for a
-    graph prepared by ``beam._prepare``; ``padded_inputs`` = (reqs, pw, reset, check, paper_arrs),
-    padded to Tp frames exactly as the beam kernel gets them."""
+    """((Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring), solvable
+    (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs`` = (reqs, pw, reset,
+    check, paper_arrs), padded to Tp frames exactly as the beam kernel gets them."""
     c = constraints
     reqs, pw, reset, check, paper_arrs = padded_inputs
     edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
-    return _feasible_kernel(edges, prep.device[3], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
-                            np.int32(c.num_frames), F=num_flags(c), paper=c.paper is not None)
+    return _feasible_kernel(edges, prep.device[4], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
+                            np.int32(c.num_frames), np.int32(prep.num_states), F=num_flags(c), paper=c.paper is not None)
 
 
 def solvable(bits0, start_ok, flag0) -> bool:

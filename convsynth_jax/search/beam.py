@@ -221,10 +221,10 @@ def start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper:
     return valid0 & (jnp.arange(S) < num_states), flag0
 
 
-@partial(jax.jit, static_argnames=("beam", "M", "H", "D", "paper", "prune"))
-def _beam_kernel(init_noise, pool, offsets, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset,
-                 check, temp, num_frames, num_states, paper_dev, paper_arrs, feas, beam: int, M: int, H: int, D: int,
-                 paper: bool = False, prune: bool = False):
+@partial(jax.jit, static_argnames=("beam", "M", "N", "H", "D", "paper", "prune"))
+def _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset,
+                 check, temp, num_frames, num_states, paper_dev, paper_arrs, feas, beam: int, M: int, N: int, H: int,
+                 D: int, paper: bool = False, prune: bool = False):
     """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,)).
     Edges are flat (``_Prepared``): state s's kept edges, cheapest first, are entries first_edge[s] ..
     first_edge[s] + deg[s] - 1 of flat_packed / flat_cost; D is the largest kept degree.
@@ -233,6 +233,8 @@ def _beam_kernel(init_noise, pool, offsets, first_edge, flat_packed, flat_cost, 
     ``prune``: feas (Tp, S) uint8 is the look-ahead (feasible.py): a candidate (state, flags) at frame
     t is kept only if bit ``flags`` of feas[t, state] is set; else feas is unused."""
     B = beam
+    # the noise of :func:`noise` (the same jitted draws, inlined: one compilation less per graph)
+    init_noise, pool, offsets = _noise(key, state_code.shape[0], N, M, pw.shape[0])
     if paper:
         flat_syn, info = paper_dev
         own_a, par_a, codes, tol = paper_arrs
@@ -403,14 +405,11 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     temp = max(temperature * prep.median_syn, 1e-6)
     T = c.num_frames
     reqs, pw, reset, check, paper_arrs = padded_inputs(c)
-    Tp = pw.shape[0]
-    S_pad = dev[0].shape[0]
-    init_noise, pool, offsets = noise(seed, S_pad, N, M, Tp)
     paper_dev = prep.paper_device if paper else None
     prune = feas is not None
-    out = _beam_kernel(init_noise, pool, offsets, *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
+    out = _beam_kernel(prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
                        np.int32(graph.num_states), paper_dev, paper_arrs, feas if prune else np.zeros((1, 1), np.uint8),
-                       beam=B, M=M, H=H, D=prep.max_degree, paper=paper, prune=prune)
+                       beam=B, M=M, N=N, H=H, D=prep.max_degree, paper=paper, prune=prune)
     path, rank, alive_any = (np.asarray(x)[:T] for x in out)
     if not alive_any.all():
         fail = int(np.argmin(alive_any))

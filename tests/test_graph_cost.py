@@ -6,7 +6,8 @@ THRESHOLD_TIE of the threshold (float32 vs float64 rounding may put them on eith
 import numpy as np
 import pytest
 
-from convsynth_jax.graph.cost import (_tile_lower_bounds, _tiling, candidate_edges, farthest_point_pivots,
+from convsynth_jax.graph.cost import (_tile_lower_bounds, _tiling, candidate_edges, distances_to, farthest_point_pivots,
+                                     pivot_embedding,
                                       feature_distance, kd_order, masked_tile_costs, pair_distance,
                                       scaled_features)
 from convsynth_jax.graph.reference import reference_cost_matrix, reference_edges
@@ -109,6 +110,25 @@ def test_every_frame_a_candidate_uses_the_symmetric_plan():
     nt = -(-n // 32)
     assert stats["tiles_computed"] + stats["tiles_skipped"] == nt * (nt + 1) // 2
     assert_same_edges(fast, reference_edges(P, V, w, 0.3, src, dst, clip, thr, 3), thr)
+
+
+def test_pivot_embedding_is_farthest_point_sampling_with_distances_to():
+    """pivot_embedding (features copied to the device once) picks the pivots of the plain loop (one
+    distances_to call per pivot) and returns the same distances, which match the NumPy reference."""
+    P, V, w, clip = random_features(4, 5, 80)
+    X = scaled_features(P, V, w, 0.2)
+    cand = np.arange(3, P.shape[0], 2)
+    rng = np.random.default_rng(4)
+    piv = [int(rng.choice(cand))]
+    dmin = np.full(cand.size, np.inf)
+    for _ in range(5):
+        dmin = np.minimum(dmin, distances_to(X, cand, [piv[-1]])[:, 0])
+        piv.append(int(cand[int(np.argmax(dmin))]))
+    got_piv, got_emb = pivot_embedding(X, cand, 6, np.random.default_rng(4))
+    np.testing.assert_array_equal(got_piv, piv)
+    np.testing.assert_array_equal(got_emb, distances_to(X, cand, np.asarray(piv)))
+    D = reference_cost_matrix(P, V, P, V, w, 0.2)
+    np.testing.assert_allclose(got_emb, D[np.ix_(cand, piv)], rtol=1e-4, atol=1e-4)
 
 
 def test_tile_bounds_never_exceed_the_true_minimum_and_skip_tiles():

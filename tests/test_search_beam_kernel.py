@@ -7,7 +7,7 @@ import pytest
 
 from convsynth_jax.annotate.types import HP, LR, PC, FrameAudio
 from convsynth_jax.graph.types import MotionGraph
-from convsynth_jax.search.beam import beam_search, padded_adjacency
+from convsynth_jax.search.beam import beam_search, kept_edges, padded_adjacency
 from convsynth_jax.search.check import check_path
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.params import SearchParams
@@ -140,6 +140,30 @@ def test_padded_adjacency_keeps_the_cheapest_edges_in_order():
         assert np.isinf(cost[s, len(o):]).all()
 
 
+def test_flat_kept_edges_are_the_padded_adjacency_rows():
+    """The kernels' flat edge layout (beam.kept_edges) holds the same edges, in the same order, as the
+    padded adjacency checked above."""
+    g, _ = hub_graph(np.random.default_rng(3))
+    adj, cost, syn, deg = padded_adjacency(g, 6)
+    first, kdeg, tgt, fcost, fsyn, D = kept_edges(g, 6)
+    assert D == adj.shape[1] and (kdeg == deg).all() and tgt.size == deg.sum()
+    for s in range(g.num_states):
+        e = slice(first[s], first[s] + deg[s])
+        np.testing.assert_array_equal(tgt[e], adj[s, :deg[s]])
+        np.testing.assert_array_equal(fcost[e], cost[s, :deg[s]])
+        np.testing.assert_array_equal(fsyn[e], syn[s, :deg[s]])
+
+
+def test_host_prng_key_is_jax_prng_key():
+    """beam.prng_key builds the search's key on the host; it must be jax.random.PRNGKey's."""
+    import jax
+
+    from convsynth_jax.search.beam import prng_key
+
+    for seed in (0, 1, 12345, 2 ** 31 - 1, 2 ** 31 - 1 + 5000, 2 ** 32 - 1):
+        np.testing.assert_array_equal(np.asarray(prng_key(seed)), np.asarray(jax.random.PRNGKey(seed)))
+
+
 def test_bad_labels_and_settings_are_reported():
     from convsynth_jax.errors import ConfigError, LabelError
 
@@ -229,8 +253,15 @@ def test_lookahead_kernel_equals_reference(seed, matching):
     got = np.asarray(feas)[:30, :g.num_states]
     ref = reference_feasibility(g, cons, 24)
     np.testing.assert_array_equal(got, ref)
-    assert _prepare(g, 24).edges[0].shape[0] > g.num_states   # padded with the padding state
-    assert (np.asarray(_prepare(g, 24).edges[2]) < g.num_states).any()   # hub states use the wide table
+    prep = _prepare(g, 24)
+    codes = None if cons.paper is None else (cons.paper.own_codes, cons.paper.par_codes)
+    e = prep.lookahead_edges(codes)
+    src = np.asarray(e.src)
+    n_flat = int((src < g.num_states).sum())
+    assert np.asarray(e.has_next)[:g.num_states].any() and n_flat > 0   # both the shift and the flat list
+    assert (np.asarray(e.entry) < g.num_states).any()                    # entry states get the full rule
+    if codes is not None:   # the static contiguity rule dropped some synthetic edges
+        assert n_flat < int((np.asarray(prep.lookahead_edges(None).src) < g.num_states).sum())
     assert not got[:-1].all()                     # the windows constrain something
     if matching == "labels" and seed != 2:
         assert ok                                 # the clip the input was copied from is a path

@@ -134,12 +134,26 @@ def distances_to(X, idx, targets) -> np.ndarray:
 
 def farthest_point_pivots(X, cand, n_pivots, rng) -> np.ndarray:
     """Pivot frames spread out over ``cand`` (farthest-point sampling from a random start)."""
+    return pivot_embedding(X, cand, n_pivots, rng)[0]
+
+
+def pivot_embedding(X, cand, n_pivots, rng):
+    """(:func:`farthest_point_pivots`, ``distances_to(X, cand, pivots)``) with the features of
+    ``cand`` copied to the device once for all pivots (the same kernel on the same padded rows as
+    :func:`distances_to`, so the same values)."""
+    xa = jax.device_put(_pad_rows(X[cand], _bucket(len(cand))))
+
+    def dist(targets):
+        xb = _pad_rows(X[np.asarray(targets)], _bucket(len(targets), 8))
+        return np.asarray(feature_distance(xa, xb), np.float64)[:len(cand), :len(targets)]
+
     piv = [int(rng.choice(cand))]
     dmin = np.full(cand.size, np.inf)
     for _ in range(max(0, n_pivots - 1)):
-        dmin = np.minimum(dmin, distances_to(X, cand, [piv[-1]])[:, 0])
+        dmin = np.minimum(dmin, dist([piv[-1]])[:, 0])
         piv.append(int(cand[int(np.argmax(dmin))]))
-    return np.asarray(piv, np.int64)
+    piv = np.asarray(piv, np.int64)
+    return piv, dist(piv)
 
 
 def kd_order(E: np.ndarray, leaf: int) -> np.ndarray:
@@ -185,7 +199,8 @@ def _tiling(X, idx, emb, clip, tile) -> _Tiling:
     safe = np.where(stack >= 0, stack, idx[0])
     xt = np.ascontiguousarray(X[safe].transpose(0, 2, 3, 1))
     cl = np.where(stack >= 0, clip[safe], -1).astype(np.int32)
-    return _Tiling(ids, jnp.asarray(xt), jnp.asarray(stack, jnp.int32), jnp.asarray(cl), lo, hi)
+    put = jax.device_put   # (jnp.asarray compiles a conversion per shape)
+    return _Tiling(ids, put(xt), put(stack.astype(np.int32)), put(cl), lo, hi)
 
 
 def _tile_lower_bounds(ta: _Tiling, tb: _Tiling) -> np.ndarray:
@@ -237,8 +252,10 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
     rng = np.random.default_rng(seed)
     union = np.union1d(src, dst)
     sym = bool(symmetric) if symmetric != "auto" else union.size ** 2 / 2 < src.size * dst.size
-    piv = farthest_point_pivots(X, union, n_pivots, rng) if n_pivots > 0 else np.zeros(0, np.int64)
-    emb_all = distances_to(X, union, piv) if piv.size else np.zeros((union.size, 0))
+    if n_pivots > 0:
+        piv, emb_all = pivot_embedding(X, union, n_pivots, rng)
+    else:
+        piv, emb_all = np.zeros(0, np.int64), np.zeros((union.size, 0))
     emb_of = lambda idx: emb_all[np.searchsorted(union, idx)]  # noqa: E731
     if sym:
         ta = tb = _tiling(X, union, emb_all, clip, tile)

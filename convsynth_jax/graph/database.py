@@ -49,7 +49,7 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     frame count is padded to a power of two so the kernels compile for few shapes). Velocities are
     differenced within each clip. Returns float32 (N, J, 3) arrays."""
     from ..kinematics import fk_kernel, root_relative_kernel
-    import jax.numpy as jnp
+    import jax
 
     rot = np.concatenate([m.rotations for m in motions]).astype(np.float32)
     tr = np.concatenate([m.translations for m in motions]).astype(np.float32)
@@ -59,7 +59,7 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     if pad:
         rot = np.concatenate([rot, np.broadcast_to(rot[-1:], (pad,) + rot.shape[1:])])
         tr = np.concatenate([tr, np.broadcast_to(tr[-1:], (pad,) + tr.shape[1:])])
-    pos, grot = fk_kernel(jnp.asarray(rot), jnp.asarray(tr), tuple(motions[0].skeleton.parents))
+    pos, grot = fk_kernel(jax.device_put(rot), jax.device_put(tr), tuple(motions[0].skeleton.parents))
     rel = np.asarray(root_relative_kernel(pos, grot, up_axis=up_axis, remove_yaw=remove_yaw))[:n]
     vel = np.empty_like(rel)
     start = 0

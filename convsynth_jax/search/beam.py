@@ -35,7 +35,6 @@ from __future__ import annotations
 import dataclasses
 import time
 from functools import partial
-from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -44,7 +43,7 @@ import numpy as np
 from ..errors import ConfigError, GraphError, LabelError
 from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
-from .feasible import edge_tables, feasibility
+from .feasible import feasibility, lookahead_edges
 from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
 
@@ -80,6 +79,27 @@ def padded_adjacency(graph, max_degree: int = 64):
     return adj, cost, syn, np.minimum(deg, D).astype(np.int32)
 
 
+def kept_edges(graph, max_degree: int = 64):
+    """The same edges as :func:`padded_adjacency` as flat arrays: each state's at most D cheapest
+    out-edges, cheapest first (ties: CSR order), state after state. Returns (first (S,) int32: index
+    of the state's first kept edge, degree (S,) int32, targets (E,) int32, costs (E,) float32,
+    synthetic (E,) bool, D)."""
+    deg = np.diff(graph.indptr)
+    D = int(min(max(1, deg.max() if deg.size else 1), max_degree))
+    S = graph.num_states
+    row = np.repeat(np.arange(S), deg)
+    order = np.lexsort((np.arange(row.size), graph.cost, row))      # by row, then cost, then CSR position
+    rank = np.arange(row.size) - graph.indptr[row[order]]
+    o = order[rank < D]
+    kdeg = np.minimum(deg, D).astype(np.int32)
+    first = (np.cumsum(kdeg) - kdeg).astype(np.int32)
+    return (first, kdeg, graph.indices[o].astype(np.int32), graph.cost[o].astype(np.float32),
+            graph.synthetic[o].astype(bool), D)
+
+
+EDGE_BUCKET = 16384   # the flat edge arrays are padded to a multiple of this (compiles shared across folds)
+
+
 CODE_BITS = 9  # packed edge: target << 9 | is_peak << 8 | partner label << 4 | own label
 
 
@@ -99,14 +119,35 @@ def unpack_code(x):
     return x & 15, (x >> 4) & 15, ((x >> 8) & 1).astype(bool)
 
 
-class _Prepared(NamedTuple):
-    """A graph made ready for the kernel (cached per graph object; graphs are immutable)."""
-    adj_cost: np.ndarray     # (S, D) host copies, for the path's statistics
-    adj_syn: np.ndarray
+@dataclasses.dataclass(frozen=True, eq=False)
+class _Prepared:
+    """A graph made ready for the kernels (cached per graph object; graphs are immutable). Edges are
+    flat (:func:`kept_edges`): state s's kept edges are entries first[s] .. first[s] + deg[s] - 1."""
+    first: np.ndarray        # (S,) host copies, for the path's statistics
+    cost: np.ndarray         # (E,)
+    syn: np.ndarray          # (E,)
+    max_degree: int          # D: the largest kept degree
     median_syn: float        # median synthetic edge cost: the temperature's unit
-    device: tuple            # (packed targets+labels, costs, degrees, state codes), padded to STATE_BUCKET
-    paper_device: tuple      # (synthetic flags (S, D), segment info (S, 5)) for search.matching=paper
-    edges: tuple             # kept edges for the look-ahead (feasible.edge_tables)
+    device: tuple            # (first, packed targets+labels, costs, degrees, state codes); states padded to
+    #                          STATE_BUCKET, edges to EDGE_BUCKET (+ D, so first + rank never runs over)
+    paper_device: tuple      # (synthetic flags (E,), segment info (S, 5)) for search.matching=paper
+    host: tuple              # (first, degrees, targets, synthetic, segment info, state codes), states padded
+    num_states: int
+    _edges: dict = dataclasses.field(default_factory=dict)
+
+    def edge_stats(self, src: np.ndarray, rank: np.ndarray):
+        """(costs, synthetic flags) of the edges taken from states ``src`` at edge ranks ``rank``."""
+        e = self.first[src] + rank
+        return self.cost[e], self.syn[e]
+
+    def lookahead_edges(self, codes=None):
+        """The look-ahead's edge lists (feasible.LookaheadEdges, device arrays) for a ``paper`` window
+        with (own codes, partner codes), or for ``labels`` (None); built once per codes."""
+        key = None if codes is None else (int(codes[0]), int(codes[1]))
+        if key not in self._edges:
+            e = lookahead_edges(*self.host, self.num_states, key)
+            self._edges[key] = type(e)(*(jax.device_put(x) for x in e))
+        return self._edges[key]
 
 
 _CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)
@@ -119,23 +160,24 @@ def _prepare(graph, max_degree) -> _Prepared:
     if graph.num_states >= 2 ** (31 - CODE_BITS):
         raise GraphError(f"graph too large for the packed beam search ({graph.num_states} states, "
                          f"at most {2 ** (31 - CODE_BITS) - 1})")
-    adj, cost, syn, deg = padded_adjacency(graph, max_degree)
+    first, deg, tgt, cost, syn, D = kept_edges(graph, max_degree)
     code = state_codes(graph)
-    packed = (adj.astype(np.int64) << CODE_BITS | code[adj]).astype(np.int32)
-    pad = padded_states(graph.num_states) - graph.num_states   # padding states: no edges, never a start state
-
-    def padrows(x, v):
-        return jnp.asarray(np.concatenate([x, np.full((pad,) + x.shape[1:], v, x.dtype)]))
-
-    info = segment_info(graph)
+    packed = tgt << CODE_BITS | code[tgt]
     S_pad = padded_states(graph.num_states)
-    tables = edge_tables(np.concatenate([adj, np.zeros((pad, adj.shape[1]), adj.dtype)]),
-                         np.concatenate([syn, np.zeros((pad, syn.shape[1]), bool)]),
-                         np.concatenate([deg, np.zeros(pad, deg.dtype)]), S_pad - 1)
-    prep = _Prepared(cost, syn, median_synthetic_cost(graph),
-                     (padrows(packed, 0), padrows(cost, np.inf), padrows(deg, 0), padrows(code, 0)),
-                     (padrows(syn, False), padrows(info, 0)),
-                     tuple(jnp.asarray(x) for x in tables))
+    E = tgt.size
+    E_pad = E + (-E % EDGE_BUCKET) + D
+
+    def pad(x, n, v):   # host array padded to n entries (first axis) with v
+        return np.concatenate([x, np.full((n - x.shape[0],) + x.shape[1:], v, x.dtype)])
+
+    info_p, code_p = pad(segment_info(graph), S_pad, 0), pad(code, S_pad, 0)
+    first_p, deg_p = pad(first, S_pad, E), pad(deg, S_pad, 0)   # padding states: no edges, never a start state
+    put = jax.device_put
+    host = (first_p, deg_p, tgt, syn, info_p, code_p)
+    prep = _Prepared(first, cost, syn, D, median_synthetic_cost(graph),
+                     (put(first_p), put(pad(packed, E_pad, 0)), put(pad(cost, E_pad, np.inf)), put(deg_p),
+                      put(code_p)),
+                     (put(pad(syn, E_pad, False)), put(info_p)), host, graph.num_states)
     _CACHE.append((graph, max_degree, prep))
     del _CACHE[:-4]
     return prep
@@ -179,20 +221,22 @@ def start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper:
     return valid0 & (jnp.arange(S) < num_states), flag0
 
 
-@partial(jax.jit, static_argnames=("beam", "M", "H", "paper", "prune"))
-def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, reqs, pw, reset, check, temp,
-                 num_frames, num_states, paper_dev, paper_arrs, feas, beam: int, M: int, H: int, paper: bool = False,
-                 prune: bool = False):
+@partial(jax.jit, static_argnames=("beam", "M", "N", "H", "D", "paper", "prune"))
+def _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset,
+                 check, temp, num_frames, num_states, paper_dev, paper_arrs, feas, beam: int, M: int, N: int, H: int,
+                 D: int, paper: bool = False, prune: bool = False):
     """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,)).
-    ``paper``: paper_dev = (synthetic (S, D), segment info (S, 5)), paper_arrs = (own per-frame arrays
+    Edges are flat (``_Prepared``): state s's kept edges, cheapest first, are entries first_edge[s] ..
+    first_edge[s] + deg[s] - 1 of flat_packed / flat_cost; D is the largest kept degree.
+    ``paper``: paper_dev = (synthetic (E,), segment info (S, 5)), paper_arrs = (own per-frame arrays
     (7 x (Tp,)), partner per-frame arrays, (own codes, partner codes), tol); else both unused.
     ``prune``: feas (Tp, S) uint8 is the look-ahead (feasible.py): a candidate (state, flags) at frame
     t is kept only if bit ``flags`` of feas[t, state] is set; else feas is unused."""
-    S, D = packed.shape
     B = beam
-    flat_packed, flat_cost = packed.reshape(-1), adj_cost.reshape(-1)
+    # the noise of :func:`noise` (the same jitted draws, inlined: one compilation less per graph)
+    init_noise, pool, offsets = _noise(key, state_code.shape[0], N, M, pw.shape[0])
     if paper:
-        flat_syn, info = paper_dev[0].reshape(-1), paper_dev[1]
+        flat_syn, info = paper_dev
         own_a, par_a, codes, tol = paper_arrs
     valid0, flag0 = start_rule(state_code, paper_dev[1] if paper else None, reqs, pw, check, paper_arrs, num_states,
                                paper)
@@ -216,7 +260,7 @@ def _beam_kernel(init_noise, pool, offsets, packed, adj_cost, deg, state_code, r
         row = jnp.clip(jax.lax.cummax(jnp.full((M,), -1, jnp.int32).at[first].max(rows, mode="drop")), 0, B - 1)
         j = slots - first[row]                                               # edge rank of the slot
         jc = jnp.minimum(j, D - 1)
-        flat = states[row] * D + jc
+        flat = first_edge[states[row]] + jc
         pk = flat_packed[flat]
         cand = pk >> CODE_BITS
         own, par, peak = unpack_code(pk)
@@ -291,26 +335,15 @@ def padded_inputs(c: Constraints):
     return reqs, padb(c.peak_window, False), padb(c.peak_reset, False), padb(c.peak_check, False), paper_arrs
 
 
-@partial(jax.jit, static_argnames=("paper",))
-def _solvable(feas0, state_code, info, reqs, pw, check, paper_arrs, num_states, paper: bool):
-    valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
-    return jnp.any(valid0 & (((feas0 >> flag0.astype(jnp.uint8)) & 1) == 1))
-
-
 def lookahead(graph, constraints: Constraints, max_degree: int):
     """(feas (Tp, S_pad) uint8 device array, solvable): the look-ahead of ``search.lookahead``
     (:mod:`convsynth_jax.search.feasible`) over the beam's edge set (each state's ``max_degree``
     cheapest out-edges) and whether any start state can complete the window."""
     prep = _prepare(graph, max_degree)
-    if prep.adj_cost.shape[1] > 255:
+    if prep.max_degree > 255:
         raise ConfigError(f"search.lookahead counts edges in bytes: search.max_degree must be <= 255 "
                           f"(got {max_degree})")
-    inputs = padded_inputs(constraints)
-    feas = feasibility(prep, constraints, inputs)
-    reqs, pw, _, check, paper_arrs = inputs
-    paper = constraints.paper is not None
-    ok = _solvable(feas[0], prep.device[3], prep.paper_device[1], reqs, pw, check, paper_arrs,
-                   np.int32(graph.num_states), paper=paper)
+    feas, ok = feasibility(prep, constraints, padded_inputs(constraints))
     return feas, bool(ok)
 
 
@@ -368,18 +401,15 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     dev = prep.device
     c = constraints
     paper = c.paper is not None
-    B, M, N, H = sizes(graph.num_states, beam, prep.adj_cost.shape[1], budget, 4 if paper else 2)
+    B, M, N, H = sizes(graph.num_states, beam, prep.max_degree, budget, 4 if paper else 2)
     temp = max(temperature * prep.median_syn, 1e-6)
     T = c.num_frames
     reqs, pw, reset, check, paper_arrs = padded_inputs(c)
-    Tp = pw.shape[0]
-    S_pad = dev[0].shape[0]
-    init_noise, pool, offsets = noise(seed, S_pad, N, M, Tp)
     paper_dev = prep.paper_device if paper else None
     prune = feas is not None
-    out = _beam_kernel(init_noise, pool, offsets, *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
+    out = _beam_kernel(prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
                        np.int32(graph.num_states), paper_dev, paper_arrs, feas if prune else np.zeros((1, 1), np.uint8),
-                       beam=B, M=M, H=H, paper=paper, prune=prune)
+                       beam=B, M=M, N=N, H=H, D=prep.max_degree, paper=paper, prune=prune)
     path, rank, alive_any = (np.asarray(x)[:T] for x in out)
     if not alive_any.all():
         fail = int(np.argmin(alive_any))
@@ -387,8 +417,8 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
                             time.perf_counter() - t0, "beam", failure=failure_reason(c, fail, "beam"))
     path = path.astype(np.int64)
     src, rk = path[:-1], rank[1:]
-    edge_cost = prep.adj_cost[src, rk].astype(np.float64)
-    edge_syn = prep.adj_syn[src, rk]
+    edge_cost, edge_syn = prep.edge_stats(src, rk)
+    edge_cost = edge_cost.astype(np.float64)
     return SearchResult(True, path, float(edge_cost.sum()), int(edge_syn.sum()), c.total, c.total, None, None,
                         time.perf_counter() - t0, "beam", [float(x) for x in edge_cost[edge_syn]],
                         (np.flatnonzero(edge_syn) + 1).tolist())
@@ -405,4 +435,14 @@ def noise(seed: int, num_states: int, pool_size: int, slots: int, num_frames: in
     """Gumbel noise of a search: (initial-state noise (S,), pool (N,), per-frame pool offsets (Tp,));
     candidate slot m of frame t draws pool[offsets[t] + m]. Shared by the kernel and the NumPy
     reference so both make the same draws."""
-    return _noise(jax.random.PRNGKey(seed), num_states, pool_size, slots, num_frames)
+    return _noise(prng_key(seed), num_states, pool_size, slots, num_frames)
+
+
+def prng_key(seed: int):
+    """``jax.random.PRNGKey(seed)``, built on the host for the default threefry keys of seeds in
+    0..2**32-1 (their key data is [0, seed]): PRNGKey itself is a small jitted computation whose
+    tracing and compilation a fresh process would pay on every search's first call."""
+    seed = int(seed)
+    if 0 <= seed < 2 ** 32 and jax.config.jax_default_prng_impl == "threefry2x32":
+        return np.array([0, seed], np.uint32)
+    return jax.random.PRNGKey(seed)

@@ -19,14 +19,17 @@ true for ``labels``). The window is solvable by the searches' edge set iff some 
 its frame-0 flags is in G[0]. A search that keeps only candidates in G never dies on a solvable
 window (short of the beam's candidate budget dropping every completable edge of every path).
 
-:func:`feasibility` is the JAX kernel (a reverse ``lax.scan``, per frame a gather over the kept
-edges and a segmented OR by cumulative sums); :func:`reference_feasibility` is the slow, obvious
-version (Python sets, one edge at a time) the tests compare it with. Both return (T, S) uint8, bit
-f of [t, s] set iff (s, f) is in G[t].
+:func:`feasibility` is the JAX kernel (a reverse ``lax.scan`` over bytes of F bits per state; per
+frame the arrival rule, computed per state only where it depends on the state, and the OR over the
+kept edges as a shift for the original transitions plus a sorted ``segment_max`` over the others,
+the statically forbidden ones dropped on the host: :class:`LookaheadEdges`);
+:func:`reference_feasibility` is the slow, obvious version (Python sets, one edge at a time) the
+tests compare it with. Both return (T, S) uint8, bit f of [t, s] set iff (s, f) is in G[t].
 """
 from __future__ import annotations
 
 from functools import partial
+from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
@@ -56,89 +59,146 @@ def enters_mid(info, own_label, par_label, own_codes, par_codes):
     return (cons_o & (info[..., 0] > 0)) | (cons_p & (info[..., 3] > 0))
 
 
-SMALL = 4            # states with at most this many kept edges use the narrow table
-BIG_BUCKET = 1024    # the wide table's row count is padded to a multiple of this
+EDGE_BUCKET = 16384   # the flat edge list is padded to a multiple of this (compiles shared across folds)
+ENTRY_BUCKET = 1024   # the entry-state list is padded to a multiple of this
 
 
-def edge_tables(adj: np.ndarray, syn: np.ndarray, deg: np.ndarray, pad_state: int):
-    """The kept edges of a padded adjacency (``beam.padded_adjacency``, S rows) as two gather tables
-    for the look-ahead (a gather and a row sum is much faster than a scatter on CPU): every state's
-    first SMALL targets (S, SMALL), and for the states with more edges (rows ``big``) all D of them.
-    Missing edges point at ``pad_state`` (a padding state, never completable). Returns
-    (small targets, small synthetic, big rows, big targets, big synthetic)."""
-    S, D = adj.shape
-    rank = np.arange(D)[None, :]
-    t = np.where(rank < deg[:, None], adj, pad_state).astype(np.int32)
-    y = np.where(rank < deg[:, None], syn, False)
-    k = min(SMALL, D)
-    big = np.flatnonzero(deg > k).astype(np.int32)
-    n = big.size + (-big.size % BIG_BUCKET)
-    big_rows = np.full(n, pad_state, np.int32)
-    big_rows[:big.size] = big
-    big_t = np.full((n, D), pad_state, np.int32)
-    big_t[:big.size] = t[big]
-    big_y = np.zeros((n, D), bool)
-    big_y[:big.size] = y[big]
-    return t[:, :k], y[:, :k], big_rows, big_t, big_y
+class LookaheadEdges(NamedTuple):
+    """The kept edges (``beam.kept_edges``) in the look-ahead's layout.
+
+    An original transition x -> x + 1 (every state but a clip's last has one, always its cheapest)
+    is a flag ``has_next`` (S,): its OR term is a shifted copy of the next frame's bits, no gather.
+    Every other kept edge, minus the ones the ``paper`` contiguity rule always forbids (a synthetic
+    transition leaving a constrained source segment before its last frame or entering one after its
+    first: static, so dropped on the host), is one entry of a flat list sorted by source, ``src`` /
+    ``tgt`` (E,), padded with edges of the padding state to itself. ``entry`` (n,) lists the states
+    at the first frame of some source segment (own or partner offset 0), padded with the padding
+    state: only there do the ``paper`` entry rules depend on the state; elsewhere the arrival rule
+    of a frame is the same for every state (module docstring of :func:`_feasible_kernel`)."""
+
+    has_next: np.ndarray    # (S,) bool
+    src: np.ndarray         # (E,) int32, sorted
+    tgt: np.ndarray         # (E,) int32
+    entry: np.ndarray       # (n,) int32
+
+
+def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np.ndarray, info: np.ndarray,
+                    state_code: np.ndarray, num_states: int, codes=None) -> LookaheadEdges:
+    """:class:`LookaheadEdges` of the kept edges in the beam's flat layout (``beam.kept_edges``: state
+    s's edges are tgt/syn[first[s] : first[s] + deg[s]]), for S states of which those from
+    ``num_states`` on are padding (the last one, S - 1, is where padded entries point). ``info``:
+    (S, 5) ``constraints.segment_info``; ``state_code`` (S,) ``beam.state_codes``; ``codes``: (own
+    codes, partner codes) of a ``paper`` window (its static contiguity rule is applied), None for
+    ``labels`` (every kept edge stays). Host NumPy."""
+    S = first.shape[0]
+    pad_state = S - 1
+    row = np.repeat(np.arange(S, dtype=np.int32), deg)               # kept edges are stored state after state
+    nxt = ~syn & (tgt == row + 1)
+    rest = ~nxt
+    if codes is not None:
+        own_label, par_label = state_code & 15, (state_code >> 4) & 15
+        lv = leaves_mid(info, own_label, par_label, int(codes[0]), int(codes[1]))
+        en = enters_mid(info, own_label, par_label, int(codes[0]), int(codes[1]))
+        rest &= ~(syn & (lv[row] | en[tgt]))
+    src, dst = row[rest], tgt[rest]                                   # sorted by source
+    has_next = np.zeros(S, bool)
+    has_next[row[nxt]] = True
+    n = src.size + (-src.size % EDGE_BUCKET) if src.size else EDGE_BUCKET
+    src_p = np.full(n, pad_state, np.int32)
+    tgt_p = np.full(n, pad_state, np.int32)
+    src_p[:src.size], tgt_p[:src.size] = src, dst
+    ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
+    m = ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET
+    ent_p = np.full(m, pad_state, np.int32)
+    ent_p[:ent.size] = ent
+    return LookaheadEdges(has_next, src_p, tgt_p, ent_p)
 
 
 @partial(jax.jit, static_argnames=("F", "paper"))
-def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, F: int, paper: bool):
-    """(Tp, S) uint8 bit masks; see the module docstring. The frames from num_frames - 1 on are all ones.
-    The OR over a state's kept edges is a sum of per-flag counts packed into the bytes of an int32
-    (a state keeps at most 255 edges, so no byte overflows). The last state must be a padding state."""
-    from .beam import unpack_code
+def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states, F: int,
+                     paper: bool):
+    """((Tp, S) uint8 bit masks, solvable); see the module docstring. The frames from num_frames - 1 on
+    are all ones; solvable: some start state (``beam.start_rule``) with its frame-0 flags is completable.
+    ``edges``: :class:`LookaheadEdges` (device arrays; for ``paper`` built with the window's codes).
+    The last state must be a padding state.
 
-    small_t, small_y, big, big_t, big_y = edges
+    Per frame t, with G[t] as one byte of F bits per state:
+
+    * arriving in y at frame t with flags f is completable, A[y, f] = label_ok_t(y) and ok_t(y, f) and
+      G[t][y, f'_t(y, f)]. For ``labels`` ok/f' depend on y only through its peak flag (elementwise).
+      For ``paper`` they depend on y only where y enters a source segment (offset 0: the ``entry``
+      states); for every other state the channel rule is the frame's: f' = f and not reset, ok = not
+      check or f'. So A is computed for all states with that rule and recomputed with
+      ``paper_channel_step`` for the entry states only;
+    * G[t-1][x] = A[x + 1] where x has its original transition (a shift), OR the max of the bytes
+      A[y] over x's other edges (``segment_max`` over the list sorted by source)."""
+    from .beam import start_rule, unpack_code
+
+    has_next, src, tgt, entry = edges
     own_y, par_y, peak_y = unpack_code(state_code)
     S = state_code.shape[0]
-    two = jnp.array([[False, True]])                                      # a channel's flag values
-    no = jnp.zeros((S, 1), bool)
-    oy, py, pky, iy = own_y[:, None], par_y[:, None], peak_y[:, None], info[:, None, :]
+    u8 = jnp.uint8
+    last = S - 1
+    fl = jnp.arange(F, dtype=jnp.int32)
     if paper:
         own_a, par_a, codes, tol = paper_arrs
-        lv = leaves_mid(info, own_y, par_y, codes[0], codes[1])
-        en = enters_mid(info, own_y, par_y, codes[0], codes[1])
-        # a statically forbidden edge (contiguity) points at the padding state
-        small_t = jnp.where(~small_y | ~(lv[:, None] | en[small_t]), small_t, S - 1)
-        big_t = jnp.where(~big_y | ~(lv[big][:, None] | en[big_t]), big_t, S - 1)
-    fl = jnp.arange(F, dtype=jnp.int32)
-    shift = (8 * fl)[None, :]
+        own_e, par_e, info_e = own_y[entry][:, None], par_y[entry][:, None], info[entry][:, None, :]
+        two = jnp.array([[False, True]])                                  # a channel's flag values
+        no = jnp.zeros((entry.shape[0], 1), bool)
+    all_ones = u8((1 << F) - 1)
 
     def step(G_next, t):
-        lab = label_ok(oy, py, tuple(r[t] for r in reqs))                 # (S, 1)
+        lab = label_ok(own_y, par_y, tuple(r[t] for r in reqs))            # (S,)
+        A = jnp.zeros(S, u8)
         if paper:
-            ok_o, fo = paper_channel_step(oy, iy[..., 0], iy[..., 1], oy, iy[..., 0], iy[..., 1], iy[..., 2], no, no,
-                                          t, two, tuple(a[t] for a in own_a), codes[0], tol)     # (S, 2)
-            ok_p, fp = paper_channel_step(py, iy[..., 3], iy[..., 4], py, iy[..., 3], iy[..., 4], -1, no, no, t,
-                                          two, tuple(a[t] for a in par_a), codes[1], tol)
-            ok = lab & ok_o[:, fl & 1] & ok_p[:, fl >> 1]
-            f1 = fo[:, fl & 1].astype(jnp.int32) | (fp[:, fl >> 1].astype(jnp.int32) << 1)
+            oa, pa = tuple(a[t] for a in own_a), tuple(a[t] for a in par_a)
+            fo = (fl & 1).astype(bool) & ~oa[5]                          # flags after the frame's resets
+            fp = (fl >> 1).astype(bool) & ~pa[5]
+            ok = (~oa[6] | fo) & (~pa[6] | fp)                            # (F,): the flag checks
+            f1 = fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
+            for f in range(F):
+                A |= (ok[f] & (((G_next >> f1[f].astype(u8)) & 1) == 1)).astype(u8) << f
+            # the entry states: the full rule (constraints.paper_channel_step), gathered and scattered back
+            Ge = G_next[entry]
+            ok_o, go = paper_channel_step(own_e, info_e[..., 0], info_e[..., 1], own_e, info_e[..., 0],
+                                          info_e[..., 1], info_e[..., 2], no, no, t, two, oa, codes[0], tol)  # (n, 2)
+            ok_p, gp = paper_channel_step(par_e, info_e[..., 3], info_e[..., 4], par_e, info_e[..., 3],
+                                          info_e[..., 4], -1, no, no, t, two, pa, codes[1], tol)
+            Ae = jnp.zeros(entry.shape[0], u8)
+            for f in range(F):
+                g1 = go[:, f & 1].astype(u8) | (gp[:, f >> 1].astype(u8) << 1)
+                okf = ok_o[:, f & 1] & ok_p[:, f >> 1] & (((Ge >> g1) & 1) == 1)
+                Ae |= okf.astype(u8) << f
+            A = A.at[entry].set(Ae)
         else:
-            f1b = (two & ~reset[t]) | (pw[t] & pky)
-            ok = lab & (~check[t] | f1b)
-            f1 = f1b.astype(jnp.int32)
-        A = ok & jnp.take_along_axis(G_next, f1, axis=1)                 # (S, F): arriving at t is completable
-        A = A.at[S - 1].set(False)                                        # the padding state of missing edges
+            for f in range(F):
+                g1 = (bool(f) & ~reset[t]) | (pw[t] & peak_y)               # (S,)
+                okf = (~check[t] | g1) & (((G_next >> g1.astype(u8)) & 1) == 1)
+                A |= okf.astype(u8) << f
+        A = jnp.where(lab, A, u8(0)).at[last].set(0)                      # the padding state of missing edges
         # materialized once per frame: else XLA may fuse the rule into the edge gathers (per edge)
-        packed = jax.lax.optimization_barrier((A.astype(jnp.int32) << shift).sum(1))
-        cnt = packed[small_t].sum(1).at[big].set(packed[big_t].sum(1))
-        G = (((cnt[:, None] >> shift) & 255) > 0) | (t - 1 >= num_frames - 1)
-        return G, (G.astype(jnp.int32) << fl[None, :]).sum(1).astype(jnp.uint8)
+        A = jax.lax.optimization_barrier(A)
+        G = jax.ops.segment_max(A[tgt], src, num_segments=S, indices_are_sorted=True)
+        G = G | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
+        G = jnp.where(t - 1 >= num_frames - 1, all_ones, G)
+        return G, G
 
     Tp = pw.shape[0]
-    _, out = jax.lax.scan(step, jnp.ones((S, F), bool), jnp.arange(Tp - 1, 0, -1, dtype=jnp.int32))
-    return jnp.concatenate([out[::-1], jnp.full((1, S), (1 << F) - 1, jnp.uint8)])
+    _, out = jax.lax.scan(step, jnp.full(S, all_ones), jnp.arange(Tp - 1, 0, -1, dtype=jnp.int32))
+    feas = jnp.concatenate([out[::-1], jnp.full((1, S), all_ones)])
+    valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
+    return feas, jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
 
 
 def feasibility(prep, constraints: Constraints, padded_inputs):
-    """(Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring) for a
-    graph prepared by ``beam._prepare``; ``padded_inputs`` = (reqs, pw, reset, check, paper_arrs),
-    padded to Tp frames exactly as the beam kernel gets them."""
+    """((Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring), solvable
+    (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs`` = (reqs, pw, reset,
+    check, paper_arrs), padded to Tp frames exactly as the beam kernel gets them."""
     c = constraints
     reqs, pw, reset, check, paper_arrs = padded_inputs
-    return _feasible_kernel(prep.edges, prep.device[3], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
-                            np.int32(c.num_frames), F=num_flags(c), paper=c.paper is not None)
+    edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
+    return _feasible_kernel(edges, prep.device[4], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
+                            np.int32(c.num_frames), np.int32(prep.num_states), F=num_flags(c), paper=c.paper is not None)
 
 
 def solvable(bits0, start_ok, flag0) -> bool:

@@ -6,10 +6,10 @@
   with its own and partner audio status -> ``graph_<character>.npz``.
 
 ``summary.json`` holds, for the bvh_folder case, num_frames, num_key_states, threshold,
-num_states_before_scc, num_edges_before_scc, num_states, num_edges, seconds (construction wall
-time, loading excluded), w_v, joint_weights, joint_names, root_relative. For dyadic corpora the same
-keys are given per character under ``graphs`` and, at the top level, summed (counts, seconds) or
-listed per character (threshold, w_v).
+num_states_before_scc, num_edges_before_scc, num_states, num_edges, seconds (construction wall time,
+loading excluded), cpu_seconds (its CPU time, all threads of the process), w_v, joint_weights,
+joint_names, root_relative. For dyadic corpora the same keys are given per character under
+``graphs`` and, at the top level, summed (counts, seconds) or listed per character (threshold, w_v).
 """
 from __future__ import annotations
 
@@ -19,7 +19,7 @@ from pathlib import Path
 
 
 KEYS = ("num_frames", "num_key_states", "key_fraction", "threshold", "num_states_before_scc",
-        "num_edges_before_scc", "num_states", "num_edges", "num_synthetic_edges", "seconds", "w_v",
+        "num_edges_before_scc", "num_states", "num_edges", "num_synthetic_edges", "seconds", "cpu_seconds", "w_v",
         "distribution", "k", "quantile", "joint_weights", "joint_names", "root_relative", "remove_yaw", "timings",
         "kernel", "scc_warning")
 
@@ -50,16 +50,17 @@ def run(cfg, out_dir: Path) -> dict:
     sets = character_clip_sets(params)
     graphs = {}
     for char, clips in sets.items():
-        t0 = time.perf_counter()
+        t0, c0 = time.perf_counter(), time.process_time()
         g = build_graph(build_database(clips, params.features), params.graph)
         g.meta["seconds"] = time.perf_counter() - t0
+        g.meta["cpu_seconds"] = time.process_time() - c0
         g.save(out_dir / (f"graph_{char}.npz" if char else "graph.npz"))
         graphs[char] = {k: g.meta.get(k) for k in KEYS}
     if list(graphs) == [""]:
         return dict(graphs[""])
     top = {k: sum(v[k] for v in graphs.values()) for k in
            ("num_frames", "num_key_states", "num_states_before_scc", "num_edges_before_scc", "num_states",
-            "num_edges", "seconds")}
+            "num_edges", "seconds", "cpu_seconds")}
     top.update({"threshold": {c: v["threshold"] for c, v in graphs.items()},
                 "w_v": {c: v["w_v"] for c, v in graphs.items()}, "graphs": graphs})
     return top

@@ -10,10 +10,11 @@ index), so the same window gives the same motion in both tasks.
 
 Writes ``<character>.bvh``, ``<character>_blinks.csv`` (when the system makes blinks),
 ``<role>_input.wav`` (the input audio of the window), ``report.json`` (per character: success,
-constraints hit and missed by the independent checker where the system reports per-frame
-provenance, transitions used with costs, timings) and a summary with success, search_seconds (per
-character), num_synthetic_transitions, constraints_total, constraints_met and, per output frame,
-the source clip and frame.
+constraints hit and missed by the independent checker where the system reports per-frame provenance,
+transitions used with costs, timings) and a summary with success, search_seconds (per character,
+wall time), synthesis_cpu_seconds (per character: CPU time of the process, all threads, for search
+and realization; read beside the wall time on a loaded machine), num_synthetic_transitions,
+constraints_total, constraints_met and, per output frame, the source clip and frame.
 """
 from __future__ import annotations
 
@@ -98,7 +99,7 @@ def run(cfg, out_dir: Path) -> dict:
     fit_seconds = time.perf_counter() - t_fit
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in ann.items() for r, a in d.items()}
     summary = {"system": system.name, "session": session, "window": [start, start + duration], "condition": condition,
-               "search_method": params.search.method, "success": True, "search_seconds": {},
+               "search_method": params.search.method, "success": True, "search_seconds": {}, "synthesis_cpu_seconds": {},
                "num_synthetic_transitions": {}, "constraints_total": {}, "constraints_met": {}, "cost": {},
                "source_frames": {}, "failure": {}, "graph_seconds": fit_seconds}
     report = {"characters": {}}
@@ -107,7 +108,9 @@ def run(cfg, out_dir: Path) -> dict:
         seed = derive_seed(params.seed, fold=fold, condition=condition, session=session, window_frame=f0, role_index=k)
         win = window_input(held, role, w, fps, seed, with_audio=system.needs_audio,
                            own_segments=segs[role], partner_segments=segs[roles[1 - k]])
+        cpu = time.process_time()
         res = system.synthesize(fitted[char], win, condition)
+        summary["synthesis_cpu_seconds"][char] = time.process_time() - cpu
         summary["search_seconds"][char] = res.seconds
         summary["constraints_total"][char] = res.constraints_total
         if not res.success:

@@ -59,6 +59,52 @@ def state_posteriors(model: DBNModel, speech: np.ndarray, constraints: np.ndarra
     return g
 
 
+def state_posteriors_batch(model: DBNModel, speeches: list, constraints: list | None = None,
+                           posterior: str = "smoother") -> list[np.ndarray]:
+    """:func:`state_posteriors` of several turns in one call (one padded batch: one dispatch and one
+    compiled shape per model instead of one per turn); returns the (T_i, K) posteriors."""
+    if posterior not in POSTERIORS:
+        raise CDBNError(f"unknown posterior {posterior!r}; expected one of {POSTERIORS}")
+    n = len(speeches)
+    if n == 0:
+        return []
+    cons = []
+    for i, sp in enumerate(speeches):
+        check_finite(sp, "speech", f"speech features of turn {i}")
+        T = len(sp)
+        c = np.zeros(T, np.int32) if constraints is None else np.asarray(constraints[i], np.int32)
+        if len(c) != T:
+            raise CDBNError(f"turn {i}: {T} speech frames but {len(c)} constraint codes")
+        if c.size and (c.min() < 0 or c.max() >= model.num_constraints):
+            raise CDBNError(f"constraint codes must lie in 0..{model.num_constraints - 1} {list(model.constraint_names)}")
+        cons.append(c)
+    L = _pad(max(len(sp) for sp in speeches))
+    B = int(2 ** np.ceil(np.log2(n))) if n <= 16 else int(np.ceil(n / 16) * 16)
+    D = model.means.shape[1]
+    x = np.zeros((B, L, D), np.float32)
+    cc = np.zeros((B, L), np.int32)
+    lengths = np.zeros(B, np.int32)
+    for i, (sp, c) in enumerate(zip(speeches, cons)):
+        T = len(sp)
+        x[i, :T][:, list(model.speech_dims)] = np.asarray(sp, np.float32)
+        cc[i, :T] = c
+        if T:
+            cc[i, T:] = c[-1]
+        lengths[i] = T
+    args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray(lengths),
+            jnp.asarray(model.means, jnp.float32), jnp.asarray(model.covariances, jnp.float32),
+            jnp.asarray(model.initial, jnp.float32), jnp.asarray(model.transitions, jnp.float32))
+    dims = tuple(model.speech_dims)
+    if posterior == "smoother":
+        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)
+    elif posterior == "filter":
+        g = np.asarray(batch_filter(*args, dims)[1], np.float64)
+    else:
+        path = np.asarray(batch_viterbi(*args, dims)[0])
+        g = np.eye(model.num_states)[path]
+    return [g[i, :len(sp)] for i, sp in enumerate(speeches)]
+
+
 def expected_motion(model: DBNModel, gamma: np.ndarray) -> np.ndarray:
     """Eq. 4 / 6: (T, d_m) = gamma (T, K) @ mu^motion (K, d_m)."""
     return gamma @ np.asarray(model.means)[:, list(model.motion_dims)]

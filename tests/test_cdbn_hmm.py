@@ -100,7 +100,7 @@ def test_packed_batch_matches_reference_per_sequence():
     with enable_x64():
         import jax.numpy as jnp
 
-        pb = make_batch(seqs, cons, bucket=64, dtype=np.float64, pack=True)
+        pb = make_batch(seqs, cons, bucket=64, dtype=np.float64, pack=True, pack_length=64)
         ub = make_batch(seqs, cons, bucket=64, dtype=np.float64)
         assert int((pb.lengths > 0).sum()) == 2 and pb.x.shape[1] == 64      # 5 sequences in 2 rows
         post = batch_posterior(jnp.asarray(pb.x), jnp.asarray(pb.constraints), jnp.asarray(pb.lengths),
@@ -210,3 +210,27 @@ def test_batched_state_posteriors_equal_the_per_turn_ones(posterior):
     many = state_posteriors_batch(model, speech, list(cons), posterior)
     for sp, c, g in zip(speech, cons, many):
         np.testing.assert_allclose(g, state_posteriors(model, sp, c, posterior), atol=1e-5)
+
+
+def test_inert_padding_states_change_nothing():
+    """pad_states (models of nearby K share a compiled shape): the padded model's smoother, Viterbi
+    and E-step statistics restricted to the real states equal the unpadded model's, and the inert
+    states get exactly zero posterior."""
+    import jax.numpy as jnp
+
+    from convsynth_jax.cdbn.hmm import batch_posterior, batch_viterbi, pad_states
+
+    rng = np.random.default_rng(7)
+    model = random_model(rng, K=5, C=2)
+    seqs, cons = zip(*[sample(rng, model, T) for T in (50, 33)])
+    b = make_batch(seqs, cons, bucket=16)
+    padded = pad_states(model.means, model.covariances, model.initial, model.transitions)
+    assert padded[0].shape[0] == 8 and padded[3].shape == (2, 8, 8)
+    run = lambda f, ps: f(jnp.asarray(b.x), jnp.asarray(b.constraints), jnp.asarray(b.lengths),
+                          *(jnp.asarray(a, jnp.float32) for a in ps), (0, 1, 2, 3))
+    plain = (model.means, model.covariances, model.initial, model.transitions)
+    p0, p1 = run(batch_posterior, plain), run(batch_posterior, padded)
+    np.testing.assert_allclose(np.asarray(p1.log_likelihood), np.asarray(p0.log_likelihood), rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(p1.smoothed)[..., :5], np.asarray(p0.smoothed), atol=1e-6)
+    assert np.all(np.asarray(p1.smoothed)[..., 5:] == 0.0) and np.all(np.asarray(p1.xi_sum)[:, :, 5:] == 0.0)
+    np.testing.assert_array_equal(np.asarray(run(batch_viterbi, padded)[0]), np.asarray(run(batch_viterbi, plain)[0]))

@@ -17,7 +17,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import CDBNError
-from .hmm import batch_statistics
+from .hmm import batch_statistics, pad_states
 from .params import DBNModel, TrainParams
 
 log = logging.getLogger(__name__)
@@ -60,14 +60,17 @@ class Batch(NamedTuple):
 
 
 def make_batch(sequences: Sequence[np.ndarray], constraints: Sequence[np.ndarray] | None = None,
-               max_length: int | None = 2048, bucket: int = 64, dtype=np.float32, pack: bool = False) -> Batch:
+               max_length: int | None = 2048, bucket: int = 64, dtype=np.float32, pack: bool = False,
+               pack_length: int = 512) -> Batch:
     """Pad a list of (T_i, D) sequences (and (T_i,) constraint codes; zeros if None) into a Batch.
     Sequences longer than ``max_length`` are cut into consecutive chunks (the chain restarts from the
     initial distribution at each cut: a negligible approximation for long recordings that keeps the
     sequential scan short; None: never cut). ``pack``: put several sequences back to back in one row
     of the bucketed length (first-fit decreasing), so that the scans run over about the real number
     of frames instead of B x (a power of two above the longest); exact (see :class:`Batch`), for
-    the E-step; rows then no longer correspond to sequences."""
+    the E-step; rows then no longer correspond to sequences. Packed rows are at least ``pack_length``
+    frames long, so that the datasets of one evaluation (all turns, each constraint's runs) share a
+    few compiled shapes."""
     xs, cs = [], []
     for i, s in enumerate(sequences):
         s = np.asarray(s)
@@ -85,6 +88,7 @@ def make_batch(sequences: Sequence[np.ndarray], constraints: Sequence[np.ndarray
     T = max(len(s) for s in xs)
     T = max(bucket, int(2 ** np.ceil(np.log2(T))))           # bucketed shapes: few compilations
     if pack:
+        T = max(T, int(pack_length))
         rows, used = [], []              # first-fit decreasing: lists of sequence indices per row
         for i in sorted(range(len(xs)), key=lambda i: -len(xs[i])):
             r = next((j for j, u in enumerate(used) if u + len(xs[i]) <= T), None)
@@ -137,11 +141,13 @@ def e_step(model: DBNModel, batch: Batch, dims: tuple | None = None) -> Stats:
     dims = tuple(range(D)) if dims is None else tuple(dims)
     dt = batch.x.dtype
     shift = batch.x[batch.valid()].mean(0) if batch.num_frames else np.zeros(D, dt)
+    K = model.num_states
+    means, covs, initial, trans = pad_states(model.means, model.covariances, model.initial, model.transitions)
     out = batch_statistics(jnp.asarray(batch.x), jnp.asarray(batch.constraints), jnp.asarray(batch.lengths),
-                           jnp.asarray(batch.reset_mask()), jnp.asarray(shift, dt), jnp.asarray(model.means, dt),
-                           jnp.asarray(model.covariances, dt),
-                           jnp.asarray(model.initial, dt), jnp.asarray(model.transitions, dt), dims)
+                           jnp.asarray(batch.reset_mask()), jnp.asarray(shift, dt), jnp.asarray(means, dt),
+                           jnp.asarray(covs, dt), jnp.asarray(initial, dt), jnp.asarray(trans, dt), dims)
     ll, counts, first, second, init, xi = (np.asarray(o, np.float64) for o in out)
+    counts, first, second, init, xi = counts[:K], first[:K], second[:K], init[:, :K], xi[:, :K, :K]
     shift = shift.astype(np.float64)
     # raw moments: sum g x = first + n shift; sum g x x^T = second + first shift^T + shift first^T + n shift shift^T
     raw1 = first + counts[:, None] * shift

@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 
 
@@ -161,6 +162,31 @@ def hmm_viterbi(initial, transitions, log_lik, constraints, length):
 
     _, path = lax.scan(back, last, ptrs, reverse=True)
     return path, jnp.max(delta)
+
+
+STATE_MULTIPLE = 4
+
+
+def pad_states(means, covariances, initial, transitions, multiple: int = STATE_MULTIPLE):
+    """Pad a model's K states to a multiple of ``multiple`` with inert states (NumPy, before the
+    kernels, so that models of nearby sizes share one compiled shape): initial probability 0 and no
+    transition into them (log 0 = -inf, exact), a self-loop row, unit Gaussians. Every forward,
+    backward and Viterbi message of an inert state is -inf, so the real states' posteriors, counts
+    and log-likelihood are those of the unpadded model; slice the outputs back to K."""
+    K = means.shape[0]
+    Kp = -(-K // multiple) * multiple
+    if Kp == K:
+        return means, covariances, initial, transitions
+    e = Kp - K
+    D = means.shape[1]
+    C = initial.shape[0]
+    means = np.concatenate([np.asarray(means), np.zeros((e, D), np.asarray(means).dtype)])
+    covariances = np.concatenate([np.asarray(covariances), np.broadcast_to(np.eye(D), (e, D, D))])
+    initial = np.concatenate([np.asarray(initial), np.zeros((C, e))], axis=1)
+    t = np.zeros((C, Kp, Kp))
+    t[:, :K, :K] = transitions
+    t[:, np.arange(K, Kp), np.arange(K, Kp)] = 1.0
+    return means, covariances, initial, t
 
 
 @partial(jax.jit, static_argnames=("dims",))

@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import CDBNError
 from .features import check_finite, head_euler_to_quat
-from .hmm import batch_filter, batch_posterior, batch_viterbi
+from .hmm import batch_filter, batch_posterior, batch_viterbi, pad_states
 from .params import POSTERIORS, DBNModel
 
 
@@ -45,18 +45,24 @@ def state_posteriors(model: DBNModel, speech: np.ndarray, constraints: np.ndarra
     cc[0, :T] = c
     if T:
         cc[0, T:] = c[-1]
-    args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray([T], jnp.int32),
-            jnp.asarray(model.means, jnp.float32), jnp.asarray(model.covariances, jnp.float32),
-            jnp.asarray(model.initial, jnp.float32), jnp.asarray(model.transitions, jnp.float32))
+    return _posteriors(model, x, cc, np.asarray([T], np.int32), posterior)[0, :T]  # slice on the host
+
+
+def _posteriors(model: DBNModel, x, cc, lengths, posterior: str) -> np.ndarray:
+    """(B, L, K) posteriors of a padded batch; the model's states are padded to a multiple of 4 with
+    inert states (:func:`.hmm.pad_states`: one compiled shape for nearby K) and sliced back."""
+    K = model.num_states
+    params = pad_states(model.means, model.covariances, model.initial, model.transitions)
+    args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray(lengths)) + tuple(jnp.asarray(a, jnp.float32) for a in params)
     dims = tuple(model.speech_dims)
     if posterior == "smoother":
-        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)[0, :T]  # slice on the host: no recompiles
+        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)
     elif posterior == "filter":
-        g = np.asarray(batch_filter(*args, dims)[1], np.float64)[0, :T]
+        g = np.asarray(batch_filter(*args, dims)[1], np.float64)
     else:
-        path = np.asarray(batch_viterbi(*args, dims)[0])[0, :T]
-        g = np.eye(model.num_states)[path]
-    return g
+        path = np.asarray(batch_viterbi(*args, dims)[0])
+        g = np.eye(params[0].shape[0])[path]
+    return g[:, :, :K]
 
 
 def state_posteriors_batch(model: DBNModel, speeches: list, constraints: list | None = None,
@@ -91,17 +97,7 @@ def state_posteriors_batch(model: DBNModel, speeches: list, constraints: list | 
         if T:
             cc[i, T:] = c[-1]
         lengths[i] = T
-    args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray(lengths),
-            jnp.asarray(model.means, jnp.float32), jnp.asarray(model.covariances, jnp.float32),
-            jnp.asarray(model.initial, jnp.float32), jnp.asarray(model.transitions, jnp.float32))
-    dims = tuple(model.speech_dims)
-    if posterior == "smoother":
-        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)
-    elif posterior == "filter":
-        g = np.asarray(batch_filter(*args, dims)[1], np.float64)
-    else:
-        path = np.asarray(batch_viterbi(*args, dims)[0])
-        g = np.eye(model.num_states)[path]
+    g = _posteriors(model, x, cc, lengths, posterior)
     return [g[i, :len(sp)] for i, sp in enumerate(speeches)]
 
 

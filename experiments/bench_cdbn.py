@@ -135,7 +135,8 @@ def bench_eval():
     t0 = time.perf_counter()
     s = run_task(compose(["task=cdbn_eval", f"cache_dir={out / 'cache'}"]), out)
     return {"wall_seconds": time.perf_counter() - t0, "out_dir": str(out), "table": s["table"],
-            "gesture_accuracy": s["gesture_accuracy"], "transition_distance": s["transition_distance"]}
+            "gesture_accuracy": s["gesture_accuracy"], "transition_distance": s["transition_distance"],
+            "init_comparison": s["init_comparison"], "phase_seconds": s["phase_seconds"]}
 
 
 def _hand_table(turns, rig, names, ep_kw):

@@ -129,9 +129,10 @@ def choose_states(values: dict, cca_slack: float, llr_slack: float) -> int:
 
 
 def gesture_segments(turns: list[Turn], motions: list[np.ndarray], names: tuple, fps: float,
-                     rng: np.random.Generator | None = None, with_other: bool = True):
+                     rng: np.random.Generator | None = None, with_other: bool = True, sources: list | None = None):
     """(segments, labels) of constraint runs other than code 0 ('other'), plus as many random 'other'
-    windows of similar length when ``with_other``."""
+    windows of similar length when ``with_other``; ``sources``, when given, receives each segment's
+    turn name."""
     segs, labels = [], []
     for t, m in zip(turns, motions):
         c = t.constraints
@@ -140,11 +141,15 @@ def gesture_segments(turns: list[Turn], motions: list[np.ndarray], names: tuple,
             if c[a] != 0 and b - a >= 6:
                 segs.append(m[a:b])
                 labels.append(names[c[a]])
+                if sources is not None:
+                    sources.append(t.name)
             elif c[a] == 0 and with_other and b - a >= 30 and rng is not None:
                 L = int(rng.integers(20, 45))
                 s0 = int(rng.integers(a, b - min(L, b - a) + 1))
                 segs.append(m[s0:s0 + L])
                 labels.append(names[0])
+                if sources is not None:
+                    sources.append(t.name)
     return segs, labels
 
 
@@ -206,11 +211,13 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
             states[kind].append(tm.model.num_states)
             params_n[kind].append(tm.num_parameters)
             deg = [norms[t.subject][1].invert(s) for t, s in zip(test, sc["synth"])]
-            gs, gl = gesture_segments(test, deg, p.constraints, p.features.fps, None, with_other=False)
+            src = []
+            gs, gl = gesture_segments(test, deg, p.constraints, p.features.fps, None, with_other=False, sources=src)
             if gs:
                 pred = clf.predict(np.stack([feat(s, p.features.fps) for s in gs]))
                 gest[kind][0].extend(gl)
                 gest[kind][1].extend(pred.tolist())
+                gest[kind][2].extend(src)
             if f == test_folds[0]:
                 folds_out[kind] = tm
                 folds_out[f"{kind}_synth"] = sc["synth"]
@@ -234,6 +241,11 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
         acc[kind] = {lab: {"n": int((truth == lab).sum()),
                            "accuracy": float((pred[truth == lab] == lab).mean()) if (truth == lab).any() else float("nan")}
                      for lab in p.constraints[1:]}
+    # (ours) which class each synthesized gesture was taken for, and from which turn
+    confusion = {kind: {lab: {q: int(((np.array(gest[kind][0]) == lab) & (np.array(gest[kind][1]) == q)).sum())
+                              for q in p.constraints} for lab in p.constraints[1:]} for kind in ("jdbn", "cdbn")}
+    predictions = {kind: [{"turn": n, "truth": a, "predicted": b} for a, b, n in zip(*gest[kind])]
+                   for kind in ("jdbn", "cdbn")}
     cm_j = np.array([r["cca_m"] for r in per_turn["jdbn"]])
     cm_c = np.array([r["cca_m"] for r in per_turn["cdbn"]])
     cms_j = np.array([r["cca_ms"] for r in per_turn["jdbn"]])
@@ -242,7 +254,8 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
              "cca_ms_paired_t_p": float(stats.ttest_rel(cms_c, cms_j).pvalue)}
     orig_ms = np.array([r["cca_orig_ms"] for r in per_turn["jdbn"]])
     return {"chosen_states": chosen, "validation_curves": curves, "table": table, "per_turn": per_turn,
-            "gesture_accuracy": acc, "tests": tests, "cca_original_speech_motion": float(orig_ms.mean()),
+            "gesture_accuracy": acc, "gesture_confusion": confusion, "gesture_predictions": predictions,
+            "tests": tests, "cca_original_speech_motion": float(orig_ms.mean()),
             "fold1": folds_out, "test_folds": test_folds, "phase_seconds": phases}
 
 

@@ -64,3 +64,20 @@ def test_gesture_classifier_separates_pitch_and_yaw_oscillations():
     clf = gesture_classifier(segs, ["nod"] * 5 + ["shake"] * 5 + ["other"] * 5, 30.0)
     pred = clf.predict(np.stack([gesture_features(s, 30.0) for s in (seg(6, 0), seg(0, 6), seg(0.1, 0.1))]))
     assert list(pred) == ["nod", "shake", "other"]
+
+
+def test_gesture_segments_report_their_turns():
+    """gesture_segments(sources=...) names the turn of every segment (the per-turn gesture
+    predictions of the Table VI analogue), aligned with segments and labels."""
+    from convsynth_jax.cdbn.dataset import Turn
+    from convsynth_jax.cdbn.experiment import gesture_segments
+
+    c1 = np.array([0] * 40 + [1] * 10 + [0] * 40 + [2] * 8)
+    c2 = np.array([0] * 35 + [2] * 12)
+    turns = [Turn(n, "s", np.zeros((len(c), 6)), np.zeros((len(c), 3)), c) for n, c in (("a", c1), ("b", c2))]
+    src = []
+    segs, labs = gesture_segments(turns, [t.motion for t in turns], ("other", "nod", "shake"), 30.0,
+                                  np.random.default_rng(0), sources=src)
+    assert len(src) == len(segs) == len(labs)
+    assert [(n, lab) for n, lab in zip(src, labs) if lab != "other"] == [("a", "nod"), ("a", "shake"), ("b", "shake")]
+    assert sorted(n for n, lab in zip(src, labs) if lab == "other") == ["a", "a", "b"]

@@ -88,6 +88,49 @@ def test_smoother_filter_viterbi_match_reference(seed):
                 assert np.all(np.asarray(post.xi_sum[i])[model.transitions == 0] == 0.0)
 
 
+def test_packed_batch_matches_reference_per_sequence():
+    """Several sequences back to back in one row (make_batch(pack=True)): posteriors of each segment,
+    the summed log-likelihood, expected transitions (none across a reset) and the E-step statistics
+    equal the float64 reference's and the unpacked batch's."""
+    from convsynth_jax.cdbn.hmm import batch_posterior
+
+    rng = np.random.default_rng(5)
+    model = random_model(rng, K=4, C=3)
+    seqs, cons = zip(*[sample(rng, model, T) for T in (40, 20, 30, 10, 14)])
+    with enable_x64():
+        import jax.numpy as jnp
+
+        pb = make_batch(seqs, cons, bucket=64, dtype=np.float64, pack=True, pack_length=64)
+        ub = make_batch(seqs, cons, bucket=64, dtype=np.float64)
+        assert int((pb.lengths > 0).sum()) == 2 and pb.x.shape[1] == 64      # 5 sequences in 2 rows
+        post = batch_posterior(jnp.asarray(pb.x), jnp.asarray(pb.constraints), jnp.asarray(pb.lengths),
+                               jnp.asarray(model.means), jnp.asarray(model.covariances),
+                               jnp.asarray(model.initial), jnp.asarray(model.transitions), (0, 1, 2, 3),
+                               jnp.asarray(pb.resets))
+        ll_tot, xi_tot, init_tot = 0.0, 0.0, np.zeros_like(model.initial)
+        found = 0
+        for x, c in zip(seqs, cons):
+            le = ref.log_emissions(x, model.means, model.covariances, range(4))
+            ll, _, s, xi = ref.forward_backward(model.initial, model.transitions, le, c)
+            ll_tot, xi_tot = ll_tot + ll, xi_tot + xi
+            init_tot[c[0]] += s[0]
+            for r in range(pb.x.shape[0]):          # locate the segment in the packed rows
+                for a in np.flatnonzero(pb.resets[r]):
+                    if a + len(x) <= pb.lengths[r] and np.array_equal(pb.x[r, a:a + len(x)], x):
+                        np.testing.assert_allclose(np.asarray(post.smoothed[r, a:a + len(x)]), s,
+                                                   atol=ref.POSTERIOR_ATOL)
+                        found += 1
+        assert found == len(seqs)
+        assert np.isclose(float(np.sum(post.log_likelihood)), ll_tot, rtol=ref.LOGLIK_RTOL)
+        np.testing.assert_allclose(np.asarray(post.xi_sum).sum(0), xi_tot, atol=ref.POSTERIOR_ATOL)
+        sp, su = e_step(model, pb), e_step(model, ub)
+        assert np.isclose(sp.log_likelihood, ll_tot, rtol=ref.LOGLIK_RTOL)
+        np.testing.assert_allclose(sp.initial, init_tot, atol=ref.POSTERIOR_ATOL)
+        np.testing.assert_allclose(sp.transitions, xi_tot, atol=ref.POSTERIOR_ATOL)
+        for a, b in zip(sp[1:], su[1:]):
+            np.testing.assert_allclose(a, b, atol=1e-8)
+
+
 def reference_m_step(model, seqs, cons, floor):
     """One EM update from the reference posteriors, by loops (floor not reached in this test)."""
     K, D = model.means.shape
@@ -152,3 +195,42 @@ def test_covariance_floor_warns_and_bounds_eigenvalues():
         new = m_step(model, st, TrainParams(covariance_floor=1e-3))
     for k in range(2):
         assert np.linalg.eigvalsh(new.covariances[k][2:, 2:]).min() >= 1e-3 - 1e-9
+
+
+@pytest.mark.parametrize("posterior", ["smoother", "filter", "viterbi"])
+def test_batched_state_posteriors_equal_the_per_turn_ones(posterior):
+    """state_posteriors_batch (one padded call for all turns of a fold) gives each turn's
+    state_posteriors (which the float64 reference test above covers)."""
+    from convsynth_jax.cdbn.synthesize import state_posteriors, state_posteriors_batch
+
+    rng = np.random.default_rng(6)
+    model = random_model(rng, K=4, C=2)
+    seqs, cons = zip(*[sample(rng, model, T) for T in (70, 15, 130)])
+    speech = [x[:, :2] for x in seqs]
+    many = state_posteriors_batch(model, speech, list(cons), posterior)
+    for sp, c, g in zip(speech, cons, many):
+        np.testing.assert_allclose(g, state_posteriors(model, sp, c, posterior), atol=1e-5)
+
+
+def test_inert_padding_states_change_nothing():
+    """pad_states (models of nearby K share a compiled shape): the padded model's smoother, Viterbi
+    and E-step statistics restricted to the real states equal the unpadded model's, and the inert
+    states get exactly zero posterior."""
+    import jax.numpy as jnp
+
+    from convsynth_jax.cdbn.hmm import batch_posterior, batch_viterbi, pad_states
+
+    rng = np.random.default_rng(7)
+    model = random_model(rng, K=5, C=2)
+    seqs, cons = zip(*[sample(rng, model, T) for T in (50, 33)])
+    b = make_batch(seqs, cons, bucket=16)
+    padded = pad_states(model.means, model.covariances, model.initial, model.transitions)
+    assert padded[0].shape[0] == 8 and padded[3].shape == (2, 8, 8)
+    run = lambda f, ps: f(jnp.asarray(b.x), jnp.asarray(b.constraints), jnp.asarray(b.lengths),
+                          *(jnp.asarray(a, jnp.float32) for a in ps), (0, 1, 2, 3))
+    plain = (model.means, model.covariances, model.initial, model.transitions)
+    p0, p1 = run(batch_posterior, plain), run(batch_posterior, padded)
+    np.testing.assert_allclose(np.asarray(p1.log_likelihood), np.asarray(p0.log_likelihood), rtol=1e-6)
+    np.testing.assert_allclose(np.asarray(p1.smoothed)[..., :5], np.asarray(p0.smoothed), atol=1e-6)
+    assert np.all(np.asarray(p1.smoothed)[..., 5:] == 0.0) and np.all(np.asarray(p1.xi_sum)[:, :, 5:] == 0.0)
+    np.testing.assert_array_equal(np.asarray(run(batch_viterbi, padded)[0]), np.asarray(run(batch_viterbi, plain)[0]))

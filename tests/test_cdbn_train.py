@@ -144,3 +144,44 @@ def test_transition_distances_train_to_convergence(monkeypatch):
     assert d["sparse"] == pytest.approx(0.9)                      # nod-only state 0: 0.9 self vs 0
     assert d["sparse_common_rows"] == pytest.approx(0.5)         # only the shared state row: |0.5 - 0|
     assert d["em_iterations"] == {"shared": 7, "cdbn": 7}
+
+
+def test_transition_distances_warm_start_continues_the_given_cdbn(monkeypatch):
+    """With a warm CDBN (the cross-validation's, same turns and N), the sparse Eq. 8 model continues EM
+    from it with the distance settings (no second CDBN trained from LBG); the shared model is still
+    trained; warm_start off trains both afresh. Fails on the old code (no ``warm`` argument)."""
+    from convsynth_jax.cdbn import experiment
+    from convsynth_jax.cdbn.cdbn import TrainedModel
+    from convsynth_jax.cdbn.em import FitResult
+    from convsynth_jax.cdbn.params import CDBNParams, DBNModel
+
+    K = 3
+    t = np.stack([np.full((K, K), 1 / 3)] * 3)
+    m = DBNModel(np.zeros((K, 2)), np.broadcast_to(np.eye(2), (K, 2, 2)), np.full((3, K), 1 / K), t,
+                 (0,), (1,), ("other", "nod", "shake"))
+    warm = TrainedModel(m, np.ones((K, 3), bool), [0.0] * 20, "cdbn", [], t > 0, np.ones((3, K), bool))
+    seen, cont = [], []
+
+    def fake_fit(kind, turns, n, p, train=None):
+        seen.append(kind)
+        return TrainedModel(m, np.ones((K, 3), bool), [0.0] * 7, kind)
+
+    def fake_fit_em(model, batch, params, max_iter=None, progress=False):
+        cont.append((model, params))
+        t2 = model.transitions.copy()
+        t2[2, 0] = [0.5, 0.25, 0.25]
+        return FitResult(model._replace(transitions=t2), [1.0] * 5, True, 5)
+
+    monkeypatch.setattr(experiment, "fit", fake_fit)
+    monkeypatch.setattr(experiment, "fit_em", fake_fit_em)
+    monkeypatch.setattr(experiment, "make_batch", lambda *a, **k: None)
+    ep = experiment.EvalParams(distance_max_iter=123, distance_tol=1e-5)
+    d = experiment.transition_distances([], CDBNParams(), 8, ep, warm=warm)
+    assert seen == ["shared"]
+    assert len(cont) == 1 and cont[0][0] is m and cont[0][1].max_iter == 123 and cont[0][1].tol == 1e-5
+    assert d["sparse"] == pytest.approx(1 / 6)                   # from the continued model
+    assert d["em_iterations"]["cdbn"] == 25 and d["warm_started"]
+    seen.clear()
+    d = experiment.transition_distances([], CDBNParams(), 8, experiment.EvalParams(distance_warm_start=False),
+                                        warm=warm)
+    assert sorted(seen) == ["cdbn", "shared"] and not d["warm_started"]

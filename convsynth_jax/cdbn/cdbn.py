@@ -96,7 +96,7 @@ def _frames(batch: Batch) -> np.ndarray:
 def train_jdbn(sequences, num_states: int, speech_dims, motion_dims, params: TrainParams,
                feature_layout: tuple = (), init: str | None = None, max_length: int | None = 2048) -> TrainedModel:
     """The baseline jDBN (Sec. VI) on speech + motion sequences [(T_i, D)]; the constraint is ignored."""
-    batch = make_batch(sequences, None, max_length=max_length)
+    batch = make_batch(sequences, None, max_length=max_length, pack=True)
     x = _frames(batch)
     rng = np.random.default_rng(params.seed)
     fit = _best_of_restarts(lambda r: init_dbn(x, num_states, speech_dims, motion_dims, params, r, ("all",),
@@ -108,7 +108,7 @@ def train_shared(sequences, constraints, num_states: int, speech_dims, motion_di
                  constraint_names: tuple, feature_layout: tuple = (), max_length: int | None = 2048) -> TrainedModel:
     """Option 1 of Sec. VII-B: N states shared by all constraints, one dense transition matrix per
     constraint."""
-    batch = make_batch(sequences, constraints, max_length=max_length)
+    batch = make_batch(sequences, constraints, max_length=max_length, pack=True)
     x = _frames(batch)
     rng = np.random.default_rng(params.seed)
     fit = _best_of_restarts(lambda r: init_dbn(x, num_states, speech_dims, motion_dims, params, r,
@@ -209,12 +209,12 @@ def train_cdbn(sequences, constraints, states_per_constraint: int | tuple, speec
         sub = TrainParams(**{**params.__dict__, "seed": int(rng.integers(2 ** 31))})
         tm = train_jdbn(runs, Ns[k], speech_dims, motion_dims, sub, feature_layout,
                         max_length=max_length)
-        b = make_batch(runs, None, max_length=max_length)
+        b = make_batch(runs, None, max_length=max_length, pack=True)
         occ.append(e_step(tm.model, b).counts)
         per.append(tm.model)
     means, covs, owners, origin, merges = merge_states(per, occ, merge_threshold)
     log.info("CDBN: %s states per constraint -> %d after %d merges", Ns, len(means), len(merges))
-    batch = make_batch(sequences, constraints, max_length=max_length)
+    batch = make_batch(sequences, constraints, max_length=max_length, pack=True)
     x, _ = batch.frames()
     shared = None
     if shared_state:

@@ -17,21 +17,33 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import CDBNError
-from .hmm import batch_statistics
+from .hmm import batch_statistics, pad_states
 from .params import DBNModel, TrainParams
 
 log = logging.getLogger(__name__)
 
 
 class Batch(NamedTuple):
-    """Padded sequences. x: (B, T, D) float32; constraints: (B, T) int32; lengths: (B,) int32.
-    T is rounded up to a power of two (at least ``bucket``) and B to a power of two (a multiple of 16
-    above 16) so that datasets of similar size share one compiled E-step; padding sequences have
-    length 0."""
+    """Padded sequences. x: (B, T, D) float32; constraints: (B, T) int32; lengths: (B,) int32 valid
+    frames of each row (a prefix); resets: (B, T) bool, True at the first frame of every sequence
+    (None: one sequence per row, starting at frame 0). T is rounded up to a power of two (at least
+    ``bucket``) and B to a power of two (a multiple of 16 above 16) so that datasets of similar size
+    share one compiled E-step; padding rows have length 0. A packed batch (``make_batch(pack=True)``)
+    holds several sequences back to back in one row: the chain restarts from the initial distribution
+    at each reset and no transition crosses it, so its statistics equal the unpacked batch's."""
 
     x: np.ndarray
     constraints: np.ndarray
     lengths: np.ndarray
+    resets: np.ndarray | None = None
+
+    def reset_mask(self) -> np.ndarray:
+        """(B, T) bool: the first frame of every sequence."""
+        if self.resets is not None:
+            return self.resets
+        r = np.zeros(self.constraints.shape, bool)
+        r[:, 0] = True
+        return r
 
     @property
     def num_frames(self) -> int:
@@ -48,11 +60,17 @@ class Batch(NamedTuple):
 
 
 def make_batch(sequences: Sequence[np.ndarray], constraints: Sequence[np.ndarray] | None = None,
-               max_length: int | None = 2048, bucket: int = 64, dtype=np.float32) -> Batch:
+               max_length: int | None = 2048, bucket: int = 64, dtype=np.float32, pack: bool = False,
+               pack_length: int = 512) -> Batch:
     """Pad a list of (T_i, D) sequences (and (T_i,) constraint codes; zeros if None) into a Batch.
     Sequences longer than ``max_length`` are cut into consecutive chunks (the chain restarts from the
     initial distribution at each cut: a negligible approximation for long recordings that keeps the
-    sequential scan short; None: never cut)."""
+    sequential scan short; None: never cut). ``pack``: put several sequences back to back in one row
+    of the bucketed length (first-fit decreasing), so that the scans run over about the real number
+    of frames instead of B x (a power of two above the longest); exact (see :class:`Batch`), for
+    the E-step; rows then no longer correspond to sequences. Packed rows are at least ``pack_length``
+    frames long, so that the datasets of one evaluation (all turns, each constraint's runs) share a
+    few compiled shapes."""
     xs, cs = [], []
     for i, s in enumerate(sequences):
         s = np.asarray(s)
@@ -69,18 +87,38 @@ def make_batch(sequences: Sequence[np.ndarray], constraints: Sequence[np.ndarray
         raise CDBNError("no frames to train on")
     T = max(len(s) for s in xs)
     T = max(bucket, int(2 ** np.ceil(np.log2(T))))           # bucketed shapes: few compilations
-    B = len(xs)
+    if pack:
+        T = max(T, int(pack_length))
+        rows, used = [], []              # first-fit decreasing: lists of sequence indices per row
+        for i in sorted(range(len(xs)), key=lambda i: -len(xs[i])):
+            r = next((j for j, u in enumerate(used) if u + len(xs[i]) <= T), None)
+            if r is None:
+                rows.append([i])
+                used.append(len(xs[i]))
+            else:
+                rows[r].append(i)
+                used[r] += len(xs[i])
+    else:
+        rows = [[i] for i in range(len(xs))]
+    B = len(rows)
     B = int(2 ** np.ceil(np.log2(B))) if B <= 16 else int(np.ceil(B / 16) * 16)
     D = xs[0].shape[1]
     x = np.zeros((B, T, D), dtype)
     cc = np.zeros((B, T), np.int32)
-    lengths = np.zeros(B, np.int32)      # padding sequences have length 0
-    for i, (s, c) in enumerate(zip(xs, cs)):
-        x[i, :len(s)] = s
-        cc[i, :len(s)] = c
-        cc[i, len(s):] = c[-1]
-        lengths[i] = len(s)
-    return Batch(x, cc, lengths)
+    lengths = np.zeros(B, np.int32)      # padding rows have length 0
+    resets = np.zeros((B, T), bool)
+    resets[:, 0] = True
+    for r, members in enumerate(rows):
+        a = 0
+        for i in members:
+            s, c = xs[i], cs[i]
+            x[r, a:a + len(s)] = s
+            cc[r, a:a + len(s)] = c
+            resets[r, a] = True
+            a += len(s)
+        cc[r, a:] = cc[r, a - 1]
+        lengths[r] = a
+    return Batch(x, cc, lengths, resets if pack else None)
 
 
 class Stats(NamedTuple):
@@ -103,10 +141,13 @@ def e_step(model: DBNModel, batch: Batch, dims: tuple | None = None) -> Stats:
     dims = tuple(range(D)) if dims is None else tuple(dims)
     dt = batch.x.dtype
     shift = batch.x[batch.valid()].mean(0) if batch.num_frames else np.zeros(D, dt)
+    K = model.num_states
+    means, covs, initial, trans = pad_states(model.means, model.covariances, model.initial, model.transitions)
     out = batch_statistics(jnp.asarray(batch.x), jnp.asarray(batch.constraints), jnp.asarray(batch.lengths),
-                           jnp.asarray(shift, dt), jnp.asarray(model.means, dt), jnp.asarray(model.covariances, dt),
-                           jnp.asarray(model.initial, dt), jnp.asarray(model.transitions, dt), dims)
+                           jnp.asarray(batch.reset_mask()), jnp.asarray(shift, dt), jnp.asarray(means, dt),
+                           jnp.asarray(covs, dt), jnp.asarray(initial, dt), jnp.asarray(trans, dt), dims)
     ll, counts, first, second, init, xi = (np.asarray(o, np.float64) for o in out)
+    counts, first, second, init, xi = counts[:K], first[:K], second[:K], init[:, :K], xi[:, :K, :K]
     shift = shift.astype(np.float64)
     # raw moments: sum g x = first + n shift; sum g x x^T = second + first shift^T + shift first^T + n shift shift^T
     raw1 = first + counts[:, None] * shift

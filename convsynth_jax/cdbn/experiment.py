@@ -24,10 +24,10 @@ from .cdbn import (
     transition_distance,
 )
 from .dataset import Turn
-from .em import e_step, make_batch
+from .em import e_step, fit_em, make_batch
 from .evaluate import cca, gaussian_kld, gesture_features
 from .params import CDBNParams, TrainParams
-from .synthesize import expected_motion, keypoint_smooth, state_posteriors
+from .synthesize import expected_motion, keypoint_smooth, state_posteriors, state_posteriors_batch
 
 log = logging.getLogger(__name__)
 
@@ -47,6 +47,10 @@ class EvalParams:
     # its nod/shake distance was 0.13-0.18; converged 0.016 (README, "transition distance")
     distance_max_iter: int = 300
     distance_tol: float = 1e-4
+    # ours (speed): the converged sparse CDBN of Eq. 8 continues EM from the cross-validation's CDBN
+    # trained on the same turns with the same N (its per-constraint models, merges and first 20 EM
+    # iterations are reused) instead of training it again from LBG
+    distance_warm_start: bool = True
 
 
 def fit(kind: str, turns: list[Turn], n: int, p: CDBNParams, train: TrainParams | None = None) -> TrainedModel:
@@ -68,13 +72,16 @@ def fit(kind: str, turns: list[Turn], n: int, p: CDBNParams, train: TrainParams 
     raise ValueError(kind)
 
 
-def synthesize_turn(tm: TrainedModel, turn: Turn, p: CDBNParams, motion_norm=None, rig=None) -> np.ndarray:
+def synthesize_turn(tm: TrainedModel, turn: Turn, p: CDBNParams, motion_norm=None, rig=None,
+                    gamma: np.ndarray | None = None) -> np.ndarray:
     """Synthesized motion (T, d_m) in z-units of the turn's subject; smoothed with key points in degree
     space when ``motion_norm`` (the subject's motion Normalization) is given: the head at
     ``keypoints_per_second``, or, with ``rig`` (an ArmRig: the hand stream), each arm joint at
-    ``hand_keypoints_per_second``."""
-    cons = turn.constraints if tm.model.num_constraints > 1 else None
-    g = state_posteriors(tm.model, turn.speech, cons, p.synth.posterior)
+    ``hand_keypoints_per_second``. ``gamma``: the turn's state posteriors when already computed."""
+    if gamma is None:
+        cons = turn.constraints if tm.model.num_constraints > 1 else None
+        gamma = state_posteriors(tm.model, turn.speech, cons, p.synth.posterior)
+    g = gamma
     z = expected_motion(tm.model, g)
     if motion_norm is None:
         return z
@@ -91,14 +98,16 @@ def synthesize_turn(tm: TrainedModel, turn: Turn, p: CDBNParams, motion_norm=Non
 
 def loglik_per_frame(tm: TrainedModel, turns: list[Turn]) -> float:
     cons = [t.constraints for t in turns] if tm.model.num_constraints > 1 else None
-    b = make_batch([t.observations() for t in turns], cons)
+    b = make_batch([t.observations() for t in turns], cons, pack=True)
     return e_step(tm.model, b).log_likelihood / b.num_frames
 
 
 def score(tm: TrainedModel, turns: list[Turn], p: CDBNParams, norms: dict, rig=None) -> dict:
     rows, synth = [], []
-    for t in turns:
-        s = synthesize_turn(tm, t, p, norms[t.subject][1], rig)
+    cons = [t.constraints for t in turns] if tm.model.num_constraints > 1 else None
+    gammas = state_posteriors_batch(tm.model, [t.speech for t in turns], cons, p.synth.posterior)
+    for t, g in zip(turns, gammas):
+        s = synthesize_turn(tm, t, p, norms[t.subject][1], rig, g)
         synth.append(s)
         rows.append({"turn": t.name, "cca_m": cca(t.motion, s), "cca_ms": cca(t.speech, s),
                      "cca_orig_ms": cca(t.speech, t.motion)})
@@ -120,9 +129,10 @@ def choose_states(values: dict, cca_slack: float, llr_slack: float) -> int:
 
 
 def gesture_segments(turns: list[Turn], motions: list[np.ndarray], names: tuple, fps: float,
-                     rng: np.random.Generator | None = None, with_other: bool = True):
+                     rng: np.random.Generator | None = None, with_other: bool = True, sources: list | None = None):
     """(segments, labels) of constraint runs other than code 0 ('other'), plus as many random 'other'
-    windows of similar length when ``with_other``."""
+    windows of similar length when ``with_other``; ``sources``, when given, receives each segment's
+    turn name."""
     segs, labels = [], []
     for t, m in zip(turns, motions):
         c = t.constraints
@@ -131,11 +141,15 @@ def gesture_segments(turns: list[Turn], motions: list[np.ndarray], names: tuple,
             if c[a] != 0 and b - a >= 6:
                 segs.append(m[a:b])
                 labels.append(names[c[a]])
+                if sources is not None:
+                    sources.append(t.name)
             elif c[a] == 0 and with_other and b - a >= 30 and rng is not None:
                 L = int(rng.integers(20, 45))
                 s0 = int(rng.integers(a, b - min(L, b - a) + 1))
                 segs.append(m[s0:s0 + L])
                 labels.append(names[0])
+                if sources is not None:
+                    sources.append(t.name)
     return segs, labels
 
 
@@ -159,6 +173,7 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
     order = rng.permutation(len(turns))
     parts = [order[i::ep.folds] for i in range(ep.folds)]
     pick = lambda idx: [turns[i] for i in idx]
+    phases = {}
     # --- validation: fold 0 held out, folds 1..9 train
     val, rest = pick(parts[0]), pick(np.concatenate(parts[1:]))
     chosen, curves = {}, {}
@@ -171,6 +186,7 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
             log.info("validation %s N=%d: CCA_m %.3f, LLR %.3f", kind, n, *vals[n])
         curves[kind] = {int(n): {"cca_m": v[0], "llr": v[1]} for n, v in vals.items()}
         chosen[kind] = choose_states(vals, ep.cca_slack, ep.llr_slack)
+    phases["validation"] = time.perf_counter() - t0
     # --- test folds 1..9: train on the other nine partitions (validation included)
     per_turn = {"jdbn": [], "cdbn": []}
     kld = {"jdbn": [], "cdbn": []}
@@ -195,11 +211,13 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
             states[kind].append(tm.model.num_states)
             params_n[kind].append(tm.num_parameters)
             deg = [norms[t.subject][1].invert(s) for t, s in zip(test, sc["synth"])]
-            gs, gl = gesture_segments(test, deg, p.constraints, p.features.fps, None, with_other=False)
+            src = []
+            gs, gl = gesture_segments(test, deg, p.constraints, p.features.fps, None, with_other=False, sources=src)
             if gs:
                 pred = clf.predict(np.stack([feat(s, p.features.fps) for s in gs]))
                 gest[kind][0].extend(gl)
                 gest[kind][1].extend(pred.tolist())
+                gest[kind][2].extend(src)
             if f == test_folds[0]:
                 folds_out[kind] = tm
                 folds_out[f"{kind}_synth"] = sc["synth"]
@@ -207,6 +225,7 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
             folds_out["test"] = test
             folds_out["train"] = train
         log.info("fold %d done (%.0f s)", f, time.perf_counter() - t0)
+    phases["test_folds"] = time.perf_counter() - t0 - phases["validation"]
     table = []
     for kind in ("jdbn", "cdbn"):
         cm = np.array([r["cca_m"] for r in per_turn[kind]])
@@ -222,6 +241,11 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
         acc[kind] = {lab: {"n": int((truth == lab).sum()),
                            "accuracy": float((pred[truth == lab] == lab).mean()) if (truth == lab).any() else float("nan")}
                      for lab in p.constraints[1:]}
+    # (ours) which class each synthesized gesture was taken for, and from which turn
+    confusion = {kind: {lab: {q: int(((np.array(gest[kind][0]) == lab) & (np.array(gest[kind][1]) == q)).sum())
+                              for q in p.constraints} for lab in p.constraints[1:]} for kind in ("jdbn", "cdbn")}
+    predictions = {kind: [{"turn": n, "truth": a, "predicted": b} for a, b, n in zip(*gest[kind])]
+                   for kind in ("jdbn", "cdbn")}
     cm_j = np.array([r["cca_m"] for r in per_turn["jdbn"]])
     cm_c = np.array([r["cca_m"] for r in per_turn["cdbn"]])
     cms_j = np.array([r["cca_ms"] for r in per_turn["jdbn"]])
@@ -230,29 +254,42 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
              "cca_ms_paired_t_p": float(stats.ttest_rel(cms_c, cms_j).pvalue)}
     orig_ms = np.array([r["cca_orig_ms"] for r in per_turn["jdbn"]])
     return {"chosen_states": chosen, "validation_curves": curves, "table": table, "per_turn": per_turn,
-            "gesture_accuracy": acc, "tests": tests, "cca_original_speech_motion": float(orig_ms.mean()),
-            "fold1": folds_out, "test_folds": test_folds}
+            "gesture_accuracy": acc, "gesture_confusion": confusion, "gesture_predictions": predictions,
+            "tests": tests, "cca_original_speech_motion": float(orig_ms.mean()),
+            "fold1": folds_out, "test_folds": test_folds, "phase_seconds": phases}
 
 
-def transition_distances(turns: list[Turn], p: CDBNParams, n: int, ep: EvalParams | None = None) -> dict:
+def transition_distances(turns: list[Turn], p: CDBNParams, n: int, ep: EvalParams | None = None,
+                         warm: TrainedModel | None = None) -> dict:
     """Eq. 8 between the nod and shake transition matrices: shared-state model (option 1 of Sec. VII-B)
     vs sparse CDBN (option 2), both trained with EM run to convergence (``ep.distance_max_iter``,
     ``ep.distance_tol``). Also reported (ours): the sparse distance over the rows of states both
     constraints own (``sparse_common_rows``: the rows of the other states are structural, a forced
-    move into the shared state under one constraint), and each model's EM iteration count."""
+    move into the shared state under one constraint), and each model's EM iteration count.
+    ``warm``: a CDBN already trained on ``turns`` with N = ``n`` (the cross-validation's); with
+    ``ep.distance_warm_start`` the sparse model continues EM from it to convergence."""
     ep = ep or EvalParams()
     names = p.constraints
     a, b = names.index("nod"), names.index("shake")
     tp = TrainParams(**{**p.train.__dict__, "max_iter": ep.distance_max_iter, "tol": ep.distance_tol})
     shared = fit("shared", turns, n, p, tp)
-    cd = fit("cdbn", turns, n, p, tp)
+    if warm is not None and ep.distance_warm_start:
+        if warm.kind != "cdbn" or warm.model.num_constraints != len(names):
+            raise ValueError(f"warm start needs a CDBN over {names}, got a {warm.kind}")
+        batch = make_batch([t.observations() for t in turns], [t.constraints for t in turns], pack=True)
+        more = fit_em(warm.model, batch, tp)
+        cd = TrainedModel(more.model, warm.owners, list(warm.log_likelihoods) + list(more.log_likelihoods), "cdbn",
+                          warm.merges, warm.transition_mask, warm.initial_mask)
+    else:
+        cd = fit("cdbn", turns, n, p, tp)
     both = cd.owners[:, a] & cd.owners[:, b]
     ta, tb = cd.model.transitions[a], cd.model.transitions[b]
     return {"shared": transition_distance(shared.model.transitions[a], shared.model.transitions[b]),
             "sparse": transition_distance(ta, tb),
             "sparse_common_rows": transition_distance(ta[both], tb[both]) if both.any() else float("nan"),
             "states": n, "em_iterations": {"shared": len(shared.log_likelihoods), "cdbn": len(cd.log_likelihoods)},
-            "max_iter": ep.distance_max_iter, "tol": ep.distance_tol}
+            "max_iter": ep.distance_max_iter, "tol": ep.distance_tol,
+            "warm_started": bool(warm is not None and ep.distance_warm_start)}
 
 
 def init_comparison(turns: list[Turn], p: CDBNParams, n: int) -> dict:

@@ -98,6 +98,8 @@ def hand_evaluation(turns, rig, names: tuple, eval_kw: dict, base=None) -> dict:
     return {"turns": len(turns), "frames": int(sum(len(t.speech) for t in turns)),
             "frames_per_constraint": dict(zip(names, counts.tolist())), "eval": dict(eval_kw),
             "chosen_states": res["chosen_states"], "validation_curves": res["validation_curves"],
-            "table": res["table"], "gesture_accuracy": res["gesture_accuracy"], "tests": res["tests"],
+            "table": res["table"], "gesture_accuracy": res["gesture_accuracy"],
+            "gesture_confusion": res["gesture_confusion"], "gesture_predictions": res["gesture_predictions"],
+            "tests": res["tests"],
             "cca_original_speech_motion": res["cca_original_speech_motion"], "test_folds": res["test_folds"],
             "seconds": time.perf_counter() - t0}

@@ -20,6 +20,7 @@ from typing import NamedTuple
 
 import jax
 import jax.numpy as jnp
+import numpy as np
 from jax import lax
 
 
@@ -38,9 +39,13 @@ def gaussian_log_density(x, means, covariances):
     """log N(x_t; mu_k, Sigma_k). x: (T, d); means: (K, d); covariances: (K, d, d) -> (T, K)."""
     d = x.shape[-1]
     chol = jnp.linalg.cholesky(covariances)                                   # (K, d, d)
+    # whitening by the inverse Cholesky factor (K small d x d inversions, then one batched matmul over
+    # frames): a triangular solve per frame batch was most of the E-step's time on the CPU
+    eye = jnp.broadcast_to(jnp.eye(d, dtype=covariances.dtype), covariances.shape)
+    inv_chol = jax.scipy.linalg.solve_triangular(chol, eye, lower=True)      # (K, d, d) = L^-1
     diff = x[None, :, :] - means[:, None, :]                                  # (K, T, d)
-    sol = jax.scipy.linalg.solve_triangular(chol, jnp.swapaxes(diff, 1, 2), lower=True)  # (K, d, T)
-    maha = jnp.sum(sol ** 2, axis=1)                                          # (K, T)
+    sol = jnp.einsum("kij,ktj->kti", inv_chol, diff)                          # (K, T, d)
+    maha = jnp.sum(sol ** 2, axis=-1)                                         # (K, T)
     logdet = 2.0 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=1, axis2=2)), axis=-1)  # (K,)
     return (-0.5 * (maha + logdet[:, None] + d * jnp.log(2.0 * jnp.pi))).T
 
@@ -71,21 +76,28 @@ def _forward_step(carry, inp, log_initial, log_transitions):
     return (log_alpha, ll), log_alpha
 
 
-def hmm_filter(initial, transitions, log_lik, constraints, length):
+def _starts(T, resets):
+    return jnp.arange(T) == 0 if resets is None else resets
+
+
+def hmm_filter(initial, transitions, log_lik, constraints, length, resets=None):
     """Forward pass in log space. initial: (C, K); transitions: (C, K, K) (zeros allowed: -inf);
-    log_lik: (T, K); constraints: (T,) int; length: () valid frames.
+    log_lik: (T, K); constraints: (T,) int; length: () valid frames; resets: (T,) bool, the first
+    frame of each sequence packed into this row (None: frame 0 only); the log-likelihood is then the
+    sum over the packed sequences.
     Returns (log_likelihood, filtered (T, K), log filtered (T, K))."""
     T, K = log_lik.shape
     t = jnp.arange(T)
     step = partial(_forward_step, log_initial=jnp.log(initial), log_transitions=jnp.log(transitions))
     (_, ll), log_alpha = lax.scan(step, (jnp.zeros(K, log_lik.dtype), jnp.zeros((), log_lik.dtype)),
-                                  (log_lik, constraints, t < length, t == 0))
+                                  (log_lik, constraints, t < length, _starts(T, resets)))
     return ll, jnp.exp(log_alpha), log_alpha
 
 
 def _backward_step(carry, inp, log_transitions):
     log_beta, xi_sum = carry
-    loglik_t, c_t, valid_t, log_alpha_prev = inp
+    loglik_t, c_t, valid_t, start_t, log_alpha_prev = inp
+    valid_t = valid_t & ~start_t       # no transition into the first frame of a (packed) sequence
     m = log_transitions[c_t] + (loglik_t + log_beta)[None, :]          # (K, K): i -> j
     row = jnp.max(m, axis=1)
     row = jnp.where(jnp.isfinite(row), row, 0.0)
@@ -102,16 +114,17 @@ def _backward_step(carry, inp, log_transitions):
     return (log_beta_prev, xi_sum), log_beta_prev
 
 
-def hmm_posterior(initial, transitions, log_lik, constraints, length) -> Posterior:
+def hmm_posterior(initial, transitions, log_lik, constraints, length, resets=None) -> Posterior:
     """Forward-backward (smoother) in log space with expected transition counts per constraint.
     Shapes as :func:`hmm_filter`."""
     T, K = log_lik.shape
     C = transitions.shape[0]
-    ll, alpha, log_alpha = hmm_filter(initial, transitions, log_lik, constraints, length)
+    ll, alpha, log_alpha = hmm_filter(initial, transitions, log_lik, constraints, length, resets)
+    starts = _starts(T, resets)
     t = jnp.arange(1, T)
     step = partial(_backward_step, log_transitions=jnp.log(transitions))
     init = (jnp.zeros(K, log_lik.dtype), jnp.zeros((C, K, K), log_lik.dtype))
-    (_, xi_sum), log_betas = lax.scan(step, init, (log_lik[1:], constraints[1:], t < length, log_alpha[:-1]),
+    (_, xi_sum), log_betas = lax.scan(step, init, (log_lik[1:], constraints[1:], t < length, starts[1:], log_alpha[:-1]),
                                       reverse=True)
     log_beta = jnp.concatenate([log_betas, jnp.zeros((1, K), log_lik.dtype)], axis=0)
     lg = log_alpha + log_beta
@@ -151,6 +164,31 @@ def hmm_viterbi(initial, transitions, log_lik, constraints, length):
     return path, jnp.max(delta)
 
 
+STATE_MULTIPLE = 4
+
+
+def pad_states(means, covariances, initial, transitions, multiple: int = STATE_MULTIPLE):
+    """Pad a model's K states to a multiple of ``multiple`` with inert states (NumPy, before the
+    kernels, so that models of nearby sizes share one compiled shape): initial probability 0 and no
+    transition into them (log 0 = -inf, exact), a self-loop row, unit Gaussians. Every forward,
+    backward and Viterbi message of an inert state is -inf, so the real states' posteriors, counts
+    and log-likelihood are those of the unpadded model; slice the outputs back to K."""
+    K = means.shape[0]
+    Kp = -(-K // multiple) * multiple
+    if Kp == K:
+        return means, covariances, initial, transitions
+    e = Kp - K
+    D = means.shape[1]
+    C = initial.shape[0]
+    means = np.concatenate([np.asarray(means), np.zeros((e, D), np.asarray(means).dtype)])
+    covariances = np.concatenate([np.asarray(covariances), np.broadcast_to(np.eye(D), (e, D, D))])
+    initial = np.concatenate([np.asarray(initial), np.zeros((C, e))], axis=1)
+    t = np.zeros((C, Kp, Kp))
+    t[:, :K, :K] = transitions
+    t[:, np.arange(K, Kp), np.arange(K, Kp)] = 1.0
+    return means, covariances, initial, t
+
+
 @partial(jax.jit, static_argnames=("dims",))
 def batch_log_likelihoods(x, means, covariances, dims: tuple):
     """(B, T, D) -> (B, T, K) log emissions of the columns ``dims``."""
@@ -158,10 +196,14 @@ def batch_log_likelihoods(x, means, covariances, dims: tuple):
 
 
 @partial(jax.jit, static_argnames=("dims",))
-def batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple):
-    """Smoother over a padded batch. x: (B, T, D); constraints: (B, T); lengths: (B,)."""
+def batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple, resets=None):
+    """Smoother over a padded batch. x: (B, T, D); constraints: (B, T); lengths: (B,); resets: (B, T)
+    bool or None (see :func:`hmm_filter`)."""
     ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
-    return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
+    if resets is None:
+        return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
+    return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0, 0))(initial, transitions, ll, constraints, lengths,
+                                                                      resets)
 
 
 @partial(jax.jit, static_argnames=("dims",))
@@ -178,12 +220,13 @@ def batch_filter(x, constraints, lengths, means, covariances, initial, transitio
 
 
 @partial(jax.jit, static_argnames=("dims",))
-def batch_statistics(x, constraints, lengths, shift, means, covariances, initial, transitions, dims: tuple):
-    """E-step of EM over a padded batch, reduced on the device: (total log-likelihood, counts (K,),
+def batch_statistics(x, constraints, lengths, resets, shift, means, covariances, initial, transitions, dims: tuple):
+    """E-step of EM over a padded (possibly packed: ``resets`` (B, T) bool marks the first frame of
+    each sequence) batch, reduced on the device: (total log-likelihood, counts (K,),
     first (K, D) = sum_t gamma_t (x_t - shift), second (K, D, D) = sum_t gamma_t (x_t - shift)(x_t - shift)^T,
     initial counts (C, K) by first constraint, xi_sum (C, K, K)). ``shift`` (D,) centres the data
     (a global mean) so that float32 sums keep their precision."""
-    post = batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims)
+    post = batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims, resets)
     B, T, D = x.shape
     K = means.shape[0]
     C = initial.shape[0]
@@ -193,5 +236,7 @@ def batch_statistics(x, constraints, lengths, shift, means, covariances, initial
     counts = jnp.sum(g, axis=0)
     first = g.T @ xc
     second = (g.T @ (xc[:, :, None] * xc[:, None, :]).reshape(B * T, D * D)).reshape(K, D, D)
-    init = jnp.zeros((C, K), x.dtype).at[constraints[:, 0]].add(post.smoothed[:, 0] * (lengths > 0)[:, None])
+    starts = (resets * valid).reshape(B * T)
+    onehot = (constraints.reshape(B * T)[:, None] == jnp.arange(C)[None, :]).astype(x.dtype) * starts[:, None]
+    init = onehot.T @ g                                                       # (C, K) over sequence starts
     return jnp.sum(post.log_likelihood), counts, first, second, init, jnp.sum(post.xi_sum, axis=0)

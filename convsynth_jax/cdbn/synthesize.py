@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import CDBNError
 from .features import check_finite, head_euler_to_quat
-from .hmm import batch_filter, batch_posterior, batch_viterbi
+from .hmm import batch_filter, batch_posterior, batch_viterbi, pad_states
 from .params import POSTERIORS, DBNModel
 
 
@@ -45,18 +45,60 @@ def state_posteriors(model: DBNModel, speech: np.ndarray, constraints: np.ndarra
     cc[0, :T] = c
     if T:
         cc[0, T:] = c[-1]
-    args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray([T], jnp.int32),
-            jnp.asarray(model.means, jnp.float32), jnp.asarray(model.covariances, jnp.float32),
-            jnp.asarray(model.initial, jnp.float32), jnp.asarray(model.transitions, jnp.float32))
+    return _posteriors(model, x, cc, np.asarray([T], np.int32), posterior)[0, :T]  # slice on the host
+
+
+def _posteriors(model: DBNModel, x, cc, lengths, posterior: str) -> np.ndarray:
+    """(B, L, K) posteriors of a padded batch; the model's states are padded to a multiple of 4 with
+    inert states (:func:`.hmm.pad_states`: one compiled shape for nearby K) and sliced back."""
+    K = model.num_states
+    params = pad_states(model.means, model.covariances, model.initial, model.transitions)
+    args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray(lengths)) + tuple(jnp.asarray(a, jnp.float32) for a in params)
     dims = tuple(model.speech_dims)
     if posterior == "smoother":
-        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)[0, :T]  # slice on the host: no recompiles
+        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)
     elif posterior == "filter":
-        g = np.asarray(batch_filter(*args, dims)[1], np.float64)[0, :T]
+        g = np.asarray(batch_filter(*args, dims)[1], np.float64)
     else:
-        path = np.asarray(batch_viterbi(*args, dims)[0])[0, :T]
-        g = np.eye(model.num_states)[path]
-    return g
+        path = np.asarray(batch_viterbi(*args, dims)[0])
+        g = np.eye(params[0].shape[0])[path]
+    return g[:, :, :K]
+
+
+def state_posteriors_batch(model: DBNModel, speeches: list, constraints: list | None = None,
+                           posterior: str = "smoother") -> list[np.ndarray]:
+    """:func:`state_posteriors` of several turns in one call (one padded batch: one dispatch and one
+    compiled shape per model instead of one per turn); returns the (T_i, K) posteriors."""
+    if posterior not in POSTERIORS:
+        raise CDBNError(f"unknown posterior {posterior!r}; expected one of {POSTERIORS}")
+    n = len(speeches)
+    if n == 0:
+        return []
+    cons = []
+    for i, sp in enumerate(speeches):
+        check_finite(sp, "speech", f"speech features of turn {i}")
+        T = len(sp)
+        c = np.zeros(T, np.int32) if constraints is None else np.asarray(constraints[i], np.int32)
+        if len(c) != T:
+            raise CDBNError(f"turn {i}: {T} speech frames but {len(c)} constraint codes")
+        if c.size and (c.min() < 0 or c.max() >= model.num_constraints):
+            raise CDBNError(f"constraint codes must lie in 0..{model.num_constraints - 1} {list(model.constraint_names)}")
+        cons.append(c)
+    L = _pad(max(len(sp) for sp in speeches))
+    B = int(2 ** np.ceil(np.log2(n))) if n <= 16 else int(np.ceil(n / 16) * 16)
+    D = model.means.shape[1]
+    x = np.zeros((B, L, D), np.float32)
+    cc = np.zeros((B, L), np.int32)
+    lengths = np.zeros(B, np.int32)
+    for i, (sp, c) in enumerate(zip(speeches, cons)):
+        T = len(sp)
+        x[i, :T][:, list(model.speech_dims)] = np.asarray(sp, np.float32)
+        cc[i, :T] = c
+        if T:
+            cc[i, T:] = c[-1]
+        lengths[i] = T
+    g = _posteriors(model, x, cc, lengths, posterior)
+    return [g[i, :len(sp)] for i, sp in enumerate(speeches)]
 
 
 def expected_motion(model: DBNModel, gamma: np.ndarray) -> np.ndarray:

@@ -43,12 +43,19 @@ def run(cfg, out_dir: Path) -> dict:
     raw = load_semisynthetic_turns(root, p.constraints, p.features)
     turns, norms = normalize_by_subject(raw)
     t_feat = time.perf_counter() - t0
+    phases = {"corpus_and_features": t_feat}
     res = run_evaluation(turns, norms, p, ep)
+    phases.update(res["phase_seconds"])
     f1 = res["fold1"]
     n_cdbn = res["chosen_states"]["cdbn"]
-    dist = transition_distances(f1["train"], p, n_cdbn, ep)
+    tick = time.perf_counter()
+    dist = transition_distances(f1["train"], p, n_cdbn, ep, warm=f1["cdbn"])
+    phases["transition_distances"] = time.perf_counter() - tick
+    tick = time.perf_counter()
     fig6_turns = f1["train"]
     comp = init_comparison(fig6_turns, p, ep.fig6_states)
+    phases["init_comparison"] = time.perf_counter() - tick
+    tick = time.perf_counter()
     # Sec. V statistics on the original head rotation
     codes = np.concatenate([t.constraints for t in turns])
     mot = np.concatenate([t.motion for t in turns])
@@ -86,6 +93,8 @@ def run(cfg, out_dir: Path) -> dict:
                          {"jDBN": nm.invert(f1["jdbn_synth"][k]), "CDBN": nm.invert(f1["cdbn_synth"][k])},
                          test[k].constraints, p.constraints, out_dir / "trajectories.png")
     pooled = cca(np.concatenate([t.speech for t in turns]), mot)
+    phases["statistics_models_tables_figures"] = time.perf_counter() - tick
+    tick = time.perf_counter()
     hands = None
     if hands_cfg and hands_cfg.get("bvh_dir"):
         # hand model (Table V analogue, ours to make optional: it adds minutes): real Bandai2 raise/wave
@@ -97,6 +106,7 @@ def run(cfg, out_dir: Path) -> dict:
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in (hands_cfg.get("eval") or {}).items()}
         hands = hand_evaluation(ht, rig, BANDAI_CONSTRAINTS, {"seed": ep.seed, **kw}, p)
         pd.DataFrame(hands["table"]).to_csv(out_dir / "table_hands.csv", index=False, float_format="%.4f")
+        phases["hands"] = time.perf_counter() - tick
     return {"success": True, "corpus_root": str(root), "turns": len(turns),
             "frames": int(sum(len(t.speech) for t in turns)), "feature_seconds": t_feat,
             "chosen_states": res["chosen_states"], "validation_curves": res["validation_curves"],
@@ -109,4 +119,5 @@ def run(cfg, out_dir: Path) -> dict:
             "models": {kind: {"states": int(f1[kind].model.num_states), "parameters": int(f1[kind].num_parameters),
                               "heldout_loglik_per_frame": float(held[kind])} for kind in ("jdbn", "cdbn")},
             "jdbn_heldout_loglik_per_frame": float(held["jdbn"]), "cdbn_heldout_loglik_per_frame": float(held["cdbn"]),
-            "test_folds": res["test_folds"], "hands": hands, "eval_seconds": time.perf_counter() - t0}
+            "test_folds": res["test_folds"], "hands": hands, "phase_seconds": phases,
+            "eval_seconds": time.perf_counter() - t0}

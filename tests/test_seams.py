@@ -151,3 +151,14 @@ def test_finger_weight_reaches_the_cost():
     assert np.all(w0[fingers] == 0) and np.all(w5[fingers] == 0.5)
     others = np.setdiff1d(np.arange(skel.num_joints), fingers)
     assert np.all(w0[others] == 1) and np.all(w5[others] == 1)
+    # a pose that differs from another only by the wrist flick (which moves the finger joints alone)
+    # costs nothing with the paper's weights and something with finger_weight > 0 (Eq. 4)
+    from convsynth_jax.graph.cost import aligned_distance
+
+    flick = [("b", _clip(skel, "b", 0.0, flick=50.0), None, None)]
+    for fp, want_zero in ((FeatureParams(), True), (FeatureParams(finger_weight=0.5), False)):
+        da, db_ = build_database(clips, fp), build_database(flick, fp)
+        d = np.asarray(aligned_distance(da.positions[FLICK + 1:FLICK + 2], da.velocities[FLICK + 1:FLICK + 2],
+                                        db_.positions[FLICK + 1:FLICK + 2], db_.velocities[FLICK + 1:FLICK + 2],
+                                        da.weights.astype(np.float32), 1.0))
+        assert (abs(d[0]) < 1e-4) == want_zero, d

@@ -63,14 +63,15 @@ class Skeleton:
         return [k for k, p in enumerate(self.parents) if p == j]
 
     def joint_weights(self, finger_pattern: str | None = DEFAULT_FINGER_PATTERN,
-                      overrides: dict[str, float] | None = None) -> np.ndarray:
-        """Per-joint weights w_b of Eq. 4: 1 by default, 0 for joints matching ``finger_pattern``."""
+                      overrides: dict[str, float] | None = None, finger_weight: float = 0.0) -> np.ndarray:
+        """Per-joint weights w_b of Eq. 4: 1 by default, ``finger_weight`` (the paper: 0) for joints
+        matching ``finger_pattern``; ``overrides`` (joint name -> weight) last."""
         w = np.ones(self.num_joints, dtype=np.float64)
         if finger_pattern:
             rx = re.compile(finger_pattern, re.IGNORECASE)
             for j, n in enumerate(self.names):
                 if rx.search(n):
-                    w[j] = 0.0
+                    w[j] = float(finger_weight)
         for name, value in (overrides or {}).items():
             w[self.index(name)] = float(value)
         return w

@@ -33,6 +33,7 @@ from .cost import candidate_edges, scaled_features
 from .database import MotionDatabase, build_database
 from .keystates import key_states
 from .params import FeatureParams, GraphParams
+from .seams import apply_seam_filter
 from .types import MotionGraph
 
 log = logging.getLogger(__name__)
@@ -221,6 +222,7 @@ def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: 
     t1 = time.perf_counter()
     kstats: dict = {}
     a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats, features=X)
+    a, j, c = apply_seam_filter(db, a, j, c, p, meta=kstats)  # ours, off by default (graph/seams.py)
     tm["edges_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     meta = {

@@ -104,7 +104,7 @@ def build_database(clips, features: FeatureParams | None = None) -> MotionDataba
     pattern = features.finger_pattern
     from ..skeleton import DEFAULT_FINGER_PATTERN
 
-    weights = skel.joint_weights(pattern or DEFAULT_FINGER_PATTERN, overrides)
+    weights = skel.joint_weights(pattern or DEFAULT_FINGER_PATTERN, overrides, float(features.finger_weight))
     cat = lambda fs, k: np.concatenate([getattr(x, k) for x in fs])  # noqa: E731
     fa = lambda fs: FrameAudio(cat(fs, "label"), cat(fs, "seg_start"), cat(fs, "seg_end"), cat(fs, "seg_peak"))  # noqa: E731
     lengths = [len(c) for c in CL]

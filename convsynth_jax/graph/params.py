@@ -14,6 +14,9 @@ class FeatureParams:
     remove_yaw: bool = True        # root-relative positions also undo the root heading
     finger_pattern: Optional[str] = None  # regex of zero-weight (finger) joints; None = built-in pattern
     joint_weight_overrides: Dict[str, float] = field(default_factory=dict)
+    # weight w_b of the finger joints (those matching finger_pattern) in Eq. 4: the paper sets 0; a
+    # positive value (ours) makes the cost see finger pose and velocity. joint_weight_overrides win.
+    finger_weight: float = 0.0
 
 
 @dataclass(frozen=True)
@@ -35,3 +38,8 @@ class GraphParams:
     fit_bins: int = 100
     max_edges: Optional[int] = 50_000_000  # host edge-buffer capacity; more raise a GraphError (None: unbounded)
     workers: Optional[int] = None    # host threads dispatching kernel tiles (None: CPU count, at most 4)
+    # seam filter (ours, graph/seams.py; None = off, the paper): drop synthetic transitions with a frame
+    # faster than this quantile of the database's per-frame largest root-relative acceleration within
+    # seam_filter_radius frames of their source or destination frame
+    seam_filter_quantile: Optional[float] = None
+    seam_filter_radius: int = 4

@@ -332,24 +332,21 @@ def main():
     result = {"machine": {"platform": platform.platform(), "python": platform.python_version(),
                           "jax": jax.__version__, "devices": [str(d) for d in jax.devices()]},
               "data_dir": str(data_dir), "goals": GOALS}
+    def write_only(extra: dict, name: str, rows: str, digits: int, tail: list):
+        result.update(extra)
+        result["load_average"] = list(os.getloadavg())
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(RESULTS / name, result)
+        for r in result[rows]:
+            print({k: (round(v, digits) if isinstance(v, float) else v) for k, v in r.items()})
+        print(*(result[k] for k in tail))
+
     if a.limits_breakdown:
-        result.update(limits_breakdown(data_dir))
-        result["load_average"] = list(os.getloadavg())
-        RESULTS.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(RESULTS / "bench_walktalk_limits_breakdown.json", result)
-        for r in result["per_gait_method"]:
-            print({k: (round(v, 4) if isinstance(v, float) else v) for k, v in r.items()})
-        print(result["limit_clips"], result["load_average"])
-        return
+        return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_gait_method", 4,
+                          ["limit_clips", "load_average"])
     if a.elbow_diagnosis:
-        result.update(elbow_diagnosis(data_dir))
-        result["load_average"] = list(os.getloadavg())
-        RESULTS.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(RESULTS / "bench_walktalk_elbow_diagnosis.json", result)
-        for r in result["per_gait_variant"]:
-            print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
-        print(result["loops_spread"])
-        return
+        return write_only(elbow_diagnosis(data_dir), "bench_walktalk_elbow_diagnosis.json", "per_gait_variant", 3,
+                          ["loops_spread"])
     result.update(bench_splice(data_dir))
     result.update(bench_eval(data_dir))
     result["demo"] = bench_demo(data_dir, a.synthesized_dir)

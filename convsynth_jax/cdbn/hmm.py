@@ -36,18 +36,29 @@ class Posterior(NamedTuple):
 
 
 def gaussian_log_density(x, means, covariances):
-    """log N(x_t; mu_k, Sigma_k). x: (T, d); means: (K, d); covariances: (K, d, d) -> (T, K)."""
+    """log N(x_t; mu_k, Sigma_k). x: (T, d); means: (K, d); covariances: (K, d, d) -> (T, K).
+
+    The Mahalanobis terms as one matrix product over frames: (x - mu)^T P (x - mu) with P = Sigma^-1
+    expands into the products x_i x_j (T, d*d) against P (K, d*d), minus 2 x^T P mu, plus mu^T P mu,
+    so no (K, T, d) array is formed (that array's memory traffic was most of the E-step on the CPU).
+    Everything is centred first on the mean of the state means, which keeps the expansion's terms
+    near the size of the result (checked against the float64 reference, also in float32)."""
     d = x.shape[-1]
+    K = means.shape[0]
+    centre = jnp.mean(means, axis=0)
+    xc = x - centre
+    mc = means - centre
     chol = jnp.linalg.cholesky(covariances)                                   # (K, d, d)
-    # whitening by the inverse Cholesky factor (K small d x d inversions, then one batched matmul over
-    # frames): a triangular solve per frame batch was most of the E-step's time on the CPU
     eye = jnp.broadcast_to(jnp.eye(d, dtype=covariances.dtype), covariances.shape)
     inv_chol = jax.scipy.linalg.solve_triangular(chol, eye, lower=True)      # (K, d, d) = L^-1
-    diff = x[None, :, :] - means[:, None, :]                                  # (K, T, d)
-    sol = jnp.einsum("kij,ktj->kti", inv_chol, diff)                          # (K, T, d)
-    maha = jnp.sum(sol ** 2, axis=-1)                                         # (K, T)
+    prec = jnp.einsum("kji,kjl->kil", inv_chol, inv_chol)                     # (K, d, d) = Sigma^-1
+    prec_mean = jnp.einsum("kij,kj->ki", prec, mc)                            # (K, d)
+    const = jnp.einsum("ki,ki->k", prec_mean, mc)                             # (K,)
+    outer = (xc[:, :, None] * xc[:, None, :]).reshape(x.shape[0], d * d)      # (T, d*d)
+    maha = outer @ prec.reshape(K, d * d).T - 2.0 * (xc @ prec_mean.T) + const[None, :]   # (T, K)
+    maha = jnp.maximum(maha, 0.0)                                             # round-off below 0
     logdet = 2.0 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=1, axis2=2)), axis=-1)  # (K,)
-    return (-0.5 * (maha + logdet[:, None] + d * jnp.log(2.0 * jnp.pi))).T
+    return -0.5 * (maha + logdet[None, :] + d * jnp.log(2.0 * jnp.pi))
 
 
 def stream_log_likelihoods(x, means, covariances, dims: tuple):

@@ -309,6 +309,74 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             "limit_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)}}
 
 
+def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: int = 4) -> dict:
+    """The splices over 2x the source clips' largest wrist jerk against ``splice.rescale_coupling``
+    (ours; 0 = the paper's per-DOF rescale): per coupling, the evaluation (run_evaluation, the
+    evaluation's loops, every single-peak gesture) summarized per gait x method (splices over 2x,
+    worst ratio and its gesture/loop, peak in contact, shifts, violations, DOFs within +- c sigma),
+    and the price, the gesture's reach: the root-relative hand's distance at the stroke peak from
+    the loop's own hand at that frame (cm; every ``every``-th gesture x the same loops,
+    stylized+synced, naive beside it)."""
+    import dataclasses
+
+    import numpy as np
+
+    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.walktalk.evaluate import EvalParams, dof_limits, load_library, run_evaluation, summarize
+    from convsynth_jax.walktalk.locomotion import tile_contact, tile_loop
+    from convsynth_jax.walktalk.params import WalkTalkParams
+    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
+
+    p, ep = WalkTalkParams(), EvalParams()
+    t0 = time.perf_counter()
+    lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
+    rows = []
+    for g in couplings:
+        pg = dataclasses.replace(p, splice=dataclasses.replace(p.splice, rescale_coupling=g))
+        df = run_evaluation(lib, pg, ep)
+        summ = {(r["gait"], r["method"]): r for r in summarize(df)}
+        for (gait, method), d in df.groupby(["gait", "method"], sort=False):
+            worst = d.loc[d["max_jerk_ratio"].idxmax()]
+            r = summ[gait, method]
+            rows.append({"coupling": g, "gait": gait, "method": method, "splices": len(d),
+                         "over_2x": int((d["max_jerk_ratio"] > 2.0).sum()),
+                         "jerk_ratio_max": float(worst["max_jerk_ratio"]),
+                         "jerk_ratio_median": float(d["max_jerk_ratio"].median()),
+                         "worst": f"{worst['gesture']} on {worst['loop']}",
+                         "peak_in_contact_rate": r["peak_in_contact_rate"], "shift_min_s": r["shift_min_s"],
+                         "shift_max_s": r["shift_max_s"], "violation_frac_mean": r["violation_frac_mean"],
+                         "limit_cell_frac_mean": r["limit_cell_frac_mean"],
+                         "dof_within_csigma_rate": r["dof_within_csigma_rate"]})
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
+    reach: dict = {}
+    for gc in lib.gestures[::every]:
+        gst = gc.gesture
+        for gait, lcs in lib.loops.items():
+            for lc in lcs:
+                n = lc.loop.num_frames
+                T = gst.motion.num_frames + 2 * n + 40
+                u = (n + 20 + gst.phases.peaks[0]) / p.fps + p.splice.lead_s
+                loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
+                lpos = joint_positions(loco)
+                for name, g in [("naive", None)] + [(f"coupling={g}", g) for g in couplings]:
+                    sp = p.splice if g is None else dataclasses.replace(p.splice, rescale_coupling=g)
+                    r = splice_gesture(lc, gc, u, T, sp, METHODS["naive" if g is None else "stylized+synced"],
+                                       loco=loco, contact=contact, limits=rom)
+                    pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
+                    hips = lib.body.joints["hips"]
+                    d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
+                                                - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
+                                 for s in gst.sides])
+                    reach.setdefault((gait, name), []).append(float(d))
+    reach_rows = []
+    for (gait, name), v in reach.items():
+        base = np.asarray(reach[gait, f"coupling={couplings[0]}"])
+        reach_rows.append({"gait": gait, "variant": name, "splices": len(v), "reach_cm_mean": float(np.mean(v)),
+                           "reach_cm_median": float(np.median(v)),
+                           "ratio_to_coupling0_median": float(np.median(np.asarray(v) / np.maximum(base, 1e-6)))})
+    return {"per_coupling": rows, "reach": reach_rows, "seconds": time.perf_counter() - t0}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
@@ -321,6 +389,8 @@ def main():
                     "(writes experiments/results/bench_walktalk_elbow_diagnosis.json)")
     ap.add_argument("--limits-breakdown", action="store_true", help="only where the per-frame joint-limit "
                     "reading fails (writes experiments/results/bench_walktalk_limits_breakdown.json)")
+    ap.add_argument("--jerk-coupling", action="store_true", help="only the splices over 2x jerk and the gesture's "
+                    "reach against splice.rescale_coupling (writes experiments/results/bench_walktalk_jerk.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -344,6 +414,12 @@ def main():
     if a.limits_breakdown:
         return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_gait_method", 4,
                           ["limit_clips", "load_average"])
+    if a.jerk_coupling:
+        jc = jerk_coupling(data_dir)
+        write_only(jc, "bench_walktalk_jerk.json", "per_coupling", 4, ["seconds", "load_average"])
+        for r in jc["reach"]:
+            print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
+        return None
     if a.elbow_diagnosis:
         return write_only(elbow_diagnosis(data_dir), "bench_walktalk_elbow_diagnosis.json", "per_gait_variant", 3,
                           ["loops_spread"])

@@ -588,3 +588,76 @@ def test_seam_foot_slide_vectorized_vs_loop(jog):
             assert seam_foot_slide(m, n_loop, GaitParams(), body, noisy, window) == pytest.approx(
                 _seam_slide_ref(m, n_loop, GaitParams(), body, noisy, window), abs=1e-12)
     assert seam_foot_slide(m, 10_000, GaitParams(), body, pos) == 0.0
+
+
+def test_rescale_coupling_joint_planted():
+    """rescale_coupling=1, one factor per joint (ours): one factor per joint, the smallest of its DOFs' factors.
+    Planted: joint 0 deviates by 10, 2 and -0.5 (std 1, c 3: per-DOF factors 0.3, 1, 1), joint 1
+    stays inside its band (factor 1). The paper's per-DOF rule rescales only joint 0's first
+    channel; the joint rule scales all three of joint 0 by 0.3 and leaves joint 1 alone."""
+    from convsynth_jax.walktalk.splice import JointLimits, LoopStats, stylize_bands
+
+    ge = np.zeros((3, 2, 3))
+    ge[:, 0] = np.outer([0.0, 0.5, 1.0], [10.0, 2.0, -0.5])
+    ge[:, 1] = np.outer([0.0, 0.5, 1.0], [1.0, -2.0, 0.5])
+    st = LoopStats(np.full((2, 3), 2.0), np.ones((2, 3)))
+    dof = stylize(ge, st, np.zeros((2, 3)), 3.0)
+    joint = stylize(ge, st, np.zeros((2, 3)), 3.0, coupling=1.0)
+    np.testing.assert_allclose(dof[:, 0], 2.0 + ge[:, 0] * [0.3, 1.0, 1.0], atol=1e-6)
+    np.testing.assert_allclose(joint[:, 0], 2.0 + 0.3 * ge[:, 0], atol=1e-6)
+    np.testing.assert_allclose(joint[:, 1], 2.0 + ge[:, 1], atol=1e-6)
+    np.testing.assert_allclose(dof[:, 1], joint[:, 1], atol=1e-6)
+    # with random bands and limits: the joint's factor is the min of the per-DOF reference factors,
+    # and every DOF stays in its band and limits
+    rng = np.random.default_rng(5)
+    ge = rng.normal(0, 1.0, (19, 4, 3))
+    b_l, sd, b_g = rng.normal(0, 0.3, (4, 3)), rng.uniform(0.05, 0.6, (4, 3)), rng.normal(0, 0.3, (4, 3))
+    lim = JointLimits(tuple(range(4)), np.zeros((4, 3)), rng.uniform(-1.5, -0.4, (4, 3)), rng.uniform(0.4, 1.5, (4, 3)))
+    got = stylize(ge, LoopStats(b_l, sd), b_g, 3.0, lim, tuple(range(4)), coupling=1.0)
+    down, up = stylize_bands(LoopStats(b_l, sd), 3.0, lim, tuple(range(4)))
+    dev = ge - b_g
+    s = np.ones((4, 3))
+    s = np.where(-dev.min(0) > down, down / -dev.min(0), s)
+    s = np.minimum(s, np.where(dev.max(0) > up, up / dev.max(0), 1.0))
+    np.testing.assert_allclose(got, b_l + dev * s.min(axis=1, keepdims=True), atol=1e-5)
+    assert np.all(got - b_l >= -down - 1e-5) and np.all(got - b_l <= up + 1e-5)
+    with pytest.raises(WalkTalkError, match="rescale_coupling"):
+        SpliceParams(rescale_coupling=1.5)
+    with pytest.raises(WalkTalkError, match="rescale coupling"):
+        stylize(ge, LoopStats(b_l, sd), b_g, 3.0, coupling=-0.1)
+
+
+def test_rescale_coupling_through_the_pipeline(loop):
+    """Through splice_gesture (stylized+synced, bounce reserve): with rescale_coupling=1 each
+    gesturing joint's stylized deviation from B_L is one factor times its offset deviation
+    (M_G + B_D - B_L), that factor the smallest of the joint's per-DOF factors under the paper's
+    rule, and every DOF stays within the loop's +- c sigma."""
+    body = find_body(loop.motion.skeleton)
+    lc = loop_context(loop, body)
+    gc = gesture_context(make_gesture(synthetic_gesture(), GaitParams(), PhaseParams()), body)
+    idx = [lc.joints.index(j) for j in gc.joints]
+    ge = gc.euler.copy()   # give the forearm a flexion and the upper arm a second moving channel
+    prof = np.sin(np.linspace(0, np.pi, len(ge))) ** 2
+    elbow, upper = gc.joints.index(body.joints["elbow_r"]), gc.joints.index(body.joints["upperarm_r"])
+    ge[:, elbow, lc.elbow_dof["r"]] += np.radians(80.0) * prof
+    ge[:, upper, lc.elbow_dof["r"]] += np.radians(60.0) * prof   # (its channel 0 has a zero band)
+    gc = dataclasses.replace(gc, euler=ge)
+    b_l, sd = lc.stats.mean[idx], lc.stats.std[idx]
+    off = ge + (b_l - gc.rest) - b_l
+    rng_off = off.max(0) - off.min(0)
+    big = rng_off > 1e-6            # DOFs the gesture moves (the others have no factor to measure)
+    facs = {}
+    for group, g in (("dof", 0.0), ("joint", 1.0), ("half", 0.5)):
+        r = splice_gesture(lc, gc, 3.0, 200, SpliceParams(rescale_coupling=g), "stylized+synced")
+        dev = r.styled_euler - b_l
+        assert np.all(np.abs(dev) <= 3.0 * sd + 1e-5)
+        f = np.full((len(idx), 3), np.nan)
+        f[big] = (dev.max(0) - dev.min(0))[big] / rng_off[big]
+        facs[group] = f
+        np.testing.assert_allclose(dev, off * np.nan_to_num(f, nan=1.0), atol=1e-5)   # one factor per DOF
+    d, j = facs["dof"], facs["joint"]
+    assert np.nanmax(d[elbow]) - np.nanmin(d[elbow]) > 0.1 or np.nanmax(d[upper]) - np.nanmin(d[upper]) > 0.1
+    for a in range(len(idx)):   # the paper's factors differ within a joint; the joint rule takes their min
+        if big[a].any():
+            np.testing.assert_allclose(j[a][big[a]], np.nanmin(d[a]), atol=1e-4)
+            np.testing.assert_allclose(facs["half"][a][big[a]], np.sqrt(d[a][big[a]] * np.nanmin(d[a])), atol=1e-4)

@@ -67,6 +67,12 @@ class SpliceParams:
     # strokes stay within the loop's +- c sigma; the stroke's excursion past B_L is then the same
     # on every loop of a gait and only B_L moves it: the within-gait elbow tracking option)
     band_std: str = "loop"
+    # (ours) how the stylization's per-DOF rescale factors are coupled within a joint: 0 = one
+    # factor per DOF (paper); 1 = one per joint, its DOFs' smallest (the joint's channels shrink
+    # together, which keeps the recording's inter-channel coordination and the wrist jerk near a
+    # splice within 2x, at the price of smaller gestures); in between s^(1-g) * s_min^g
+    # (see splice.stylize_kernel)
+    rescale_coupling: float = 0.0
 
     def __post_init__(self):
         if not self.c > 0:
@@ -83,6 +89,9 @@ class SpliceParams:
         if self.band_std not in ("loop", "gait_min"):
             raise WalkTalkError(f"band_std must be loop or gait_min, got {self.band_std!r}",
                                 where="walktalk.splice.band_std")
+        if not 0.0 <= self.rescale_coupling <= 1.0:
+            raise WalkTalkError(f"rescale_coupling must be in [0, 1], got {self.rescale_coupling}",
+                                where="walktalk.splice.rescale_coupling")
         if self.max_shift_s < 0 or self.lead_s < 0:
             raise WalkTalkError("lead_s and max_shift_s must be >= 0", where="walktalk.splice")
 

@@ -159,6 +159,7 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
         st = band_stats(lc, p, idx)
         lim = limits if p.respect_joint_limits else None
         bands = dict(mode=p.joint_limit_mode, softness_deg=p.joint_limit_softness_deg)
+        coupling = p.rescale_coupling
         if bounce and p.bounce_fit == "reserve":
             # (ours) keep room in the elbow's band for the bounce on both sides, so adding it
             # afterwards stays inside the band without rescaling the gesture a second time; the
@@ -174,7 +175,7 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
             for s in g.sides:
                 a = gc.joints.index(lc.body.joints[f"elbow_{s}"])
                 reserve[0][a, lc.elbow_dof[s]], reserve[1][a, lc.elbow_dof[s]] = bounce_gain * lo, bounce_gain * hi
-        e = stylize(e, st, gc.rest, p.c, lim, gc.joints, reserve, **bands)
+        e = stylize(e, st, gc.rest, p.c, lim, gc.joints, reserve, **bands, coupling=coupling)
     styled = e
     if bounce:
         d_b = bounce_gain * bounce_offsets(lc.loop.root_height, p.k_bounce, offset, g.motion.num_frames)
@@ -185,7 +186,7 @@ def splice_gesture(lc: LoopContext, gc: GestureContext, utterance_peak_s: float,
         if lim is not None and p.bounce_fit == "rescale":
             # (ours) the bounce must not push an elbow the stylization brought to its limit past
             # it: the bounced deviation is rescaled once more into the same bands (B_D = 0 now)
-            e = stylize(e, st, st.mean, p.c, lim, gc.joints, **bands)
+            e = stylize(e, st, st.mean, p.c, lim, gc.joints, **bands, coupling=coupling)
     gest_q = place_gesture_arms(loco, g, e, gc.joints, offset)
     ph = g.phases.shifted(offset)
     w = splice_weights(num_frames, ph, p.ease)

@@ -151,12 +151,18 @@ def stylize_bands(stats: LoopStats, c: float, limits: JointLimits | None = None,
 
 
 def stylize(gesture_euler, stats: LoopStats, b_g, c: float, limits: JointLimits | None = None,
-            joints=None, reserve=None, mode: str = "hard", softness_deg: float = 10.0) -> np.ndarray:
+            joints=None, reserve=None, mode: str = "hard", softness_deg: float = 10.0,
+            coupling: float = 0.0) -> np.ndarray:
     """:func:`stylize_kernel` padded to a bucket length (edge frames repeat, so maxima do not change);
     ``limits`` (with the ``joints`` of the A rows) narrows the band, see :func:`stylize_bands`.
     ``reserve`` (ours): a pair (below, above) of (A, 3) arrays >= 0 taken off the band's two sides,
     room kept free for a disturbance added afterwards (the elbow bounce, see
-    :func:`bounce_reserve`). ``mode``, ``softness_deg``: how the band meets ``limits``."""
+    :func:`bounce_reserve`). ``mode``, ``softness_deg``: how the band meets ``limits``.
+    ``coupling`` (ours, ``splice.rescale_coupling``): 0 = the paper's one factor per DOF, 1 = one
+    factor per joint (its three DOFs' smallest), in between a geometric blend of the two (see
+    :func:`stylize_kernel`)."""
+    if not 0.0 <= coupling <= 1.0:
+        raise WalkTalkError(f"rescale coupling must be in [0, 1], got {coupling}", where="walktalk.splice.rescale_coupling")
     f = gesture_euler.shape[0]
     p = bucket(f)
     x = np.pad(gesture_euler, ((0, p - f), (0, 0), (0, 0)), mode="edge")
@@ -165,25 +171,38 @@ def stylize(gesture_euler, stats: LoopStats, b_g, c: float, limits: JointLimits 
         down = np.maximum(down - reserve[0], 0.0)
         up = np.maximum(up - reserve[1], 0.0)
     f32 = partial(np.asarray, dtype=np.float32)   # NumPy in, jit transfers (jnp.asarray dispatches a cast)
-    return np.asarray(stylize_kernel(f32(x), f32(stats.mean), f32(down), f32(up), f32(b_g)),
+    return np.asarray(stylize_kernel(f32(x), f32(stats.mean), f32(down), f32(up), f32(b_g), np.float32(coupling)),
                       dtype=np.float64)[:f]
 
 
 @jax.jit
-def stylize_kernel(gesture_euler, b_l, down, up, b_g):
+def stylize_kernel(gesture_euler, b_l, down, up, b_g, coupling=0.0):
     """Sec. 4.1. gesture_euler: (F, A, 3); b_l, down, up, b_g: (A, 3) -> (F, A, 3).
 
     M'_G = M_G + (B_L - B_G); deviation D = M'_G - B_L; per DOF one factor
     s = min(1, down / max_t(-D), up / max_t D) (down = up = c std in the paper), result B_L + s D:
     a linear rescaling of the deviation (not clipping), so every DOF stays within B_L - down ..
     B_L + up.
+
+    ``coupling`` = g (ours, ``splice.rescale_coupling``): each DOF's factor becomes
+    s^(1-g) * s_min^g with s_min the smallest factor of the joint's three DOFs; it is <= s, so every
+    DOF stays inside its band, and at g = 1 the joint's deviation is scaled uniformly. Why: the
+    paper's per-DOF factors differ wildly within one joint (a raise-hand's upper arm 0.17 / 0.53 /
+    0.99, its elbow flexion 0.29) and the wrist jerk of a fast movement, small in the recording
+    because the joints' channels move in concert, is no longer cancelled: the stroke-to-retraction
+    turn of a raise-hand spliced onto a walk reached 2.35x the source clips' largest wrist jerk
+    (g = 0.25: 1.74x; README, "Jerk at the splices"). The price is a smaller gesture (a joint's
+    channels shrink toward its most constrained one's factor).
     """
     dev = gesture_euler + (b_l - b_g) - b_l
     below = jnp.max(-dev, axis=0)
     above = jnp.max(dev, axis=0)
     s_lo = jnp.where(below > down, down / jnp.where(below > 0, below, 1.0), 1.0)
     s_hi = jnp.where(above > up, up / jnp.where(above > 0, above, 1.0), 1.0)
-    return b_l + dev * jnp.minimum(s_lo, s_hi)
+    s = jnp.minimum(s_lo, s_hi)
+    s_min = jnp.min(s, axis=-1, keepdims=True)
+    s = jnp.where(coupling > 0, s ** (1.0 - coupling) * s_min ** coupling, s)
+    return b_l + dev * s
 
 
 def splice_weights(num_frames: int, ph: Phases, ease: str = "linear") -> np.ndarray:

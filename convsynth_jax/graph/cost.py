@@ -31,6 +31,7 @@ import logging
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 
 import jax
 import jax.numpy as jnp
@@ -150,22 +151,43 @@ def farthest_point_pivots(X, cand, n_pivots, rng) -> np.ndarray:
 
 
 def pivot_embedding(X, cand, n_pivots, rng):
-    """(:func:`farthest_point_pivots`, ``distances_to(X, cand, pivots)``) with the features of
-    ``cand`` copied to the device once for all pivots (the same kernel on the same padded rows as
-    :func:`distances_to`, so the same values)."""
-    xa = jax.device_put(_pad_rows(X[cand], _bucket(len(cand))))
+    """(:func:`farthest_point_pivots`, ``distances_to(X, cand, pivots)``): farthest-point sampling
+    from a random start, all of it in one device call (:func:`_farthest_point_kernel`: one distance
+    column per pivot, where the plain loop evaluates a padded block of 8 per pivot and then all
+    pivots again). The same kernel arithmetic, so the same pivots and values as the plain loop
+    (tests/test_graph_cost.py compares them exactly)."""
+    n_pivots = int(n_pivots)
+    if n_pivots <= 0:
+        return np.zeros(0, np.int64), np.zeros((len(cand), 0))
+    cand = np.asarray(cand)
+    first = int(np.flatnonzero(cand == int(rng.choice(cand)))[0])  # the row of the random start
+    xa = _pad_rows(X[cand], _bucket(len(cand)))
+    rows, emb = _farthest_point_kernel(xa, np.int32(len(cand)), np.int32(first), n_pivots)
+    piv = np.asarray(cand)[np.asarray(rows)[:n_pivots]].astype(np.int64)
+    return piv, np.asarray(emb, np.float64)[:len(cand)]
 
-    def dist(targets):
-        xb = _pad_rows(X[np.asarray(targets)], _bucket(len(targets), 8))
-        return np.asarray(feature_distance(xa, xb), np.float64)[:len(cand), :len(targets)]
 
-    piv = [int(rng.choice(cand))]
-    dmin = np.full(cand.size, np.inf)
-    for _ in range(max(0, n_pivots - 1)):
-        dmin = np.minimum(dmin, dist([piv[-1]])[:, 0])
-        piv.append(int(cand[int(np.argmax(dmin))]))
-    piv = np.asarray(piv, np.int64)
-    return piv, dist(piv)
+@partial(jax.jit, static_argnames=("n_pivots",))
+def _farthest_point_kernel(xa, n_valid, first, n_pivots):
+    """Farthest-point sampling on the device. xa: (A, M, 3) scaled features of the candidates (rows
+    at and after ``n_valid`` are padding, never picked); first: row of the first pivot. Returns
+    (rows of the pivots (n_pivots + 1,) int32, the last one unused; D(candidate, pivot) (A, n_pivots))."""
+    xt = jnp.transpose(xa, (1, 2, 0))
+    A = xt.shape[-1]
+    valid = lax.iota(jnp.int32, A) < n_valid
+
+    def body(k, carry):
+        rows, emb, dmin = carry
+        d = _sum_of_norms(xt, lax.dynamic_slice_in_dim(xt, rows[k], 1, axis=2))  # (A, 1)
+        emb = lax.dynamic_update_slice_in_dim(emb, d, k, axis=1)
+        dmin = jnp.minimum(dmin, d[:, 0])
+        rows = rows.at[k + 1].set(jnp.argmax(jnp.where(valid, dmin, -jnp.inf)).astype(jnp.int32))
+        return rows, emb, dmin
+
+    rows = jnp.zeros(n_pivots + 1, jnp.int32).at[0].set(first)
+    init = (rows, jnp.zeros((A, n_pivots), xt.dtype), jnp.full((A,), jnp.inf, xt.dtype))
+    rows, emb, _ = lax.fori_loop(0, n_pivots, body, init)
+    return rows, emb
 
 
 def kd_order(E: np.ndarray, leaf: int) -> np.ndarray:

@@ -42,6 +42,9 @@ log = logging.getLogger(__name__)
 
 # relative safety margin on tile lower bounds (computed from float32 pivot distances)
 BOUND_MARGIN = 1e-4
+# compact the masked tiles of a dispatch batch together in the plain case (False: tile by tile,
+# the slow path that tests/test_graph_cost.py compares against)
+BATCHED_COMPACTION = True
 
 
 def scaled_features(P, V, w, w_v, dtype=np.float32) -> np.ndarray:
@@ -344,6 +347,8 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
         """Candidates of the worker's tiles: a list of (a, b, cost), or with a cap the dense
         per-source tables (best costs (N, cap), their targets (N, cap)) updated tile by tile."""
         out = []
+        if not cap and not sym and BATCHED_COMPACTION:
+            return work_batched(k, chunk)
         if cap:
             best_c = np.full((clip.size, cap), np.inf, np.float32)
             best_b = np.full((clip.size, cap), -1, np.int64)
@@ -379,6 +384,27 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
         if cap:
             r, c = np.nonzero(best_c < np.inf)
             out.append((r, best_b[r, c], best_c[r, c]))
+        return out
+
+    def work_batched(k, chunk, depth=16):
+        """:func:`work` for the plain case (one direction, no cap): the masked tiles of one dispatch
+        batch are compacted together (one host pass per batch instead of one per tile), in the
+        same order as tile by tile."""
+        out = []
+        for s in range(0, len(chunk), depth):
+            ps = chunk[s:s + depth]
+            ms = [masked_tile_costs(ta.x, tb.x, ta.i32, tb.i32, ta.c32, tb.c32, np.int32(pa), np.int32(pb), thr32, gap32)
+                  for pa, pb in ps]
+            if overflow:
+                break
+            stack = np.stack([np.asarray(m) for m in ms])
+            t, r, c = np.nonzero(stack < np.inf)
+            found[k] += int(t.size)
+            if t.size:
+                out.append((ta.ids[ps[t, 0], r], tb.ids[ps[t, 1], c], stack[t, r, c]))
+            if limit is not None and sum(found) > limit:
+                overflow.append(sum(found))
+                break
         return out
 
     nw = max(1, min(workers or min(os.cpu_count() or 1, 4), pairs.shape[0] or 1, len(found)))

@@ -255,3 +255,23 @@ def test_scc_collapse_warns_and_is_marked_in_meta(db, caplog):
         g = build_graph(db, GP)
     assert g.num_states >= 0.5 * db.num_frames and g.meta["scc_warning"] == ""
     assert not [r for r in caplog.records if "strongly connected" in r.getMessage()]
+
+
+def test_fitting_only_the_configured_distribution_gives_the_same_graph(db, graphs):
+    """graph.fit_all_candidates=false (default) fits only Johnson SB; with true every candidate is
+    fitted into meta['fit_table'] and the threshold, edges and costs are the same."""
+    import dataclasses
+
+    from convsynth_jax.stats.fits import CANDIDATES
+
+    g, _ = graphs
+    h = build_graph(db, dataclasses.replace(GP, fit_all_candidates=True))
+    assert [r["distribution"] for r in g.meta["fit_table"]] == ["johnsonsb"]
+    assert sorted(r["distribution"] for r in h.meta["fit_table"]) == sorted(CANDIDATES)
+    sb = next(r for r in h.meta["fit_table"] if r["distribution"] == "johnsonsb")
+    assert sb["params"] == g.meta["fit_table"][0]["params"] and sb["rss"] == g.meta["fit_table"][0]["rss"]
+    assert h.meta["threshold"] == g.meta["threshold"]
+    for name in g._ARRAYS:
+        np.testing.assert_array_equal(getattr(h, name), getattr(g, name))
+    auto = build_graph(db, dataclasses.replace(GP, distribution="auto"))
+    assert len(auto.meta["fit_table"]) == len(CANDIDATES)

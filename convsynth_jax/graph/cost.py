@@ -31,15 +31,20 @@ import logging
 import os
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass
+from functools import partial
 
 import jax
 import jax.numpy as jnp
+from jax import lax
 import numpy as np
 
 log = logging.getLogger(__name__)
 
 # relative safety margin on tile lower bounds (computed from float32 pivot distances)
 BOUND_MARGIN = 1e-4
+# compact the masked tiles of a dispatch batch together in the plain case (False: tile by tile,
+# the slow path that tests/test_graph_cost.py compares against)
+BATCHED_COMPACTION = True
 
 
 def scaled_features(P, V, w, w_v, dtype=np.float32) -> np.ndarray:
@@ -62,13 +67,24 @@ def scaled_features(P, V, w, w_v, dtype=np.float32) -> np.ndarray:
 
 
 def _sum_of_norms(a, b):
-    """D between every column of a and every column of b. a: (M, 3, A), b: (M, 3, B) -> (A, B)."""
-    acc = jnp.zeros((a.shape[-1], b.shape[-1]), a.dtype)
-    for m in range(a.shape[0]):  # unrolled: one elementwise fusion (see module docstring)
-        d0 = a[m, 0][:, None] - b[m, 0][None, :]
-        d1 = a[m, 1][:, None] - b[m, 1][None, :]
-        d2 = a[m, 2][:, None] - b[m, 2][None, :]
-        acc = acc + jnp.sqrt(d0 * d0 + d1 * d1 + d2 * d2)
+    """D between every column of a and every column of b. a: (M, 3, A), b: (M, 3, B) -> (A, B).
+
+    Written with ``lax`` primitives, unrolled over the 3 M coordinates (one elementwise fusion, see
+    the module docstring): the same operations in the same order as the ``jnp`` form
+    ``acc + sqrt(d0 * d0 + d1 * d1 + d2 * d2)`` (tests/test_graph_cost.py compares the two bit for
+    bit), but about a third of the primitives, so tracing it (which the persistent compilation
+    cache does not save) takes a few times less."""
+    M, A, B = a.shape[0], a.shape[-1], b.shape[-1]
+    a2, b2 = lax.reshape(a, (3 * M, A)), lax.reshape(b, (3 * M, B))
+    acc = lax.full((A, B), 0, a.dtype)
+    for m in range(M):
+        s = None
+        for c in range(3):
+            d = lax.sub(lax.broadcast_in_dim(lax.index_in_dim(a2, 3 * m + c, 0, False), (A, B), (0,)),
+                        lax.broadcast_in_dim(lax.index_in_dim(b2, 3 * m + c, 0, False), (A, B), (1,)))
+            d = lax.mul(d, d)
+            s = d if s is None else lax.add(s, d)
+        acc = lax.add(acc, lax.sqrt(s))
     return acc
 
 
@@ -138,22 +154,43 @@ def farthest_point_pivots(X, cand, n_pivots, rng) -> np.ndarray:
 
 
 def pivot_embedding(X, cand, n_pivots, rng):
-    """(:func:`farthest_point_pivots`, ``distances_to(X, cand, pivots)``) with the features of
-    ``cand`` copied to the device once for all pivots (the same kernel on the same padded rows as
-    :func:`distances_to`, so the same values)."""
-    xa = jax.device_put(_pad_rows(X[cand], _bucket(len(cand))))
+    """(:func:`farthest_point_pivots`, ``distances_to(X, cand, pivots)``): farthest-point sampling
+    from a random start, all of it in one device call (:func:`_farthest_point_kernel`: one distance
+    column per pivot, where the plain loop evaluates a padded block of 8 per pivot and then all
+    pivots again). The same kernel arithmetic, so the same pivots and values as the plain loop
+    (tests/test_graph_cost.py compares them exactly)."""
+    n_pivots = int(n_pivots)
+    if n_pivots <= 0:
+        return np.zeros(0, np.int64), np.zeros((len(cand), 0))
+    cand = np.asarray(cand)
+    first = int(np.flatnonzero(cand == int(rng.choice(cand)))[0])  # the row of the random start
+    xa = _pad_rows(X[cand], _bucket(len(cand)))
+    rows, emb = _farthest_point_kernel(xa, np.int32(len(cand)), np.int32(first), n_pivots)
+    piv = np.asarray(cand)[np.asarray(rows)[:n_pivots]].astype(np.int64)
+    return piv, np.asarray(emb, np.float64)[:len(cand)]
 
-    def dist(targets):
-        xb = _pad_rows(X[np.asarray(targets)], _bucket(len(targets), 8))
-        return np.asarray(feature_distance(xa, xb), np.float64)[:len(cand), :len(targets)]
 
-    piv = [int(rng.choice(cand))]
-    dmin = np.full(cand.size, np.inf)
-    for _ in range(max(0, n_pivots - 1)):
-        dmin = np.minimum(dmin, dist([piv[-1]])[:, 0])
-        piv.append(int(cand[int(np.argmax(dmin))]))
-    piv = np.asarray(piv, np.int64)
-    return piv, dist(piv)
+@partial(jax.jit, static_argnames=("n_pivots",))
+def _farthest_point_kernel(xa, n_valid, first, n_pivots):
+    """Farthest-point sampling on the device. xa: (A, M, 3) scaled features of the candidates (rows
+    at and after ``n_valid`` are padding, never picked); first: row of the first pivot. Returns
+    (rows of the pivots (n_pivots + 1,) int32, the last one unused; D(candidate, pivot) (A, n_pivots))."""
+    xt = jnp.transpose(xa, (1, 2, 0))
+    A = xt.shape[-1]
+    valid = lax.iota(jnp.int32, A) < n_valid
+
+    def body(k, carry):
+        rows, emb, dmin = carry
+        d = _sum_of_norms(xt, lax.dynamic_slice_in_dim(xt, rows[k], 1, axis=2))  # (A, 1)
+        emb = lax.dynamic_update_slice_in_dim(emb, d, k, axis=1)
+        dmin = jnp.minimum(dmin, d[:, 0])
+        rows = rows.at[k + 1].set(jnp.argmax(jnp.where(valid, dmin, -jnp.inf)).astype(jnp.int32))
+        return rows, emb, dmin
+
+    rows = jnp.zeros(n_pivots + 1, jnp.int32).at[0].set(first)
+    init = (rows, jnp.zeros((A, n_pivots), xt.dtype), jnp.full((A,), jnp.inf, xt.dtype))
+    rows, emb, _ = lax.fori_loop(0, n_pivots, body, init)
+    return rows, emb
 
 
 def kd_order(E: np.ndarray, leaf: int) -> np.ndarray:
@@ -310,6 +347,8 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
         """Candidates of the worker's tiles: a list of (a, b, cost), or with a cap the dense
         per-source tables (best costs (N, cap), their targets (N, cap)) updated tile by tile."""
         out = []
+        if not cap and not sym and BATCHED_COMPACTION:
+            return work_batched(k, chunk)
         if cap:
             best_c = np.full((clip.size, cap), np.inf, np.float32)
             best_b = np.full((clip.size, cap), -1, np.int64)
@@ -345,6 +384,27 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
         if cap:
             r, c = np.nonzero(best_c < np.inf)
             out.append((r, best_b[r, c], best_c[r, c]))
+        return out
+
+    def work_batched(k, chunk, depth=16):
+        """:func:`work` for the plain case (one direction, no cap): the masked tiles of one dispatch
+        batch are compacted together (one host pass per batch instead of one per tile), in the
+        same order as tile by tile."""
+        out = []
+        for s in range(0, len(chunk), depth):
+            ps = chunk[s:s + depth]
+            ms = [masked_tile_costs(ta.x, tb.x, ta.i32, tb.i32, ta.c32, tb.c32, np.int32(pa), np.int32(pb), thr32, gap32)
+                  for pa, pb in ps]
+            if overflow:
+                break
+            stack = np.stack([np.asarray(m) for m in ms])
+            t, r, c = np.nonzero(stack < np.inf)
+            found[k] += int(t.size)
+            if t.size:
+                out.append((ta.ids[ps[t, 0], r], tb.ids[ps[t, 1], c], stack[t, r, c]))
+            if limit is not None and sum(found) > limit:
+                overflow.append(sum(found))
+                break
         return out
 
     nw = max(1, min(workers or min(os.cpu_count() or 1, 4), pairs.shape[0] or 1, len(found)))

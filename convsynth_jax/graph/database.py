@@ -51,14 +51,21 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     from ..kinematics import fk_kernel, root_relative_kernel
     import jax
 
-    rot = np.concatenate([m.rotations for m in motions]).astype(np.float32)
-    tr = np.concatenate([m.translations for m in motions]).astype(np.float32)
-    n = rot.shape[0]
+    n = sum(m.rotations.shape[0] for m in motions)
     size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
-    pad = size - n
-    if pad:
-        rot = np.concatenate([rot, np.broadcast_to(rot[-1:], (pad,) + rot.shape[1:])])
-        tr = np.concatenate([tr, np.broadcast_to(tr[-1:], (pad,) + tr.shape[1:])])
+    # one padded float32 buffer each, filled clip by clip (the same values as concatenating, casting
+    # and padding with copies of the last frame, without the intermediate copies)
+    rot = np.empty((size,) + motions[0].rotations.shape[1:], np.float32)
+    tr = np.empty((size,) + motions[0].translations.shape[1:], np.float32)
+    start = 0
+    for m in motions:
+        stop = start + m.rotations.shape[0]
+        rot[start:stop] = m.rotations
+        tr[start:stop] = m.translations
+        start = stop
+    if 0 < n < size:
+        rot[n:] = rot[n - 1]
+        tr[n:] = tr[n - 1]
     pos, grot = fk_kernel(jax.device_put(rot), jax.device_put(tr), tuple(motions[0].skeleton.parents))
     rel = np.asarray(root_relative_kernel(pos, grot, up_axis=up_axis, remove_yaw=remove_yaw))[:n]
     vel = np.empty_like(rel)

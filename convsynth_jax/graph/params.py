@@ -36,6 +36,9 @@ class GraphParams:
     max_out_degree: Optional[int] = None  # cap synthetic out-degree per state
     seed: int = 0
     fit_bins: int = 100
+    # ours: also fit every other candidate distribution (stats/fits.py CANDIDATES) into meta['fit_table'];
+    # false (default): only the configured one (the threshold is the same; ``auto`` always fits all)
+    fit_all_candidates: bool = False
     max_edges: Optional[int] = 50_000_000  # host edge-buffer capacity; more raise a GraphError (None: unbounded)
     workers: Optional[int] = None    # host threads dispatching kernel tiles (None: CPU count, at most 4)
     # seam filter (ours, graph/seams.py; None = off, the paper): drop synthetic transitions with a frame

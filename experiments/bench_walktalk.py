@@ -248,8 +248,8 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
         dof_limits,
         limit_violations,
         load_library,
+        peak_placed_splices,
     )
-    from convsynth_jax.walktalk.locomotion import tile_contact, tile_loop
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.pipeline import splice_gesture
 
@@ -258,44 +258,38 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     limits = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
     acc: dict = {}
-    for gc in lib.gestures[::every]:
+    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
         g = gc.gesture
-        for gait, lcs in lib.loops.items():
-            for lc in lcs:
-                n = lc.loop.num_frames
-                T = g.motion.num_frames + 2 * n + 40
-                u = (n + 20 + g.phases.peaks[0]) / p.fps + p.splice.lead_s
-                loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
-                lpos = joint_positions(loco)
-                for method in ("naive", "stylized+synced"):
-                    r = splice_gesture(lc, gc, u, T, p.splice, method, loco=loco, contact=contact, limits=rom)
-                    ph = r.phases
-                    fr = np.arange(ph.pb, ph.re + 1)
-                    phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
-                    for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
-                        dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, ep.torso_radius_cm)
-                        tg = np.zeros(len(fr), bool)
-                        ti = np.zeros(len(fr), bool)
-                        for s in ("l", "r"):
-                            dist = _segment_distance(pos[fr, lib.body.joints[f"hand_{s}"]], pos[fr, lib.body.joints["hips"]],
-                                                     pos[fr, lib.body.joints["neck"]])
-                            if s in g.sides:
-                                tg |= dist < ep.torso_radius_cm
-                            else:
-                                ti |= dist < ep.torso_radius_cm
-                        key = (gait, method, who)
-                        d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
-                                                 **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
-                                                 **{f"{q}_any": 0 for q in ("prep", "stroke", "retraction")}})
-                        bad = dof | tg | ti
-                        d["frames"] += len(fr)
-                        d["any"] += int(bad.sum())
-                        d["dof"] += int(dof.sum())
-                        d["torso_gesturing"] += int(tg.sum())
-                        d["torso_idle"] += int(ti.sum())
-                        for q in ("prep", "stroke", "retraction"):
-                            d[f"{q}_frames"] += int((phase == q).sum())
-                            d[f"{q}_any"] += int((bad & (phase == q)).sum())
+        lpos = joint_positions(loco)
+        for method in ("naive", "stylized+synced"):
+            r = splice_gesture(lc, gc, u, T, p.splice, method, loco=loco, contact=contact, limits=rom)
+            ph = r.phases
+            fr = np.arange(ph.pb, ph.re + 1)
+            phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
+            for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
+                dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, ep.torso_radius_cm)
+                tg = np.zeros(len(fr), bool)
+                ti = np.zeros(len(fr), bool)
+                for s in ("l", "r"):
+                    dist = _segment_distance(pos[fr, lib.body.joints[f"hand_{s}"]], pos[fr, lib.body.joints["hips"]],
+                                             pos[fr, lib.body.joints["neck"]])
+                    if s in g.sides:
+                        tg |= dist < ep.torso_radius_cm
+                    else:
+                        ti |= dist < ep.torso_radius_cm
+                key = (gait, method, who)
+                d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
+                                         **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
+                                         **{f"{q}_any": 0 for q in ("prep", "stroke", "retraction")}})
+                bad = dof | tg | ti
+                d["frames"] += len(fr)
+                d["any"] += int(bad.sum())
+                d["dof"] += int(dof.sum())
+                d["torso_gesturing"] += int(tg.sum())
+                d["torso_idle"] += int(ti.sum())
+                for q in ("prep", "stroke", "retraction"):
+                    d[f"{q}_frames"] += int((phase == q).sum())
+                    d[f"{q}_any"] += int((bad & (phase == q)).sum())
     out = []
     for (gait, method, who), d in acc.items():
         rec = {"gait": gait, "method": method, "motion": who, "frames": d["frames"]}
@@ -322,8 +316,14 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
     import numpy as np
 
     from convsynth_jax.walktalk.body import joint_positions
-    from convsynth_jax.walktalk.evaluate import EvalParams, dof_limits, load_library, run_evaluation, summarize
-    from convsynth_jax.walktalk.locomotion import tile_contact, tile_loop
+    from convsynth_jax.walktalk.evaluate import (
+        EvalParams,
+        dof_limits,
+        load_library,
+        peak_placed_splices,
+        run_evaluation,
+        summarize,
+    )
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
 
@@ -349,25 +349,19 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
                          "dof_within_csigma_rate": r["dof_within_csigma_rate"]})
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
     reach: dict = {}
-    for gc in lib.gestures[::every]:
+    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
         gst = gc.gesture
-        for gait, lcs in lib.loops.items():
-            for lc in lcs:
-                n = lc.loop.num_frames
-                T = gst.motion.num_frames + 2 * n + 40
-                u = (n + 20 + gst.phases.peaks[0]) / p.fps + p.splice.lead_s
-                loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
-                lpos = joint_positions(loco)
-                for name, g in [("naive", None)] + [(f"coupling={g}", g) for g in couplings]:
-                    sp = p.splice if g is None else dataclasses.replace(p.splice, rescale_coupling=g)
-                    r = splice_gesture(lc, gc, u, T, sp, METHODS["naive" if g is None else "stylized+synced"],
-                                       loco=loco, contact=contact, limits=rom)
-                    pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
-                    hips = lib.body.joints["hips"]
-                    d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
-                                                - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
-                                 for s in gst.sides])
-                    reach.setdefault((gait, name), []).append(float(d))
+        lpos = joint_positions(loco)
+        for name, g in [("naive", None)] + [(f"coupling={g}", g) for g in couplings]:
+            sp = p.splice if g is None else dataclasses.replace(p.splice, rescale_coupling=g)
+            r = splice_gesture(lc, gc, u, T, sp, METHODS["naive" if g is None else "stylized+synced"],
+                               loco=loco, contact=contact, limits=rom)
+            pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
+            hips = lib.body.joints["hips"]
+            d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
+                                        - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
+                         for s in gst.sides])
+            reach.setdefault((gait, name), []).append(float(d))
     reach_rows = []
     for (gait, name), v in reach.items():
         base = np.asarray(reach[gait, f"coupling={couplings[0]}"])

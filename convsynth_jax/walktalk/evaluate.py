@@ -497,6 +497,20 @@ def summarize(df: pd.DataFrame) -> list[dict]:
     return out
 
 
+def peak_placed_splices(lib: Library, p: WalkTalkParams, gestures=None):
+    """Every gesture (default: the library's) x every loaded loop, set up for a splice whose stroke
+    peak falls one loop length plus 20 frames into a timeline of the gesture plus two loops:
+    yields (gesture context, gait, loop context, frames T, utterance peak u (s), tiled loop, contact)."""
+    for gc in (lib.gestures if gestures is None else gestures):
+        g = gc.gesture
+        for gait, lcs in lib.loops.items():
+            for lc in lcs:
+                n = lc.loop.num_frames
+                T = g.motion.num_frames + 2 * n + 40
+                u = (n + 20 + g.phases.peaks[0]) / p.fps + p.splice.lead_s
+                yield gc, gait, lc, T, u, tile_loop(lc.loop, T), tile_contact(lc.loop, T)
+
+
 def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("naive", "stylized", "stylized+synced"),
                    limits: JointLimits | None = None, variants: dict | None = None,
                    loop_measures: bool = False) -> pd.DataFrame:
@@ -515,30 +529,24 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
     if variants is None:
         variants = {name: (p.splice, name) for name in methods}
     rows = []
-    for gc in (lib.gestures if gestures is None else gestures):
+    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, gestures):
         g = gc.gesture
-        for gait, lcs in lib.loops.items():
-            for lc in lcs:
-                n = lc.loop.num_frames
-                T = g.motion.num_frames + 2 * n + 40
-                u = (n + 20 + g.phases.peaks[0]) / p.fps + p.splice.lead_s
-                loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
-                lpos = joint_positions(loco) if loop_measures else None
-                base = {"gesture": Path(g.name).stem, "gait": gait, "loop": Path(lc.loop.source).stem,
-                        "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides])),
-                        "loop_bend_sd": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides]))}
-                if loop_measures:
-                    base["loop_pose_bend"] = float(np.mean([pose_bend(lc, s) for s in g.sides]))
-                for name, (sp, method) in variants.items():
-                    r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=limits)
-                    st = slice(r.phases.sb, r.phases.se + 1)
-                    pos = joint_positions(r.motion.slice(st.start, st.stop))
-                    row = {**base, "method": name,
-                           "bend": float(np.mean([elbow_bend(pos, lib.body, s).mean() for s in g.sides]))}
-                    if loop_measures:
-                        row["loop_phase_bend"] = float(np.mean([elbow_bend(lpos[st], lib.body, s).mean()
-                                                                for s in g.sides]))
-                    rows.append(row)
+        lpos = joint_positions(loco) if loop_measures else None
+        base = {"gesture": Path(g.name).stem, "gait": gait, "loop": Path(lc.loop.source).stem,
+                "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides])),
+                "loop_bend_sd": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides]))}
+        if loop_measures:
+            base["loop_pose_bend"] = float(np.mean([pose_bend(lc, s) for s in g.sides]))
+        for name, (sp, method) in variants.items():
+            r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=limits)
+            st = slice(r.phases.sb, r.phases.se + 1)
+            pos = joint_positions(r.motion.slice(st.start, st.stop))
+            row = {**base, "method": name,
+                   "bend": float(np.mean([elbow_bend(pos, lib.body, s).mean() for s in g.sides]))}
+            if loop_measures:
+                row["loop_phase_bend"] = float(np.mean([elbow_bend(lpos[st], lib.body, s).mean()
+                                                        for s in g.sides]))
+            rows.append(row)
     return pd.DataFrame(rows)
 
 

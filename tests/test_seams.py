@@ -162,3 +162,16 @@ def test_finger_weight_reaches_the_cost():
                                         db_.positions[FLICK + 1:FLICK + 2], db_.velocities[FLICK + 1:FLICK + 2],
                                         da.weights.astype(np.float32), 1.0))
         assert (abs(d[0]) < 1e-4) == want_zero, d
+
+
+@pytest.mark.parametrize("override, key", [("graph.seam_filter_quantile=1.5", "graph.seam_filter_quantile"),
+                                           ("graph.seam_filter_quantile=0", "graph.seam_filter_quantile"),
+                                           ("graph.seam_filter_radius=-1", "graph.seam_filter_radius"),
+                                           ("features.finger_weight=-0.5", "features.finger_weight")])
+def test_bad_seam_options_are_config_errors_naming_the_key(override, key):
+    # np.quantile raised a bare ValueError for 1.5; a negative radius or finger weight passed silently
+    from convsynth_jax.config import default_params
+    from convsynth_jax.errors import ConfigError
+
+    with pytest.raises(ConfigError, match=key):
+        default_params([override])

@@ -4,6 +4,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Dict, Optional
 
+from ..errors import ConfigError
+
 
 @dataclass(frozen=True)
 class FeatureParams:
@@ -17,6 +19,10 @@ class FeatureParams:
     # weight w_b of the finger joints (those matching finger_pattern) in Eq. 4: the paper sets 0; a
     # positive value (ours) makes the cost see finger pose and velocity. joint_weight_overrides win.
     finger_weight: float = 0.0
+
+    def __post_init__(self):
+        if not float(self.finger_weight) >= 0.0:
+            raise ConfigError(f"finger_weight must be >= 0, got {self.finger_weight}", where="features.finger_weight")
 
 
 @dataclass(frozen=True)
@@ -46,3 +52,12 @@ class GraphParams:
     # seam_filter_radius frames of their source or destination frame
     seam_filter_quantile: Optional[float] = None
     seam_filter_radius: int = 4
+
+    def __post_init__(self):
+        q = self.seam_filter_quantile
+        if q is not None and not 0.0 < float(q) < 1.0:
+            raise ConfigError(f"seam_filter_quantile must lie in (0, 1) or be null (off), got {q}",
+                              where="graph.seam_filter_quantile")
+        if int(self.seam_filter_radius) < 0:
+            raise ConfigError(f"seam_filter_radius must be >= 0 frames, got {self.seam_filter_radius}",
+                              where="graph.seam_filter_radius")

@@ -25,7 +25,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from _bench import REPO, RESULTS, SHARED, write
+from _bench import REPO, SHARED, write, write_markdown
 
 GOALS = {"search_s_per_character": 0.1, "bandai2_construction_s": 1.5}
 
@@ -119,8 +119,7 @@ def main():
             lines.append("| build_graph bandai2 | construction CPU s | " + " | ".join(f"{c:.2f}" for c in cells) + " | |")
         lines.append(f"| build_graph bandai2 | process wall s | {b['cold']['process_s']:.1f} | "
                      f"{b['warm']['process_s']:.1f} | {b['control_no_jax_cache']['process_s']:.1f} | |")
-    (RESULTS / "bench_startup.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_markdown("bench_startup", lines)
 
 
 if __name__ == "__main__":

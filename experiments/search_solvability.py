@@ -19,7 +19,7 @@ import json
 import numpy as np
 import pandas as pd
 
-from _bench import REPO, RESULTS, timed
+from _bench import REPO, RESULTS, timed, write_markdown
 
 from convsynth_jax.annotate.types import HP, LR, PC
 from convsynth_jax.config import default_params
@@ -126,8 +126,7 @@ def main():
     for ch, v in summ.items():
         lines.append(f"| {ch} | {v['windows']} | {v['bound_solvable']} | {v['exact_solvable']} | {v['old_beam_solved']} | "
                      f"{v['new_beam_solved']} | {v['old_beam_median_s']:.2f} | {v['new_beam_median_s']:.2f} |")
-    (RESULTS / "search_solvability.md").write_text("\n".join(lines) + "\n")
-    print("\n".join(lines))
+    write_markdown("search_solvability", lines)
 
 
 if __name__ == "__main__":

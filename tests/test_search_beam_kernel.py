@@ -7,7 +7,7 @@ import pytest
 
 from convsynth_jax.annotate.types import HP, LR, PC, FrameAudio
 from convsynth_jax.graph.types import MotionGraph
-from convsynth_jax.search.beam import beam_search, kept_edges, padded_adjacency
+from convsynth_jax.search.beam import beam_search, kept_edges
 from convsynth_jax.search.check import check_path
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.params import SearchParams
@@ -126,32 +126,21 @@ def test_no_duplicate_states_in_the_beam_and_impossible_input_fails_at_the_same_
     assert not ref.success and not res.success and ref.failed_frame == res.failed_frame == 12
 
 
-def test_padded_adjacency_keeps_the_cheapest_edges_in_order():
-    rng = np.random.default_rng(3)
-    g, _ = hub_graph(rng)
-    adj, cost, syn, deg = padded_adjacency(g, 6)
+def test_kept_edges_are_each_states_cheapest_edges_in_order():
+    """The kernels' flat edge layout (beam.kept_edges) against a plain per-state sort: each state's
+    at most D cheapest out-edges, ties in CSR order, state after state."""
+    g, _ = hub_graph(np.random.default_rng(3))
+    first, kdeg, tgt, fcost, fsyn, D = kept_edges(g, 6)
+    assert D == min(6, int(np.diff(g.indptr).max()))
+    assert tgt.size == kdeg.sum() and (first == np.cumsum(kdeg) - kdeg).all()
     for s in range(g.num_states):
         t, c, y = g.out_edges(s)
         o = sorted(range(len(t)), key=lambda k: (c[k], k))[:6]
-        assert deg[s] == len(o)
-        np.testing.assert_array_equal(adj[s, :len(o)], t[o])
-        np.testing.assert_array_equal(cost[s, :len(o)], c[o])
-        np.testing.assert_array_equal(syn[s, :len(o)], y[o])
-        assert np.isinf(cost[s, len(o):]).all()
-
-
-def test_flat_kept_edges_are_the_padded_adjacency_rows():
-    """The kernels' flat edge layout (beam.kept_edges) holds the same edges, in the same order, as the
-    padded adjacency checked above."""
-    g, _ = hub_graph(np.random.default_rng(3))
-    adj, cost, syn, deg = padded_adjacency(g, 6)
-    first, kdeg, tgt, fcost, fsyn, D = kept_edges(g, 6)
-    assert D == adj.shape[1] and (kdeg == deg).all() and tgt.size == deg.sum()
-    for s in range(g.num_states):
-        e = slice(first[s], first[s] + deg[s])
-        np.testing.assert_array_equal(tgt[e], adj[s, :deg[s]])
-        np.testing.assert_array_equal(fcost[e], cost[s, :deg[s]])
-        np.testing.assert_array_equal(fsyn[e], syn[s, :deg[s]])
+        e = slice(first[s], first[s] + kdeg[s])
+        assert kdeg[s] == len(o)
+        np.testing.assert_array_equal(tgt[e], t[o])
+        np.testing.assert_array_equal(fcost[e], c[o])
+        np.testing.assert_array_equal(fsyn[e], y[o])
 
 
 def test_host_prng_key_is_jax_prng_key():

@@ -72,7 +72,7 @@ def apply_seam_filter(db: MotionDatabase, a, j, c, params, meta: dict | None = N
     """(a, j, c) without the transitions the seam filter drops; identity when
     ``params.seam_filter_quantile`` is None (the paper). Records the limit and the counts in
     ``meta`` (``seam_filter``)."""
-    q = getattr(params, "seam_filter_quantile", None)
+    q = params.seam_filter_quantile
     if q is None:
         return a, j, c
     keep, limit = seam_filter_mask(db, a, j, q, int(params.seam_filter_radius))

@@ -57,41 +57,15 @@ def padded_states(num_states: int) -> int:
     return num_states + 1 + (-(num_states + 1) % STATE_BUCKET)
 
 
-def _edge_ranks(graph, max_degree: int):
-    """Out-degrees (S,), the kept degree bound D, each CSR edge's source row, the edges ordered by
-    row, then cost, then CSR position, and each ordered edge's rank within its row."""
+def kept_edges(graph, max_degree: int = 64):
+    """Each state's at most D cheapest out-edges, cheapest first (ties: CSR order), state after state,
+    as flat arrays. Returns (first (S,) int32: index of the state's first kept edge, degree (S,) int32,
+    targets (E,) int32, costs (E,) float32, synthetic (E,) bool, D)."""
     deg = np.diff(graph.indptr)
     D = int(min(max(1, deg.max() if deg.size else 1), max_degree))
     row = np.repeat(np.arange(graph.num_states), deg)
-    order = np.lexsort((np.arange(row.size), graph.cost, row))
+    order = np.lexsort((np.arange(row.size), graph.cost, row))      # by row, then cost, then CSR position
     rank = np.arange(row.size) - graph.indptr[row[order]]
-    return deg, D, row, order, rank
-
-
-def padded_adjacency(graph, max_degree: int = 64):
-    """Each state's at most D cheapest out-edges, cheapest first (ties: CSR order):
-    targets (S, D) int32 (0 padded), costs (S, D) float32 (inf padded), synthetic (S, D) bool and the
-    number of kept edges per state (S,) int32."""
-    deg, D, row, order, rank = _edge_ranks(graph, max_degree)
-    S = graph.num_states
-    keep = rank < D
-    o, rk = order[keep], rank[keep]
-    r = row[o]
-    adj = np.zeros((S, D), np.int32)
-    cost = np.full((S, D), np.inf, np.float32)
-    syn = np.zeros((S, D), bool)
-    adj[r, rk] = graph.indices[o]
-    cost[r, rk] = graph.cost[o]
-    syn[r, rk] = graph.synthetic[o]
-    return adj, cost, syn, np.minimum(deg, D).astype(np.int32)
-
-
-def kept_edges(graph, max_degree: int = 64):
-    """The same edges as :func:`padded_adjacency` as flat arrays: each state's at most D cheapest
-    out-edges, cheapest first (ties: CSR order), state after state. Returns (first (S,) int32: index
-    of the state's first kept edge, degree (S,) int32, targets (E,) int32, costs (E,) float32,
-    synthetic (E,) bool, D)."""
-    deg, D, _, order, rank = _edge_ranks(graph, max_degree)
     o = order[rank < D]
     kdeg = np.minimum(deg, D).astype(np.int32)
     first = (np.cumsum(kdeg) - kdeg).astype(np.int32)

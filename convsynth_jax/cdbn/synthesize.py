@@ -28,24 +28,7 @@ def _pad(n: int) -> int:
 def state_posteriors(model: DBNModel, speech: np.ndarray, constraints: np.ndarray | None = None,
                      posterior: str = "smoother") -> np.ndarray:
     """gamma (T, K) from normalized speech (T, d_s) and constraint codes (T,) (zeros if None)."""
-    if posterior not in POSTERIORS:
-        raise CDBNError(f"unknown posterior {posterior!r}; expected one of {POSTERIORS}")
-    T = len(speech)
-    check_finite(speech, "speech", "speech features")
-    c = np.zeros(T, np.int32) if constraints is None else np.asarray(constraints, np.int32)
-    if len(c) != T:
-        raise CDBNError(f"{T} speech frames but {len(c)} constraint codes")
-    if c.size and (c.min() < 0 or c.max() >= model.num_constraints):
-        raise CDBNError(f"constraint codes must lie in 0..{model.num_constraints - 1} {list(model.constraint_names)}")
-    L = _pad(T)
-    D = model.means.shape[1]
-    x = np.zeros((1, L, D), np.float32)
-    x[0, :T, list(model.speech_dims)] = np.asarray(speech, np.float32).T
-    cc = np.zeros((1, L), np.int32)
-    cc[0, :T] = c
-    if T:
-        cc[0, T:] = c[-1]
-    return _posteriors(model, x, cc, np.asarray([T], np.int32), posterior)[0, :T]  # slice on the host
+    return state_posteriors_batch(model, [speech], None if constraints is None else [constraints], posterior)[0]
 
 
 def _posteriors(model: DBNModel, x, cc, lengths, posterior: str) -> np.ndarray:

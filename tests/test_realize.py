@@ -184,3 +184,41 @@ def test_unknown_blend_method_is_a_config_error():
     m = _still_clip(skel, "a", (0, 0, 0), 90.0, 0.0)
     with pytest.raises(ConfigError, match="blend_method"):
         realize(["a"] * 5, list(range(5)), {"a": m}, [2], blend_frames=3, blend_method="spline")
+
+
+def _spinning_clip(skel, name, deg_per_frame, n=60, start=5):
+    """Every joint below the root turning about X at ``deg_per_frame``, at angle 0 at frame ``start``."""
+    J = skel.num_joints
+    ang = deg_per_frame * (np.arange(n) - start)
+    rot = np.zeros((n, J, 4))
+    rot[:, 1:] = Rotation.from_euler("X", ang[:, None], degrees=True).as_quat()[:, None, [3, 0, 1, 2]]
+    rot[:, 0] = [1.0, 0.0, 0.0, 0.0]
+    trans = np.broadcast_to(skel.offsets, (n, J, 3)).copy()
+    trans[:, 0, 1] = 90.0
+    return Motion(skel, rot, trans, 30.0, name)
+
+
+def test_a_fast_clip_visited_for_one_frame_does_not_play_through_the_next_blend():
+    """a -> b at 20 and b -> c at 21, where b turns every joint 10 degrees a frame and is displayed for
+    one frame at the blend's first weight. The display must stay within that weight's share of b's
+    excursion of the plain a -> c cross-fade (before: the second blend's old stream moved with b's own
+    motion from the displayed pose, so b's turning played at full weight, fading over the blend:
+    tens of degrees off, and a root-relative acceleration several times any source's)."""
+    from convsynth_jax.rotations import quat_slerp_np
+    from convsynth_jax.synth.realize import blend_weight
+
+    skel = seated_skeleton()
+    n = 12
+    motions = {"a": _still_clip(skel, "a", (0, 0, 0), 90.0, 0.0), "b": _spinning_clip(skel, "b", 10.0),
+               "c": _still_clip(skel, "c", (0, 0, 30), 90.0, 0.0)}
+    clips = ["a"] * 20 + ["b"] + ["c"] * 25
+    frames = list(range(20)) + [5] + list(range(5, 30))
+    m = realize(clips, frames, motions, [20, 21], blend_frames=n)
+    a_rot, c_rot = motions["a"].rotations[0, 1:], motions["c"].rotations[0, 1:]
+    excursion = max(_angle(a_rot, motions["b"].rotations[f, 1:]).max() for f in range(5, 5 + n + 1))
+    bound = blend_weight(0, n) * excursion + 1e-6
+    for u in range(21, 21 + n):
+        plain = quat_slerp_np(a_rot, c_rot, np.full(len(a_rot), blend_weight(u - 21, n)))
+        dev = _angle(m.rotations[u, 1:], plain).max()
+        assert dev <= bound, (u, np.rad2deg(dev), np.rad2deg(bound))
+    np.testing.assert_allclose(np.abs(np.sum(m.rotations[21 + n:, 1:] * c_rot, -1)), 1.0, atol=1e-9)

@@ -1,13 +1,13 @@
 """Realization (paper Section 7.1): poses along a path, root integrated from velocities, blending.
 
 * Joint rotations come from the source frames. At every synthetic transition the following
-  ``blend_frames`` output frames are cross-faded with cosine weights from the *displayed* pose
-  continued along the previous source clip into the new source, slerping every joint rotation.
-  The old stream starts from the pose actually displayed at the frame before the transition (which
-  may itself be mid-blend) and moves by the previous clip's own frame-to-frame change
-  (``displayed * inverse(source[f]) * source[f + 1 + k]``), so transitions inside an ongoing blend
-  compose instead of popping back to a raw source pose. After a single transition (the displayed
-  pose is the raw source) this is the plain cross-fade of the previous clip's continuation.
+  ``blend_frames`` output frames are cross-faded with cosine weights from the stream that would
+  have been displayed had the path continued along its previous clip into the new source, slerping
+  every joint rotation. A transition inside an ongoing blend nests: its old stream is the
+  interrupted blend, whose weight stays at the value last displayed while both of its streams go on
+  along their clips (``composed_blend``), so nothing pops back to a raw source pose and a clip
+  visited for a frame or two is not played at full weight through the next blend. After a single
+  transition this is the plain cross-fade of the previous clip's continuation.
 * The root's ground-plane velocity and yaw rate are taken from each source frame in its own heading
   frame and integrated from a chair placement (position and heading); its height and its tilt
   (rotation without heading) come from the source frame and are blended across synthetic
@@ -35,7 +35,17 @@ def _tilt(q: np.ndarray) -> np.ndarray:
 
 def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_frames: int, rotations: bool
                    ) -> np.ndarray:
-    """Blend one channel across synthetic transitions, composing transitions inside a blend.
+    """Blend one channel across synthetic transitions, nesting blends that overlap.
+
+    Transition m at output frame t_m starts layer m: the new source cross-faded in with cosine weights
+    over ``blend_frames`` frames from layer m - 1, the stream that would have been displayed had the
+    path continued along its previous clip. A layer interrupted by the next transition before its
+    blend ended keeps, from then on, the weight it had on the last frame it was displayed (ours: the
+    paper's blend is for one transition), and each of its two streams goes on along its own clip.
+    So a source visited for one frame between two transitions shows with the small weight it was
+    displayed with, not at full weight for the next blend (before: the next blend's old stream moved
+    with that clip's own motion). With no overlap this is the plain cross-fade of the previous clip's
+    continuation into the new source.
 
     source: (T, ...) the raw per-output-frame values (quaternions (T, ..., 4) when ``rotations``,
     else additive values); source_at(clip, frame) -> the value of any source frame; prev_of(t) ->
@@ -45,20 +55,40 @@ def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_f
     syn = sorted({int(x) for x in synthetic_at if 0 < int(x) < T})
     if blend_frames <= 0 or not syn:
         return out
-    for i, t in enumerate(syn):
-        clip, f, n = prev_of(t)
-        base = out[t - 1]                       # displayed (possibly mid-blend) pose before the jump
-        ref = source_at(clip, f)
-        stop = min(t + blend_frames, T)
+    M = len(syn)
+    prev = [prev_of(t) for t in syn]         # layer m - 1's clip and frame at t_m - 1
+
+    def raw(m, u):
+        """Layer m's own source at output frame u, going on along its clip past transition m + 1."""
+        if m + 1 < M and u >= syn[m + 1]:
+            clip, f, n = prev[m + 1]
+            return np.asarray(source_at(clip, min(f + 1 + u - syn[m + 1], n - 1)), np.float64)
+        return np.asarray(source[u], np.float64)
+
+    memo: dict = {}
+
+    def stream(m, u):
+        """What layer m displays at output frame u >= t_m (layer -1: the source before t_0)."""
+        key = (m, u)
+        if key in memo:
+            return memo[key]
+        r = raw(m, u)
+        if m >= 0:
+            k = (min(u, syn[m + 1] - 1) if m + 1 < M else u) - syn[m]   # weight frozen once interrupted
+            if k < blend_frames:
+                old = stream(m - 1, u)
+                a = blend_weight(k, blend_frames)
+                if rotations:
+                    r = quat_slerp_np(old, r, np.full(r.shape[:-1], a))
+                else:
+                    r = (1 - a) * old + a * r
+        memo[key] = r
+        return r
+
+    for m, t in enumerate(syn):
+        stop = min(t + blend_frames, T, syn[m + 1] if m + 1 < M else T)
         for u in range(t, stop):
-            k = u - t
-            nxt = source_at(clip, min(f + 1 + k, n - 1))
-            a = blend_weight(k, blend_frames)
-            if rotations:
-                cont = quat_multiply_np(base, quat_multiply_np(quat_conjugate_np(ref), nxt))
-                out[u] = quat_slerp_np(cont, source[u], np.full(source[u].shape[:-1], a))
-            else:
-                out[u] = (1 - a) * (base + (nxt - ref)) + a * source[u]
+            out[u] = stream(m, u)
         # frames after this blend that a later transition does not take over keep the raw source
     return out
 

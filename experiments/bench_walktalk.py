@@ -244,17 +244,19 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     from convsynth_jax.walktalk.body import joint_positions
     from convsynth_jax.walktalk.evaluate import (
         EvalParams,
-        _segment_distance,
         dof_limits,
+        hand_torso_distance,
         limit_violations,
         load_library,
         peak_placed_splices,
+        torso_radius,
     )
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.pipeline import splice_gesture
 
     p, ep = WalkTalkParams(), EvalParams()
     lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
+    radius = torso_radius(lib, ep)
     limits = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
     acc: dict = {}
@@ -267,16 +269,10 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             fr = np.arange(ph.pb, ph.re + 1)
             phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
             for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
-                dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, ep.torso_radius_cm)
-                tg = np.zeros(len(fr), bool)
-                ti = np.zeros(len(fr), bool)
-                for s in ("l", "r"):
-                    dist = _segment_distance(pos[fr, lib.body.joints[f"hand_{s}"]], pos[fr, lib.body.joints["hips"]],
-                                             pos[fr, lib.body.joints["neck"]])
-                    if s in g.sides:
-                        tg |= dist < ep.torso_radius_cm
-                    else:
-                        ti |= dist < ep.torso_radius_cm
+                dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, radius)
+                inside = hand_torso_distance(pos, lib.body, fr) < radius
+                gest = np.array([s in g.sides for s in ("l", "r")])
+                tg, ti = inside[:, gest].any(axis=1), inside[:, ~gest].any(axis=1)
                 key = (gait, method, who)
                 d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
                                          **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
@@ -299,7 +295,7 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             rec[f"{q}_share_of_frames"] = d[f"{q}_frames"] / d["frames"]
             rec[f"{q}_frac"] = d[f"{q}_any"] / max(d[f"{q}_frames"], 1)
         out.append(rec)
-    return {"per_gait_method": out, "gestures": len(lib.gestures[::every]),
+    return {"per_gait_method": out, "gestures": len(lib.gestures[::every]), "torso_radius_cm": radius,
             "limit_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)}}
 
 

@@ -396,24 +396,89 @@ def test_joint_limits_pool_every_clip_walk_turns_included(tmp_path):
     assert (a.hi[row] - a.lo[row]).max() > (b.hi[row] - b.lo[row]).max() + np.radians(10)
 
 
+def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
+    """Defect: the hands-in-the-torso part of the joint-limit metric was a fixed 12 cm capsule about
+    the hips-neck segment, and it fired on unmodified recordings: a recorded jogger's right wrist
+    swings to 10.1 cm of that axis (bandai2 run 047, the excerpt in tests/data; 0.8% of all run
+    hand-frames). A clip cannot put its hand inside its own torso, so those were false positives.
+    The radius is now calibrated from the library's recordings (evaluate.torso_radius, quantile 0
+    by default): no frame of any recorded clip is inside; a fixed radius is still an option, and a
+    hand planted on the spine axis is still inside."""
+    from convsynth_jax.walktalk.evaluate import (
+        EvalParams,
+        dof_limits,
+        hand_torso_distance,
+        in_sample_violations,
+        limit_violations,
+        load_library,
+        torso_radius,
+    )
+    from convsynth_jax.walktalk.gestures import Phases
+
+    for f in FIXTURES.glob("*.bvh"):
+        shutil.copy(f, tmp_path / f.name)
+    excerpt = Path(__file__).resolve().parent / "data" / "dataset-2_run_normal_047_f68-88.bvh"
+    shutil.copy(excerpt, tmp_path / excerpt.name)
+    lib = load_library(WalkTalkParams(), tmp_path, 1, single_peak_only=True)
+    assert len(lib.source_torso) == len(lib.source_euler) == 5
+    closest = min(float(d.min()) for d in lib.source_torso)
+    assert 10.0 < closest < 10.3
+    # the old proxy flags the recording itself
+    old = EvalParams(torso_radius_cm=12.0)
+    assert torso_radius(lib, old) == 12.0
+    assert in_sample_violations(lib, dof_limits(lib), 12.0)["jog"]["hand_in_torso_frac"] > 0
+    # the calibrated one (the evaluation's default) flags no recorded frame
+    radius = torso_radius(lib, EvalParams())
+    assert radius == pytest.approx(closest)
+    got = in_sample_violations(lib, dof_limits(lib), radius)
+    assert all(v["hand_in_torso_frac"] == 0.0 for v in got.values())
+    m = load_bvh(excerpt, fps=30.0)
+    pos = joint_positions(m)
+    ph = Phases(0, 4, 5, 12, 13, m.num_frames - 1, (8,))
+    joints = lib.body.arm("r")
+    lim = dof_limits(lib)
+    assert limit_violations(m, pos, ph, joints, lib.body, lim, 12.0)[1].any()
+    assert not limit_violations(m, pos, ph, joints, lib.body, lim, radius)[1].any()
+    # a hand on the torso axis is inside at the calibrated radius
+    planted = pos.copy()
+    b = lib.body.joints
+    planted[3, b["hand_l"]] = 0.5 * (pos[3, b["hips"]] + pos[3, b["neck"]])
+    d = hand_torso_distance(planted, lib.body)
+    assert d[3, 0] < 1e-9 and limit_violations(m, planted, ph, joints, lib.body, lim, radius)[1][3]
+    with pytest.raises(WalkTalkError, match="torso_radius_quantile"):
+        torso_radius(lib, EvalParams(torso_radius_quantile=1.5))
+    # through the task: the radius and the recordings' own rates land in summary.json
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={tmp_path}", "task.loops_per_gait=1",
+                   "task.figures=false", "task.methods=[naive]"])
+    summary = run_task(cfg, tmp_path / "out")
+    assert summary["torso_radius_cm"] == pytest.approx(closest)
+    assert summary["limits_in_sample_violation"]["jog"]["hand_in_torso_frac"] == 0.0
+
+
 def test_limit_readings_report_both_readings_against_naive():
     """evaluate.limit_readings: per gait x method, the frame and the cell reading of the joint-limit
     acceptance, each with the loop alone and naive, "<= naive" and "< 1%" decided per reading.
-    Planted rows: jog stylized is under naive in both readings but over 1% per frame; walk
-    stylized is over naive per cell; the gait "all" is left out."""
+    Planted rows: jog stylized is under naive in both readings but over 1% per frame, while what it
+    introduces over its own loop is under 1% (the excess reading); walk stylized is over naive per
+    cell; the gait "all" is left out."""
     from convsynth_jax.walktalk.evaluate import limit_readings
 
-    def row(gait, method, frame, cell, torso=0.0):
+    def row(gait, method, frame, cell, torso=0.0, new=0.0, new_cell=0.0):
         return {"gait": gait, "method": method, "violation_frac_mean": frame, "loop_violation_frac_mean": 0.2,
                 "limit_cell_frac_mean": cell, "loop_limit_cell_frac_mean": 0.01,
-                "hand_in_torso_gesturing_frac_mean": torso, "loop_hand_in_torso_gesturing_frac_mean": 0.02}
+                "hand_in_torso_gesturing_frac_mean": torso, "loop_hand_in_torso_gesturing_frac_mean": 0.02,
+                "new_violation_frac_mean": new, "new_limit_cell_frac_mean": new_cell}
 
-    rows = [row("jog", "naive", 0.06, 0.003, 0.008), row("jog", "stylized", 0.05, 0.002, 0.006),
+    rows = [row("jog", "naive", 0.06, 0.003, 0.008, 0.02, 0.001), row("jog", "stylized", 0.05, 0.002, 0.006, 0.004),
             row("walk", "naive", 0.01, 0.0005), row("walk", "stylized", 0.003, 0.0009), row("all", "naive", 0.1, 0.1)]
     got = {(r["gait"], r["method"]): r for r in limit_readings(rows)}
     assert set(got) == {("jog", "naive"), ("jog", "stylized"), ("walk", "naive"), ("walk", "stylized")}
     js = got[("jog", "stylized")]
-    assert js["per_frame"] == {"value": 0.05, "loop_alone": 0.2, "naive": 0.06, "le_naive": True, "lt_1pct": False}
+    assert js["per_frame"] == {"value": 0.05, "loop_alone": 0.2, "naive": 0.06, "introduced": 0.004,
+                               "introduced_naive": 0.02, "le_naive": True, "lt_1pct": False,
+                               "introduced_lt_1pct": True}
+    assert js["met_per_frame_introduced"] and not js["met_per_frame"]
+    assert js["per_cell"]["introduced_naive"] == 0.001
     assert js["per_cell"]["le_naive"] and js["per_cell"]["lt_1pct"] and js["per_cell"]["hand_in_torso_naive"] == 0.008
     assert (js["met_per_frame"], js["met_per_cell"]) == (False, True)
     ws = got[("walk", "stylized")]

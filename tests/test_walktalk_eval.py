@@ -455,6 +455,58 @@ def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
     assert summary["limits_in_sample_violation"]["jog"]["hand_in_torso_frac"] == 0.0
 
 
+def test_source_readings_against_a_frame_by_frame_reference():
+    """evaluate.source_readings scores the unmodified loops (one arm at a time, either hand in the
+    torso) and gestures (t_Pb..t_Re, the gesturing arm(s)) as the per-frame and cell readings score
+    a splice; checked against a plain loop over frames, with a radius that puts some frames inside."""
+    from convsynth_jax.walktalk.evaluate import dof_limits, load_library, source_readings
+
+    lib = load_library(WalkTalkParams(), FIXTURES, 1, single_peak_only=True)
+    lim = dof_limits(lib)
+    body = lib.body
+    radius = 17.0   # between the fixtures' closest hands (15.5 cm) and most frames
+
+    def inside(pos_t):
+        a, b = pos_t[body.joints["hips"]], pos_t[body.joints["neck"]]
+        for s in ("l", "r"):
+            h = pos_t[body.joints[f"hand_{s}"]]
+            t = min(max(np.dot(h - a, b - a) / np.dot(b - a, b - a), 0.0), 1.0)
+            if np.linalg.norm(h - (a + t * (b - a))) < radius:
+                return True
+        return False
+
+    def out_of_limits(eu_t, joints):
+        return lim.violations(eu_t[None], joints)[0]
+
+    got = source_readings(lib, lim, radius)
+    for gait, lcs in lib.loops.items():
+        lc = lcs[0]
+        pos = joint_positions(lc.loop.motion)
+        frames, cells = [], []
+        for s in ("l", "r"):
+            rows = [lc.joints.index(j) for j in body.arm(s)]
+            js = [lc.joints[i] for i in rows]
+            bad = [out_of_limits(lc.euler[t, rows], js) for t in range(len(pos))]
+            frames.append(np.mean([b.any() or inside(pos[t]) for t, b in enumerate(bad)]))
+            cells.append(np.mean(bad))
+        assert got[f"loops_{gait}"]["per_frame"]["mean"] == pytest.approx(np.mean(frames))
+        assert got[f"loops_{gait}"]["per_cell"]["mean"] == pytest.approx(np.mean(cells))
+    frames, cells = [], []
+    for gc in lib.gestures:
+        g = gc.gesture
+        pos = joint_positions(g.motion)
+        ph = g.phases
+        frames.append(np.mean([out_of_limits(gc.euler[t], gc.joints).any() or inside(pos[t])
+                               for t in range(ph.pb, ph.re + 1)]))
+        cells.append(np.mean([out_of_limits(gc.euler[t], gc.joints) for t in range(ph.pb + 1, ph.re)]))
+    assert got["gestures"]["per_frame"]["mean"] == pytest.approx(np.mean(frames))
+    assert got["gestures"]["per_cell"]["mean"] == pytest.approx(np.mean(cells))
+    assert 0 < got["loops_jog"]["per_frame"]["mean"] < 1
+    none_inside = source_readings(lib, lim, 0.0)
+    assert none_inside["loops_jog"]["per_frame"]["mean"] < got["loops_jog"]["per_frame"]["mean"]
+    assert none_inside["loops_jog"]["per_cell"] == got["loops_jog"]["per_cell"]
+
+
 def test_limit_readings_report_both_readings_against_naive():
     """evaluate.limit_readings: per gait x method, the frame and the cell reading of the joint-limit
     acceptance, each with the loop alone and naive, "<= naive" and "< 1%" decided per reading.

@@ -20,6 +20,7 @@ from ..walktalk.evaluate import (
     load_library,
     resolve_data_dir,
     run_evaluation,
+    source_readings,
     summarize,
     torso_radius,
 )
@@ -67,6 +68,8 @@ def run(cfg, out_dir: Path) -> dict:
             "limit_table_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)},
             # the recorded clips themselves under both parts of the metric (DOFs, hands in the torso)
             "limits_in_sample_violation": in_sample_violations(lib, scored, radius),
+            # both readings on the evaluation's own loops and gestures, unmodified (evaluate.source_readings)
+            "limits_sources": source_readings(lib, scored, radius),
             # the torso check's radius (evaluate.torso_radius): fixed, or calibrated from the recordings
             "torso_radius_cm": radius,
             "torso_radius_source": ("task.torso_radius_cm" if ep.torso_radius_cm is not None else

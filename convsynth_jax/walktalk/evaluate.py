@@ -212,6 +212,46 @@ def in_sample_violations(lib: Library, limits: JointLimits, torso_radius_cm: flo
     return out
 
 
+def source_readings(lib: Library, limits: JointLimits, torso_radius_cm: float) -> dict:
+    """Both joint-limit readings on the evaluation's own sources, unmodified: each loaded loop over
+    its frames (per frame: a DOF of one arm out or either hand inside the torso, the mean of the
+    two arms, as a one-handed splice is scored; per cell: that arm's DOF x frame cells), and each
+    loaded gesture over its own t_Pb..t_Re with its gesturing arm(s), scored exactly as a splice of
+    it is (:func:`limit_violations`, :func:`limit_cells`). Per gait and for the gestures: mean,
+    median and max of the clips' rates and the share of clips at >= 1%. A splice keeps the loop's
+    arm outside the gesture and blends the two in between, so its per-frame rate is bounded below
+    by neither source's but is not meaningful against 1% when the sources are far above it."""
+    def stats(x) -> dict:
+        x = np.asarray(x, float)
+        if not len(x):
+            return {"clips": 0}
+        return {"clips": len(x), "mean": float(x.mean()), "median": float(np.median(x)), "max": float(x.max()),
+                "share_ge_1pct": float(np.mean(x >= 0.01))}
+
+    out = {}
+    body = lib.body
+    for gait, lcs in lib.loops.items():
+        frame, cell = [], []
+        for lc in lcs:
+            bad = limits.violations(lc.euler, lc.joints)
+            inside = np.any(hand_torso_distance(joint_positions(lc.loop.motion), body) < torso_radius_cm, axis=1)
+            rows = {s: [lc.joints.index(j) for j in body.arm(s)] for s in ("l", "r")}
+            frame.append(np.mean([np.mean(bad[:, rows[s]].any(axis=(1, 2)) | inside) for s in ("l", "r")]))
+            cell.append(np.mean([bad[:, rows[s]].mean() for s in ("l", "r")]))
+        out[f"loops_{gait}"] = {"per_frame": stats(frame), "per_cell": stats(cell)}
+    frame, cell = [], []
+    for gc in lib.gestures:
+        g = gc.gesture
+        pos = joint_positions(g.motion)
+        eu = gc.euler[g.phases.pb:g.phases.re + 1]
+        dof, torso = limit_violations(g.motion, pos, g.phases, gc.joints, body, limits, torso_radius_cm, eu)
+        cells, _ = limit_cells(g.motion, pos, g.phases, gc.joints, g.sides, body, limits, torso_radius_cm, eu)
+        frame.append(np.mean(dof | torso))
+        cell.append(_mean(cells))
+    out["gestures"] = {"per_frame": stats(frame), "per_cell": stats(cell)}
+    return out
+
+
 def _segment_distance(p, a, b):
     ab = b - a
     t = np.clip(np.sum((p - a) * ab, -1) / np.maximum(np.sum(ab * ab, -1), 1e-12), 0, 1)

@@ -25,6 +25,7 @@ Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results
     python experiments/bench_walktalk.py [--quick] [--skip-ablation] [--skip-elbow] [--synthesized-dir DIR]
     python experiments/bench_walktalk.py --elbow-diagnosis   # why the within-gait elbow figure is low
     python experiments/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
+    python experiments/bench_walktalk.py --combined          # every goal for the candidate settings at once
 """
 from __future__ import annotations
 
@@ -367,6 +368,127 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
     return {"per_coupling": rows, "reach": reach_rows, "seconds": time.perf_counter() - t0}
 
 
+COMBINED = {
+    "paper defaults": {},
+    "gait_min + soft": {"band_std": "gait_min", "joint_limit_mode": "soft"},
+    "gait_min + soft + coupling 0.25": {"band_std": "gait_min", "joint_limit_mode": "soft", "rescale_coupling": 0.25},
+    "gait_min + soft + coupling 0.5": {"band_std": "gait_min", "joint_limit_mode": "soft", "rescale_coupling": 0.5},
+    "gait_min + soft + coupling 1": {"band_std": "gait_min", "joint_limit_mode": "soft", "rescale_coupling": 1.0},
+}
+
+
+def _goal_rows(lib, p, settings: dict, naive_df=None) -> tuple[list[dict], object]:
+    """Per setting ({name: SpliceParams overrides}) x gait: every goal of issue #12 from one
+    run_evaluation of ``lib`` (stylized+synced; naive once, shared, for the "<= naive" parts):
+    splices over 2x jerk and the worst, peak in contact, shifts, peaks before the utterance, foot
+    slide, DOFs within +- c sigma, joint limits in both readings with the loop alone, naive and
+    what the splice introduces over its loop, and the within-gait elbow correlation of these rows
+    (plain and partial given the loop's spread, per gesture over its loops)."""
+    import pandas as pd
+
+    from convsynth_jax.walktalk.evaluate import EvalParams, limit_readings, run_evaluation, summarize
+
+    if naive_df is None:
+        naive_df = run_evaluation(lib, p, EvalParams(methods=("naive",)))
+    rows = []
+    for name, kw in settings.items():
+        pg = dataclasses.replace(p, splice=dataclasses.replace(p.splice, **kw))
+        df = run_evaluation(lib, pg, EvalParams(methods=("stylized+synced",)))
+        both = pd.concat([naive_df, df], ignore_index=True)
+        summ = {(r["gait"], r["method"]): r for r in summarize(both)}
+        lim = {(r["gait"], r["method"]): r for r in limit_readings(list(summ.values()))}
+        for gait, d in df.groupby("gait", sort=False):
+            worst = d.loc[d["max_jerk_ratio"].idxmax()]
+            r, lr = summ[gait, "stylized+synced"], lim[gait, "stylized+synced"]
+            rn = summ[gait, "naive"]
+            rows.append({
+                "setting": name, "overrides": kw, "gait": gait, "splices": len(d),
+                "jerk_over_2x": int((d["max_jerk_ratio"] > 2.0).sum()), "jerk_ratio_max": float(worst["max_jerk_ratio"]),
+                "jerk_worst": f"{worst['gesture']} on {worst['loop']}",
+                "naive_jerk_over_2x": int((naive_df.loc[naive_df["gait"] == gait, "max_jerk_ratio"] > 2.0).sum()),
+                "peak_in_contact_rate": r["peak_in_contact_rate"], "shift_min_s": r["shift_min_s"],
+                "shift_max_s": r["shift_max_s"], "all_peaks_before_utterance": r["all_peaks_before_utterance"],
+                "foot_slide_cm_max": r["foot_slide_cm_max"], "dof_within_csigma_rate": r["dof_within_csigma_rate"],
+                "limits_per_frame": lr["per_frame"], "limits_per_cell": lr["per_cell"],
+                "met_per_frame": lr["met_per_frame"], "met_per_cell": lr["met_per_cell"],
+                "met_per_frame_introduced": lr["met_per_frame_introduced"],
+                "elbow_plain": r["elbow_corr_per_gesture_mean"], "elbow_partial": r["elbow_partial_corr_per_gesture_mean"],
+                "elbow_plain_naive": rn["elbow_corr_per_gesture_mean"], "elbow_gestures": r["elbow_corr_per_gesture_n"]})
+    return rows, naive_df
+
+
+def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> dict:
+    """One pass over every goal of issue #12 for the candidate settings (:data:`COMBINED`: the
+    paper's defaults, our within-gait options band_std=gait_min + joint_limit_mode=soft, and those
+    with splice.rescale_coupling 0.25 / 0.5 / 1), on two libraries:
+
+    * ``eval``: the walktalk_eval setup (3 loops per gait, every single-peak gesture), the one the
+      acceptance figures come from (jerk, limits, contact, shifts, +- c sigma);
+    * ``all_loops``: every walk and run clip as a loop (24 + 52), every ``every``-th single-peak
+      gesture: the within-gait elbow correlation over many loops (of the evaluation's rows, and of
+      the peak-placed study evaluate.elbow_tracking used by the earlier figures), and the other goals
+      again on these loops (with band_std=gait_min the band is the gait's narrowest over the loops
+      loaded, so it differs between the two libraries).
+
+    Also both joint-limit readings of the sources themselves, unmodified (evaluate.source_readings,
+    evaluate.in_sample_violations) and the calibrated torso radius."""
+    from convsynth_jax.walktalk.evaluate import (
+        EvalParams,
+        dof_limits,
+        elbow_tracking,
+        elbow_tracking_summary,
+        in_sample_violations,
+        load_library,
+        source_readings,
+        torso_radius,
+    )
+    from convsynth_jax.walktalk.params import WalkTalkParams
+
+    settings = COMBINED if settings is None else settings
+    p, ep = WalkTalkParams(), EvalParams()
+    t0 = time.perf_counter()
+    out: dict = {"settings": settings}
+    lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
+    radius = torso_radius(lib, ep)
+    scored = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
+    out["torso_radius_cm"] = radius
+    out["sources_in_sample"] = in_sample_violations(lib, scored, radius)
+    out["sources_eval"] = source_readings(lib, scored, radius)
+    out["eval"], _ = _goal_rows(lib, p, settings)
+    out["eval_seconds"] = time.perf_counter() - t0
+    lib = load_library(p, data_dir, 10_000, single_peak_only=True)
+    lib.gestures = lib.gestures[::every]
+    out["sources_all_loops"] = source_readings(lib, scored, radius)
+    out["all_loops"], _ = _goal_rows(lib, p, settings)
+    variants = {"naive": (p.splice, "naive")}
+    variants.update({name: (dataclasses.replace(p.splice, **kw), "stylized+synced") for name, kw in settings.items()})
+    df = elbow_tracking(lib, p, variants=variants)
+    out["elbow_study"] = elbow_tracking_summary(df)
+    out["all_loops_gestures"] = len(lib.gestures)
+    out["all_loops_loops"] = {g: len(v) for g, v in lib.loops.items()}
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def print_combined(res: dict) -> None:
+    pct = "{:.2%}".format
+    print(f"torso radius {res['torso_radius_cm']:.2f} cm")
+    for part in ("eval", "all_loops"):
+        print(f"\n{part}: | setting | gait | jerk > 2x (worst) | contact | shifts | within c sigma | per frame "
+              "(loop alone; introduced; naive) | per cell (introduced; naive) + hand in torso | elbow plain / partial |")
+        for r in res[part]:
+            f, c = r["limits_per_frame"], r["limits_per_cell"]
+            print(f"| {r['setting']} | {r['gait']} | {r['jerk_over_2x']}/{r['splices']} ({r['jerk_ratio_max']:.2f}) | "
+                  f"{pct(r['peak_in_contact_rate'])} | [{r['shift_min_s']:.3f}, {r['shift_max_s']:.3f}] | "
+                  f"{pct(r['dof_within_csigma_rate'])} | {pct(f['value'])} ({pct(f['loop_alone'])}; "
+                  f"{pct(f['introduced'])}; {pct(f['naive'])}) | {pct(c['value'])} ({pct(c['introduced'])}; "
+                  f"{pct(c['naive'])}) + {pct(c['hand_in_torso'])} | {r['elbow_plain']:.2f} / {r['elbow_partial']:.2f} |")
+    for r in res["elbow_study"]:
+        if r["gait"] != "all":
+            print(f"elbow study {r['gait']} {r['method']}: plain {r['elbow_corr_per_gesture_mean']:.3f}, partial "
+                  f"{r['elbow_partial_corr_per_gesture_mean']:.3f} ({r['loops']} loops, {r['gestures']} gestures)")
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
@@ -381,6 +503,8 @@ def main():
                     "reading fails (writes experiments/results/bench_walktalk_limits_breakdown.json)")
     ap.add_argument("--jerk-coupling", action="store_true", help="only the splices over 2x jerk and the gesture's "
                     "reach against splice.rescale_coupling (writes experiments/results/bench_walktalk_jerk.json)")
+    ap.add_argument("--combined", action="store_true", help="only every goal for the candidate settings "
+                    "(writes experiments/results/bench_walktalk_combined.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -410,6 +534,12 @@ def main():
         for r in jc["reach"]:
             print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
         return None
+    if a.combined:
+        result.update(combined(data_dir))
+        result["load_average"] = list(os.getloadavg())
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(RESULTS / "bench_walktalk_combined.json", result)
+        return print_combined(result)
     if a.elbow_diagnosis:
         return write_only(elbow_diagnosis(data_dir), "bench_walktalk_elbow_diagnosis.json", "per_gait_variant", 3,
                           ["loops_spread"])

@@ -26,6 +26,7 @@ Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results
     python experiments/bench_walktalk.py --elbow-diagnosis   # why the within-gait elbow figure is low
     python experiments/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
     python experiments/bench_walktalk.py --combined          # every goal for the candidate settings at once
+    python experiments/bench_walktalk.py --loop-seams        # what the loops' seam correction does to the arms
 """
 from __future__ import annotations
 
@@ -489,6 +490,59 @@ def print_combined(res: dict) -> None:
                   f"{r['elbow_partial_corr_per_gesture_mean']:.3f} ({r['loops']} loops, {r['gestures']} gestures)")
 
 
+def loop_seams(data_dir: Path) -> dict:
+    """What the loop's seam correction (locomotion.seam_correct: the rotation residual between the
+    frame after the loop and its first frame spread linearly over the loop) does to the recording,
+    per walk and run clip: the largest residual of an arm joint and of any joint (degrees), the
+    largest root-relative hand shift of the loop from the recorded frames (cm), the closest hand to
+    the torso axis in the recording's loop frames and in the loop, and the loop's share of frames
+    with a hand inside the calibrated torso (evaluate.torso_radius). The bandai2 run clips are
+    2-3 cycles long, so their two-cycle windows are not periodic and the correction moves the arms."""
+    import numpy as np
+
+    from convsynth_jax.io.bvh import load_bvh
+    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.walktalk.evaluate import EvalParams, hand_torso_distance, load_library, torso_radius
+    from convsynth_jax.walktalk.locomotion import _qconj, _qmul
+    from convsynth_jax.walktalk.params import WalkTalkParams
+
+    p, ep = WalkTalkParams(), EvalParams()
+    lib = load_library(p, data_dir, 10_000, max_gestures=1, single_peak_only=True)
+    eval_lib = load_library(p, data_dir, ep.loops_per_gait, max_gestures=1, single_peak_only=True)
+    chosen = {(lc.loop.source, lc.loop.start) for v in eval_lib.loops.values() for lc in v}
+    radius = torso_radius(eval_lib, ep)
+    body = lib.body
+    arm = list(body.arm_l) + list(body.arm_r)
+    hips = body.joints["hips"]
+    rows = []
+    for gait, lcs in lib.loops.items():
+        for lc in lcs:
+            lp = lc.loop
+            raw = load_bvh(lp.source, fps=p.fps)
+            a, n = lp.start, lp.num_frames
+            q = np.asarray(raw.rotations, dtype=np.float64)
+            r = _qmul(q[a], _qconj(q[a + n]))
+            ang = np.degrees(2 * np.arccos(np.clip(np.abs(r[:, 0]), 0, 1)))
+            pr, pl = joint_positions(raw)[a:a + n], joint_positions(lp.motion)
+            shift = max(float(np.linalg.norm((pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
+                                             - (pr[:, body.joints[f"hand_{s}"]] - pr[:, hips]), axis=-1).max())
+                        for s in ("l", "r"))
+            dr, dl = hand_torso_distance(pr, body), hand_torso_distance(pl, body)
+            rows.append({"gait": gait, "loop": f"{Path(lp.source).stem}[{a}:{a + n}]", "clip_frames": raw.num_frames,
+                         "in_eval": (lp.source, lp.start) in chosen, "arm_residual_deg": float(ang[arm].max()),
+                         "residual_deg": float(ang.max()), "hand_shift_cm": shift,
+                         "closest_hand_recorded_cm": float(dr.min()), "closest_hand_loop_cm": float(dl.min()),
+                         "hand_in_torso_frac": float(np.mean(np.any(dl < radius, axis=1)))})
+    per_gait = []
+    for gait in lib.loops:
+        d = [r for r in rows if r["gait"] == gait]
+        sh = np.array([r["hand_shift_cm"] for r in d])
+        per_gait.append({"gait": gait, "loops": len(d), "hand_shift_cm_median": float(np.median(sh)),
+                         "hand_shift_cm_max": float(sh.max()), "share_over_5cm": float(np.mean(sh > 5.0)),
+                         "loops_with_hand_in_torso": int(sum(r["hand_in_torso_frac"] > 0 for r in d))})
+    return {"torso_radius_cm": radius, "per_gait": per_gait, "loops": rows}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
@@ -505,6 +559,8 @@ def main():
                     "reach against splice.rescale_coupling (writes experiments/results/bench_walktalk_jerk.json)")
     ap.add_argument("--combined", action="store_true", help="only every goal for the candidate settings "
                     "(writes experiments/results/bench_walktalk_combined.json)")
+    ap.add_argument("--loop-seams", action="store_true", help="only what the loops' seam correction does to the "
+                    "recordings (writes experiments/results/bench_walktalk_loop_seams.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -533,6 +589,13 @@ def main():
         write_only(jc, "bench_walktalk_jerk.json", "per_coupling", 4, ["seconds", "load_average"])
         for r in jc["reach"]:
             print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
+        return None
+    if a.loop_seams:
+        res = loop_seams(data_dir)
+        write_only(res, "bench_walktalk_loop_seams.json", "per_gait", 3, ["torso_radius_cm"])
+        for r in res["loops"]:
+            if r["in_eval"] or r["hand_in_torso_frac"] > 0:
+                print({k: (round(v, 2) if isinstance(v, float) else v) for k, v in r.items()})
         return None
     if a.combined:
         result.update(combined(data_dir))

@@ -239,6 +239,16 @@ def test_in_sample_violation_floor_planted():
     np.testing.assert_allclose(got["walk"]["one_arm_frac"], 0.005, atol=1e-3)
     np.testing.assert_allclose(got["all"]["both_arms_frac"], 0.01, atol=2e-3)
     assert in_sample_violations(lib, dof_limits(lib, (0.0, 100.0)))["all"]["both_arms_frac"] == 0.0
+    # with a torso radius: the left hand planted inside on 20 other frames; the per-frame reading of
+    # a one-handed splice on the clip itself is then (10 + 20) / 1000 (left), 20 / 1000 (right)
+    d = np.full((1000, 2), 30.0)
+    d[100:120, 0] = 5.0
+    lib = dataclasses.replace(lib, source_torso=[d])
+    got = in_sample_violations(lib, dof_limits(lib, (0.5, 99.5)), 10.0)["walk"]
+    assert got["hand_in_torso_frac"] == pytest.approx(0.02)
+    assert got["frame_reading_frac"] == pytest.approx(0.025, abs=1e-3)
+    assert got["frame_reading_clip_median"] == got["frame_reading_frac"] and got["clips_ge_1pct"] == 1.0
+    assert "hand_in_torso_frac" not in in_sample_violations(lib, dof_limits(lib))["walk"]
 
 
 def test_elbow_tracking_follows_the_loop_on_fixtures():

@@ -301,6 +301,39 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             "limit_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)}}
 
 
+def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dict]:
+    """The gesture's reach per gait and variant ({name: (SpliceParams, method)}): the root-relative
+    gesturing hand's distance at the stroke peak from the loop's own hand at that frame (cm), every
+    ``every``-th gesture x the library's loops (peak-placed splices), and its median ratio to the
+    variant ``base``."""
+    import numpy as np
+
+    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.walktalk.evaluate import dof_limits, peak_placed_splices
+    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
+
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
+    hips = lib.body.joints["hips"]
+    reach: dict = {}
+    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
+        gst = gc.gesture
+        lpos = joint_positions(loco)
+        for name, (sp, method) in variants.items():
+            r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=rom)
+            pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
+            d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
+                                        - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
+                         for s in gst.sides])
+            reach.setdefault((gait, name), []).append(float(d))
+    rows = []
+    for (gait, name), v in reach.items():
+        b = np.asarray(reach[gait, base])
+        rows.append({"gait": gait, "variant": name, "splices": len(v), "reach_cm_mean": float(np.mean(v)),
+                     "reach_cm_median": float(np.median(v)),
+                     "base": base, "ratio_to_base_median": float(np.median(np.asarray(v) / np.maximum(b, 1e-6)))})
+    return rows
+
+
 def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: int = 4) -> dict:
     """The splices over 2x the source clips' largest wrist jerk against ``splice.rescale_coupling``
     (ours; 0 = the paper's per-DOF rescale): per coupling, the evaluation (run_evaluation, the
@@ -311,19 +344,13 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
     stylized+synced, naive beside it)."""
     import dataclasses
 
-    import numpy as np
-
-    from convsynth_jax.walktalk.body import joint_positions
     from convsynth_jax.walktalk.evaluate import (
         EvalParams,
-        dof_limits,
         load_library,
-        peak_placed_splices,
         run_evaluation,
         summarize,
     )
     from convsynth_jax.walktalk.params import WalkTalkParams
-    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
 
     p, ep = WalkTalkParams(), EvalParams()
     t0 = time.perf_counter()
@@ -345,27 +372,10 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
                          "shift_max_s": r["shift_max_s"], "violation_frac_mean": r["violation_frac_mean"],
                          "limit_cell_frac_mean": r["limit_cell_frac_mean"],
                          "dof_within_csigma_rate": r["dof_within_csigma_rate"]})
-    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
-    reach: dict = {}
-    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
-        gst = gc.gesture
-        lpos = joint_positions(loco)
-        for name, g in [("naive", None)] + [(f"coupling={g}", g) for g in couplings]:
-            sp = p.splice if g is None else dataclasses.replace(p.splice, rescale_coupling=g)
-            r = splice_gesture(lc, gc, u, T, sp, METHODS["naive" if g is None else "stylized+synced"],
-                               loco=loco, contact=contact, limits=rom)
-            pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
-            hips = lib.body.joints["hips"]
-            d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
-                                        - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
-                         for s in gst.sides])
-            reach.setdefault((gait, name), []).append(float(d))
-    reach_rows = []
-    for (gait, name), v in reach.items():
-        base = np.asarray(reach[gait, f"coupling={couplings[0]}"])
-        reach_rows.append({"gait": gait, "variant": name, "splices": len(v), "reach_cm_mean": float(np.mean(v)),
-                           "reach_cm_median": float(np.median(v)),
-                           "ratio_to_coupling0_median": float(np.median(np.asarray(v) / np.maximum(base, 1e-6)))})
+    variants = {"naive": (p.splice, "naive")}
+    variants.update({f"coupling={g}": (dataclasses.replace(p.splice, rescale_coupling=g), "stylized+synced")
+                     for g in couplings})
+    reach_rows = gesture_reach(lib, p, variants, f"coupling={couplings[0]}", every)
     return {"per_coupling": rows, "reach": reach_rows, "seconds": time.perf_counter() - t0}
 
 
@@ -432,7 +442,9 @@ def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> di
       loaded, so it differs between the two libraries).
 
     Also both joint-limit readings of the sources themselves, unmodified (evaluate.source_readings,
-    evaluate.in_sample_violations) and the calibrated torso radius."""
+    evaluate.in_sample_violations) and the calibrated torso radius; and the price of each setting,
+    the gesture's reach at the stroke peak (:func:`gesture_reach`, every 4th gesture, the eval's
+    loops)."""
     from convsynth_jax.walktalk.evaluate import (
         EvalParams,
         dof_limits,
@@ -456,13 +468,15 @@ def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> di
     out["sources_in_sample"] = in_sample_violations(lib, scored, radius)
     out["sources_eval"] = source_readings(lib, scored, radius)
     out["eval"], _ = _goal_rows(lib, p, settings)
+    variants = {"naive": (p.splice, "naive")}
+    variants.update({name: (dataclasses.replace(p.splice, **kw), "stylized+synced") for name, kw in settings.items()})
+    base = next(iter(settings))
+    out["reach"] = gesture_reach(lib, p, variants, base)   # the price: the gesture's size at the stroke peak
     out["eval_seconds"] = time.perf_counter() - t0
     lib = load_library(p, data_dir, 10_000, single_peak_only=True)
     lib.gestures = lib.gestures[::every]
     out["sources_all_loops"] = source_readings(lib, scored, radius)
     out["all_loops"], _ = _goal_rows(lib, p, settings)
-    variants = {"naive": (p.splice, "naive")}
-    variants.update({name: (dataclasses.replace(p.splice, **kw), "stylized+synced") for name, kw in settings.items()})
     df = elbow_tracking(lib, p, variants=variants)
     out["elbow_study"] = elbow_tracking_summary(df)
     out["all_loops_gestures"] = len(lib.gestures)
@@ -484,6 +498,9 @@ def print_combined(res: dict) -> None:
                   f"{pct(r['dof_within_csigma_rate'])} | {pct(f['value'])} ({pct(f['loop_alone'])}; "
                   f"{pct(f['introduced'])}; {pct(f['naive'])}) | {pct(c['value'])} ({pct(c['introduced'])}; "
                   f"{pct(c['naive'])}) + {pct(c['hand_in_torso'])} | {r['elbow_plain']:.2f} / {r['elbow_partial']:.2f} |")
+    for r in res.get("reach", []):
+        print(f"reach {r['gait']} {r['variant']}: median {r['reach_cm_median']:.1f} cm, "
+              f"x{r['ratio_to_base_median']:.2f} of {r['base']}")
     for r in res["elbow_study"]:
         if r["gait"] != "all":
             print(f"elbow study {r['gait']} {r['method']}: plain {r['elbow_corr_per_gesture_mean']:.3f}, partial "

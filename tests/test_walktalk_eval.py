@@ -12,7 +12,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from convsynth_jax.config import compose, run_task
-from convsynth_jax.errors import WalkTalkError
+from convsynth_jax.errors import ConfigError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh, save_bvh
 from convsynth_jax.walktalk.body import find_body, joint_positions
 from convsynth_jax.walktalk.gestures import make_gesture
@@ -455,8 +455,10 @@ def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
     planted[3, b["hand_l"]] = 0.5 * (pos[3, b["hips"]] + pos[3, b["neck"]])
     d = hand_torso_distance(planted, lib.body)
     assert d[3, 0] < 1e-9 and limit_violations(m, planted, ph, joints, lib.body, lim, radius)[1][3]
-    with pytest.raises(WalkTalkError, match="torso_radius_quantile"):
+    with pytest.raises(ConfigError, match="torso_radius_quantile"):
         torso_radius(lib, EvalParams(torso_radius_quantile=1.5))
+    with pytest.raises(ConfigError, match="torso_radius_cm"):
+        torso_radius(lib, EvalParams(torso_radius_cm=-1.0))
     # through the task: the radius and the recordings' own rates land in summary.json
     cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={tmp_path}", "task.loops_per_gait=1",
                    "task.figures=false", "task.methods=[naive]"])

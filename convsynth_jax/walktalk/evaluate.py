@@ -19,7 +19,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from ..errors import MissingFileError, WalkTalkError
+from ..errors import ConfigError, MissingFileError, WalkTalkError
 from ..io.bvh import load_bvh
 from .body import Body, check_same_skeleton, find_body, joint_positions
 from .gestures import apply_phase_override, load_phase_table, make_gesture
@@ -279,12 +279,13 @@ def torso_radius(lib: Library, ep: EvalParams) -> float:
     largest capsule about the spine no recorded hand entered."""
     if ep.torso_radius_cm is not None:
         if ep.torso_radius_cm < 0:
-            raise WalkTalkError(f"torso_radius_cm must be >= 0 or null, got {ep.torso_radius_cm}")
+            raise ConfigError(f"must be >= 0 or null, got {ep.torso_radius_cm}", where="task.torso_radius_cm")
         return float(ep.torso_radius_cm)
     if not 0.0 <= ep.torso_radius_quantile < 1.0:
-        raise WalkTalkError(f"torso_radius_quantile must be in [0, 1), got {ep.torso_radius_quantile}")
+        raise ConfigError(f"must be in [0, 1), got {ep.torso_radius_quantile}", where="task.torso_radius_quantile")
     if not lib.source_torso:
-        raise WalkTalkError("no recorded clip to calibrate the torso radius from (Library.source_torso is empty)")
+        raise WalkTalkError("no recorded clip to calibrate the torso radius from (Library.source_torso is empty)",
+                            where="task.torso_radius_cm=null")
     return float(np.quantile(np.concatenate([d.ravel() for d in lib.source_torso]), ep.torso_radius_quantile))
 
 

@@ -511,7 +511,9 @@ def loop_seams(data_dir: Path) -> dict:
     """What the loop's seam correction (locomotion.seam_correct: the rotation residual between the
     frame after the loop and its first frame spread linearly over the loop) does to the recording,
     per walk and run clip: the largest residual of an arm joint and of any joint (degrees), the
-    largest root-relative hand shift of the loop from the recorded frames (cm), the closest hand to
+    largest hand shift of the loop from the recorded frames in the torso's frame (cm; the pose's
+    change, synthesized.torso_frame; ``hand_shift_world_cm``: root-relative in world axes, which
+    also counts the loop's straightened heading), the closest hand to
     the torso axis in the recording's loop frames and in the loop, and the loop's share of frames
     with a hand inside the calibrated torso (evaluate.torso_radius). The bandai2 run clips are
     2-3 cycles long, so their two-cycle windows are not periodic and the correction moves the arms."""
@@ -522,6 +524,7 @@ def loop_seams(data_dir: Path) -> dict:
     from convsynth_jax.walktalk.evaluate import EvalParams, hand_torso_distance, load_library, torso_radius
     from convsynth_jax.walktalk.locomotion import _qconj, _qmul
     from convsynth_jax.walktalk.params import WalkTalkParams
+    from convsynth_jax.walktalk.synthesized import torso_frame
 
     p, ep = WalkTalkParams(), EvalParams()
     lib = load_library(p, data_dir, 10_000, max_gestures=1, single_peak_only=True)
@@ -541,13 +544,19 @@ def loop_seams(data_dir: Path) -> dict:
             r = _qmul(q[a], _qconj(q[a + n]))
             ang = np.degrees(2 * np.arccos(np.clip(np.abs(r[:, 0]), 0, 1)))
             pr, pl = joint_positions(raw)[a:a + n], joint_positions(lp.motion)
-            shift = max(float(np.linalg.norm((pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
+            world = max(float(np.linalg.norm((pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
                                              - (pr[:, body.joints[f"hand_{s}"]] - pr[:, hips]), axis=-1).max())
                         for s in ("l", "r"))
+            fr, fl = (torso_frame(x, hips, body.joints["neck"], body.joints["upperarm_l"], body.joints["upperarm_r"])
+                      for x in (pr, pl))
+            shift = max(float(np.linalg.norm(
+                np.einsum("fji,fj->fi", fl, pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
+                - np.einsum("fji,fj->fi", fr, pr[:, body.joints[f"hand_{s}"]] - pr[:, hips]), axis=-1).max())
+                for s in ("l", "r"))
             dr, dl = hand_torso_distance(pr, body), hand_torso_distance(pl, body)
             rows.append({"gait": gait, "loop": f"{Path(lp.source).stem}[{a}:{a + n}]", "clip_frames": raw.num_frames,
                          "in_eval": (lp.source, lp.start) in chosen, "arm_residual_deg": float(ang[arm].max()),
-                         "residual_deg": float(ang.max()), "hand_shift_cm": shift,
+                         "residual_deg": float(ang.max()), "hand_shift_cm": shift, "hand_shift_world_cm": world,
                          "closest_hand_recorded_cm": float(dr.min()), "closest_hand_loop_cm": float(dl.min()),
                          "hand_in_torso_frac": float(np.mean(np.any(dl < radius, axis=1)))})
     per_gait = []

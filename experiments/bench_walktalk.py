@@ -240,7 +240,8 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     the share of t_Pb..t_Re frames failing, split by cause (a gesturing-arm DOF, the gesturing
     hand in the torso, the idle hand in the torso) and by phase (preparation incl. the pad,
     stroke+holds, retraction incl. the pad), beside the loop alone over the same frames; and the
-    rate for the stroke frames alone, where the splice writes the gesture only."""
+    rate for the stroke frames alone, where the splice writes the gesture only; and the same causes
+    per loop (``per_loop``: the splices fail where, and only where, their loop does)."""
     import numpy as np
 
     from convsynth_jax.walktalk.body import joint_positions
@@ -275,21 +276,26 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
                 inside = hand_torso_distance(pos, lib.body, fr) < radius
                 gest = np.array([s in g.sides for s in ("l", "r")])
                 tg, ti = inside[:, gest].any(axis=1), inside[:, ~gest].any(axis=1)
-                key = (gait, method, who)
-                d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
-                                         **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
-                                         **{f"{q}_any": 0 for q in ("prep", "stroke", "retraction")}})
                 bad = dof | tg | ti
-                d["frames"] += len(fr)
-                d["any"] += int(bad.sum())
-                d["dof"] += int(dof.sum())
-                d["torso_gesturing"] += int(tg.sum())
-                d["torso_idle"] += int(ti.sum())
-                for q in ("prep", "stroke", "retraction"):
-                    d[f"{q}_frames"] += int((phase == q).sum())
-                    d[f"{q}_any"] += int((bad & (phase == q)).sum())
-    out = []
-    for (gait, method, who), d in acc.items():
+                for key in ((gait, method, who), (gait, method, who, f"{Path(lc.loop.source).stem}[{lc.loop.start}]")):
+                    d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
+                                             **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
+                                             **{f"{q}_any": 0 for q in ("prep", "stroke", "retraction")}})
+                    d["frames"] += len(fr)
+                    d["any"] += int(bad.sum())
+                    d["dof"] += int(dof.sum())
+                    d["torso_gesturing"] += int(tg.sum())
+                    d["torso_idle"] += int(ti.sum())
+                    for q in ("prep", "stroke", "retraction"):
+                        d[f"{q}_frames"] += int((phase == q).sum())
+                        d[f"{q}_any"] += int((bad & (phase == q)).sum())
+    out, per_loop = [], []
+    for key, d in acc.items():
+        if len(key) == 4:
+            per_loop.append({"gait": key[0], "method": key[1], "motion": key[2], "loop": key[3], "frames": d["frames"],
+                             **{f"{k}_frac": d[k] / d["frames"] for k in ("any", "dof", "torso_gesturing", "torso_idle")}})
+            continue
+        gait, method, who = key
         rec = {"gait": gait, "method": method, "motion": who, "frames": d["frames"]}
         for k in ("any", "dof", "torso_gesturing", "torso_idle"):
             rec[f"{k}_frac"] = d[k] / d["frames"]
@@ -297,7 +303,7 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             rec[f"{q}_share_of_frames"] = d[f"{q}_frames"] / d["frames"]
             rec[f"{q}_frac"] = d[f"{q}_any"] / max(d[f"{q}_frames"], 1)
         out.append(rec)
-    return {"per_gait_method": out, "gestures": len(lib.gestures[::every]), "torso_radius_cm": radius,
+    return {"per_gait_method": out, "per_loop": per_loop, "gestures": len(lib.gestures[::every]), "torso_radius_cm": radius,
             "limit_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)}}
 
 
@@ -608,7 +614,7 @@ def main():
         print(*(result[k] for k in tail))
 
     if a.limits_breakdown:
-        return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_gait_method", 4,
+        return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_loop", 4,
                           ["limit_clips", "load_average"])
     if a.jerk_coupling:
         jc = jerk_coupling(data_dir)

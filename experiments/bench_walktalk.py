@@ -25,6 +25,8 @@ Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results
     python experiments/bench_walktalk.py [--quick] [--skip-ablation] [--skip-elbow] [--synthesized-dir DIR]
     python experiments/bench_walktalk.py --elbow-diagnosis   # why the within-gait elbow figure is low
     python experiments/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
+    python experiments/bench_walktalk.py --combined          # every goal for the candidate settings at once
+    python experiments/bench_walktalk.py --loop-seams        # what the loops' seam correction does to the arms
 """
 from __future__ import annotations
 
@@ -238,23 +240,26 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     the share of t_Pb..t_Re frames failing, split by cause (a gesturing-arm DOF, the gesturing
     hand in the torso, the idle hand in the torso) and by phase (preparation incl. the pad,
     stroke+holds, retraction incl. the pad), beside the loop alone over the same frames; and the
-    rate for the stroke frames alone, where the splice writes the gesture only."""
+    rate for the stroke frames alone, where the splice writes the gesture only; and the same causes
+    per loop (``per_loop``: the splices fail where, and only where, their loop does)."""
     import numpy as np
 
     from convsynth_jax.walktalk.body import joint_positions
     from convsynth_jax.walktalk.evaluate import (
         EvalParams,
-        _segment_distance,
         dof_limits,
+        hand_torso_distance,
         limit_violations,
         load_library,
         peak_placed_splices,
+        torso_radius,
     )
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.pipeline import splice_gesture
 
     p, ep = WalkTalkParams(), EvalParams()
     lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
+    radius = torso_radius(lib, ep)
     limits = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
     acc: dict = {}
@@ -267,31 +272,30 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             fr = np.arange(ph.pb, ph.re + 1)
             phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
             for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
-                dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, ep.torso_radius_cm)
-                tg = np.zeros(len(fr), bool)
-                ti = np.zeros(len(fr), bool)
-                for s in ("l", "r"):
-                    dist = _segment_distance(pos[fr, lib.body.joints[f"hand_{s}"]], pos[fr, lib.body.joints["hips"]],
-                                             pos[fr, lib.body.joints["neck"]])
-                    if s in g.sides:
-                        tg |= dist < ep.torso_radius_cm
-                    else:
-                        ti |= dist < ep.torso_radius_cm
-                key = (gait, method, who)
-                d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
-                                         **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
-                                         **{f"{q}_any": 0 for q in ("prep", "stroke", "retraction")}})
+                dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, radius)
+                inside = hand_torso_distance(pos, lib.body, fr) < radius
+                gest = np.array([s in g.sides for s in ("l", "r")])
+                tg, ti = inside[:, gest].any(axis=1), inside[:, ~gest].any(axis=1)
                 bad = dof | tg | ti
-                d["frames"] += len(fr)
-                d["any"] += int(bad.sum())
-                d["dof"] += int(dof.sum())
-                d["torso_gesturing"] += int(tg.sum())
-                d["torso_idle"] += int(ti.sum())
-                for q in ("prep", "stroke", "retraction"):
-                    d[f"{q}_frames"] += int((phase == q).sum())
-                    d[f"{q}_any"] += int((bad & (phase == q)).sum())
-    out = []
-    for (gait, method, who), d in acc.items():
+                for key in ((gait, method, who), (gait, method, who, f"{Path(lc.loop.source).stem}[{lc.loop.start}]")):
+                    d = acc.setdefault(key, {"frames": 0, "any": 0, "dof": 0, "torso_gesturing": 0, "torso_idle": 0,
+                                             **{f"{q}_frames": 0 for q in ("prep", "stroke", "retraction")},
+                                             **{f"{q}_any": 0 for q in ("prep", "stroke", "retraction")}})
+                    d["frames"] += len(fr)
+                    d["any"] += int(bad.sum())
+                    d["dof"] += int(dof.sum())
+                    d["torso_gesturing"] += int(tg.sum())
+                    d["torso_idle"] += int(ti.sum())
+                    for q in ("prep", "stroke", "retraction"):
+                        d[f"{q}_frames"] += int((phase == q).sum())
+                        d[f"{q}_any"] += int((bad & (phase == q)).sum())
+    out, per_loop = [], []
+    for key, d in acc.items():
+        if len(key) == 4:
+            per_loop.append({"gait": key[0], "method": key[1], "motion": key[2], "loop": key[3], "frames": d["frames"],
+                             **{f"{k}_frac": d[k] / d["frames"] for k in ("any", "dof", "torso_gesturing", "torso_idle")}})
+            continue
+        gait, method, who = key
         rec = {"gait": gait, "method": method, "motion": who, "frames": d["frames"]}
         for k in ("any", "dof", "torso_gesturing", "torso_idle"):
             rec[f"{k}_frac"] = d[k] / d["frames"]
@@ -299,8 +303,41 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             rec[f"{q}_share_of_frames"] = d[f"{q}_frames"] / d["frames"]
             rec[f"{q}_frac"] = d[f"{q}_any"] / max(d[f"{q}_frames"], 1)
         out.append(rec)
-    return {"per_gait_method": out, "gestures": len(lib.gestures[::every]),
+    return {"per_gait_method": out, "per_loop": per_loop, "gestures": len(lib.gestures[::every]), "torso_radius_cm": radius,
             "limit_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)}}
+
+
+def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dict]:
+    """The gesture's reach per gait and variant ({name: (SpliceParams, method)}): the root-relative
+    gesturing hand's distance at the stroke peak from the loop's own hand at that frame (cm), every
+    ``every``-th gesture x the library's loops (peak-placed splices), and its median ratio to the
+    variant ``base``."""
+    import numpy as np
+
+    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.walktalk.evaluate import dof_limits, peak_placed_splices
+    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
+
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
+    hips = lib.body.joints["hips"]
+    reach: dict = {}
+    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
+        gst = gc.gesture
+        lpos = joint_positions(loco)
+        for name, (sp, method) in variants.items():
+            r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=rom)
+            pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
+            d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
+                                        - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
+                         for s in gst.sides])
+            reach.setdefault((gait, name), []).append(float(d))
+    rows = []
+    for (gait, name), v in reach.items():
+        b = np.asarray(reach[gait, base])
+        rows.append({"gait": gait, "variant": name, "splices": len(v), "reach_cm_mean": float(np.mean(v)),
+                     "reach_cm_median": float(np.median(v)),
+                     "base": base, "ratio_to_base_median": float(np.median(np.asarray(v) / np.maximum(b, 1e-6)))})
+    return rows
 
 
 def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: int = 4) -> dict:
@@ -313,19 +350,13 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
     stylized+synced, naive beside it)."""
     import dataclasses
 
-    import numpy as np
-
-    from convsynth_jax.walktalk.body import joint_positions
     from convsynth_jax.walktalk.evaluate import (
         EvalParams,
-        dof_limits,
         load_library,
-        peak_placed_splices,
         run_evaluation,
         summarize,
     )
     from convsynth_jax.walktalk.params import WalkTalkParams
-    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
 
     p, ep = WalkTalkParams(), EvalParams()
     t0 = time.perf_counter()
@@ -347,28 +378,201 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
                          "shift_max_s": r["shift_max_s"], "violation_frac_mean": r["violation_frac_mean"],
                          "limit_cell_frac_mean": r["limit_cell_frac_mean"],
                          "dof_within_csigma_rate": r["dof_within_csigma_rate"]})
-    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
-    reach: dict = {}
-    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
-        gst = gc.gesture
-        lpos = joint_positions(loco)
-        for name, g in [("naive", None)] + [(f"coupling={g}", g) for g in couplings]:
-            sp = p.splice if g is None else dataclasses.replace(p.splice, rescale_coupling=g)
-            r = splice_gesture(lc, gc, u, T, sp, METHODS["naive" if g is None else "stylized+synced"],
-                               loco=loco, contact=contact, limits=rom)
-            pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
-            hips = lib.body.joints["hips"]
-            d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
-                                        - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
-                         for s in gst.sides])
-            reach.setdefault((gait, name), []).append(float(d))
-    reach_rows = []
-    for (gait, name), v in reach.items():
-        base = np.asarray(reach[gait, f"coupling={couplings[0]}"])
-        reach_rows.append({"gait": gait, "variant": name, "splices": len(v), "reach_cm_mean": float(np.mean(v)),
-                           "reach_cm_median": float(np.median(v)),
-                           "ratio_to_coupling0_median": float(np.median(np.asarray(v) / np.maximum(base, 1e-6)))})
+    variants = {"naive": (p.splice, "naive")}
+    variants.update({f"coupling={g}": (dataclasses.replace(p.splice, rescale_coupling=g), "stylized+synced")
+                     for g in couplings})
+    reach_rows = gesture_reach(lib, p, variants, f"coupling={couplings[0]}", every)
     return {"per_coupling": rows, "reach": reach_rows, "seconds": time.perf_counter() - t0}
+
+
+COMBINED = {
+    "paper defaults": {},
+    "gait_min + soft": {"band_std": "gait_min", "joint_limit_mode": "soft"},
+    "gait_min + soft + coupling 0.25": {"band_std": "gait_min", "joint_limit_mode": "soft", "rescale_coupling": 0.25},
+    "gait_min + soft + coupling 0.5": {"band_std": "gait_min", "joint_limit_mode": "soft", "rescale_coupling": 0.5},
+    "gait_min + soft + coupling 1": {"band_std": "gait_min", "joint_limit_mode": "soft", "rescale_coupling": 1.0},
+}
+
+
+def _goal_rows(lib, p, settings: dict, naive_df=None) -> tuple[list[dict], object]:
+    """Per setting ({name: SpliceParams overrides}) x gait: every goal of issue #12 from one
+    run_evaluation of ``lib`` (stylized+synced; naive once, shared, for the "<= naive" parts):
+    splices over 2x jerk and the worst, peak in contact, shifts, peaks before the utterance, foot
+    slide, DOFs within +- c sigma, joint limits in both readings with the loop alone, naive and
+    what the splice introduces over its loop, and the within-gait elbow correlation of these rows
+    (plain and partial given the loop's spread, per gesture over its loops)."""
+    import pandas as pd
+
+    from convsynth_jax.walktalk.evaluate import EvalParams, limit_readings, run_evaluation, summarize
+
+    if naive_df is None:
+        naive_df = run_evaluation(lib, p, EvalParams(methods=("naive",)))
+    rows = []
+    for name, kw in settings.items():
+        pg = dataclasses.replace(p, splice=dataclasses.replace(p.splice, **kw))
+        df = run_evaluation(lib, pg, EvalParams(methods=("stylized+synced",)))
+        both = pd.concat([naive_df, df], ignore_index=True)
+        summ = {(r["gait"], r["method"]): r for r in summarize(both)}
+        lim = {(r["gait"], r["method"]): r for r in limit_readings(list(summ.values()))}
+        for gait, d in df.groupby("gait", sort=False):
+            worst = d.loc[d["max_jerk_ratio"].idxmax()]
+            r, lr = summ[gait, "stylized+synced"], lim[gait, "stylized+synced"]
+            rn = summ[gait, "naive"]
+            rows.append({
+                "setting": name, "overrides": kw, "gait": gait, "splices": len(d),
+                "jerk_over_2x": int((d["max_jerk_ratio"] > 2.0).sum()), "jerk_ratio_max": float(worst["max_jerk_ratio"]),
+                "jerk_worst": f"{worst['gesture']} on {worst['loop']}",
+                "naive_jerk_over_2x": int((naive_df.loc[naive_df["gait"] == gait, "max_jerk_ratio"] > 2.0).sum()),
+                "peak_in_contact_rate": r["peak_in_contact_rate"], "shift_min_s": r["shift_min_s"],
+                "shift_max_s": r["shift_max_s"], "all_peaks_before_utterance": r["all_peaks_before_utterance"],
+                "foot_slide_cm_max": r["foot_slide_cm_max"], "dof_within_csigma_rate": r["dof_within_csigma_rate"],
+                "limits_per_frame": lr["per_frame"], "limits_per_cell": lr["per_cell"],
+                "met_per_frame": lr["met_per_frame"], "met_per_cell": lr["met_per_cell"],
+                "met_per_frame_introduced": lr["met_per_frame_introduced"],
+                "elbow_plain": r["elbow_corr_per_gesture_mean"], "elbow_partial": r["elbow_partial_corr_per_gesture_mean"],
+                "elbow_plain_naive": rn["elbow_corr_per_gesture_mean"], "elbow_gestures": r["elbow_corr_per_gesture_n"]})
+    return rows, naive_df
+
+
+def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> dict:
+    """One pass over every goal of issue #12 for the candidate settings (:data:`COMBINED`: the
+    paper's defaults, our within-gait options band_std=gait_min + joint_limit_mode=soft, and those
+    with splice.rescale_coupling 0.25 / 0.5 / 1), on two libraries:
+
+    * ``eval``: the walktalk_eval setup (3 loops per gait, every single-peak gesture), the one the
+      acceptance figures come from (jerk, limits, contact, shifts, +- c sigma);
+    * ``all_loops``: every walk and run clip as a loop (24 + 52), every ``every``-th single-peak
+      gesture: the within-gait elbow correlation over many loops (of the evaluation's rows, and of
+      the peak-placed study evaluate.elbow_tracking used by the earlier figures), and the other goals
+      again on these loops (with band_std=gait_min the band is the gait's narrowest over the loops
+      loaded, so it differs between the two libraries).
+
+    Also both joint-limit readings of the sources themselves, unmodified (evaluate.source_readings,
+    evaluate.in_sample_violations) and the calibrated torso radius; and the price of each setting,
+    the gesture's reach at the stroke peak (:func:`gesture_reach`, every 4th gesture, the eval's
+    loops)."""
+    from convsynth_jax.walktalk.evaluate import (
+        EvalParams,
+        dof_limits,
+        elbow_tracking,
+        elbow_tracking_summary,
+        in_sample_violations,
+        load_library,
+        source_readings,
+        torso_radius,
+    )
+    from convsynth_jax.walktalk.params import WalkTalkParams
+
+    settings = COMBINED if settings is None else settings
+    p, ep = WalkTalkParams(), EvalParams()
+    t0 = time.perf_counter()
+    out: dict = {"settings": settings}
+    lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
+    radius = torso_radius(lib, ep)
+    scored = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
+    out["torso_radius_cm"] = radius
+    out["sources_in_sample"] = in_sample_violations(lib, scored, radius)
+    out["sources_eval"] = source_readings(lib, scored, radius)
+    out["eval"], _ = _goal_rows(lib, p, settings)
+    variants = {"naive": (p.splice, "naive")}
+    variants.update({name: (dataclasses.replace(p.splice, **kw), "stylized+synced") for name, kw in settings.items()})
+    base = next(iter(settings))
+    out["reach"] = gesture_reach(lib, p, variants, base)   # the price: the gesture's size at the stroke peak
+    out["eval_seconds"] = time.perf_counter() - t0
+    lib = load_library(p, data_dir, 10_000, single_peak_only=True)
+    lib.gestures = lib.gestures[::every]
+    out["sources_all_loops"] = source_readings(lib, scored, radius)
+    out["all_loops"], _ = _goal_rows(lib, p, settings)
+    df = elbow_tracking(lib, p, variants=variants)
+    out["elbow_study"] = elbow_tracking_summary(df)
+    out["all_loops_gestures"] = len(lib.gestures)
+    out["all_loops_loops"] = {g: len(v) for g, v in lib.loops.items()}
+    out["seconds"] = time.perf_counter() - t0
+    return out
+
+
+def print_combined(res: dict) -> None:
+    pct = "{:.2%}".format
+    print(f"torso radius {res['torso_radius_cm']:.2f} cm")
+    for part in ("eval", "all_loops"):
+        print(f"\n{part}: | setting | gait | jerk > 2x (worst) | contact | shifts | within c sigma | per frame "
+              "(loop alone; introduced; naive) | per cell (introduced; naive) + hand in torso | elbow plain / partial |")
+        for r in res[part]:
+            f, c = r["limits_per_frame"], r["limits_per_cell"]
+            print(f"| {r['setting']} | {r['gait']} | {r['jerk_over_2x']}/{r['splices']} ({r['jerk_ratio_max']:.2f}) | "
+                  f"{pct(r['peak_in_contact_rate'])} | [{r['shift_min_s']:.3f}, {r['shift_max_s']:.3f}] | "
+                  f"{pct(r['dof_within_csigma_rate'])} | {pct(f['value'])} ({pct(f['loop_alone'])}; "
+                  f"{pct(f['introduced'])}; {pct(f['naive'])}) | {pct(c['value'])} ({pct(c['introduced'])}; "
+                  f"{pct(c['naive'])}) + {pct(c['hand_in_torso'])} | {r['elbow_plain']:.2f} / {r['elbow_partial']:.2f} |")
+    for r in res.get("reach", []):
+        print(f"reach {r['gait']} {r['variant']}: median {r['reach_cm_median']:.1f} cm, "
+              f"x{r['ratio_to_base_median']:.2f} of {r['base']}")
+    for r in res["elbow_study"]:
+        if r["gait"] != "all":
+            print(f"elbow study {r['gait']} {r['method']}: plain {r['elbow_corr_per_gesture_mean']:.3f}, partial "
+                  f"{r['elbow_partial_corr_per_gesture_mean']:.3f} ({r['loops']} loops, {r['gestures']} gestures)")
+
+
+def loop_seams(data_dir: Path) -> dict:
+    """What the loop's seam correction (locomotion.seam_correct: the rotation residual between the
+    frame after the loop and its first frame spread linearly over the loop) does to the recording,
+    per walk and run clip: the largest residual of an arm joint and of any joint (degrees), the
+    largest hand shift of the loop from the recorded frames in the torso's frame (cm; the pose's
+    change, synthesized.torso_frame; ``hand_shift_world_cm``: root-relative in world axes, which
+    also counts the loop's straightened heading), the closest hand to
+    the torso axis in the recording's loop frames and in the loop, and the loop's share of frames
+    with a hand inside the calibrated torso (evaluate.torso_radius). The bandai2 run clips are
+    2-3 cycles long, so their two-cycle windows are not periodic and the correction moves the arms."""
+    import numpy as np
+
+    from convsynth_jax.io.bvh import load_bvh
+    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.walktalk.evaluate import EvalParams, hand_torso_distance, load_library, torso_radius
+    from convsynth_jax.walktalk.locomotion import _qconj, _qmul
+    from convsynth_jax.walktalk.params import WalkTalkParams
+    from convsynth_jax.walktalk.synthesized import torso_frame
+
+    p, ep = WalkTalkParams(), EvalParams()
+    lib = load_library(p, data_dir, 10_000, max_gestures=1, single_peak_only=True)
+    eval_lib = load_library(p, data_dir, ep.loops_per_gait, max_gestures=1, single_peak_only=True)
+    chosen = {(lc.loop.source, lc.loop.start) for v in eval_lib.loops.values() for lc in v}
+    radius = torso_radius(eval_lib, ep)
+    body = lib.body
+    arm = list(body.arm_l) + list(body.arm_r)
+    hips = body.joints["hips"]
+    rows = []
+    for gait, lcs in lib.loops.items():
+        for lc in lcs:
+            lp = lc.loop
+            raw = load_bvh(lp.source, fps=p.fps)
+            a, n = lp.start, lp.num_frames
+            q = np.asarray(raw.rotations, dtype=np.float64)
+            r = _qmul(q[a], _qconj(q[a + n]))
+            ang = np.degrees(2 * np.arccos(np.clip(np.abs(r[:, 0]), 0, 1)))
+            pr, pl = joint_positions(raw)[a:a + n], joint_positions(lp.motion)
+            world = max(float(np.linalg.norm((pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
+                                             - (pr[:, body.joints[f"hand_{s}"]] - pr[:, hips]), axis=-1).max())
+                        for s in ("l", "r"))
+            fr, fl = (torso_frame(x, hips, body.joints["neck"], body.joints["upperarm_l"], body.joints["upperarm_r"])
+                      for x in (pr, pl))
+            shift = max(float(np.linalg.norm(
+                np.einsum("fji,fj->fi", fl, pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
+                - np.einsum("fji,fj->fi", fr, pr[:, body.joints[f"hand_{s}"]] - pr[:, hips]), axis=-1).max())
+                for s in ("l", "r"))
+            dr, dl = hand_torso_distance(pr, body), hand_torso_distance(pl, body)
+            rows.append({"gait": gait, "loop": f"{Path(lp.source).stem}[{a}:{a + n}]", "clip_frames": raw.num_frames,
+                         "in_eval": (lp.source, lp.start) in chosen, "arm_residual_deg": float(ang[arm].max()),
+                         "residual_deg": float(ang.max()), "hand_shift_cm": shift, "hand_shift_world_cm": world,
+                         "closest_hand_recorded_cm": float(dr.min()), "closest_hand_loop_cm": float(dl.min()),
+                         "hand_in_torso_frac": float(np.mean(np.any(dl < radius, axis=1)))})
+    per_gait = []
+    for gait in lib.loops:
+        d = [r for r in rows if r["gait"] == gait]
+        sh = np.array([r["hand_shift_cm"] for r in d])
+        per_gait.append({"gait": gait, "loops": len(d), "hand_shift_cm_median": float(np.median(sh)),
+                         "hand_shift_cm_max": float(sh.max()), "share_over_5cm": float(np.mean(sh > 5.0)),
+                         "loops_with_hand_in_torso": int(sum(r["hand_in_torso_frac"] > 0 for r in d))})
+    return {"torso_radius_cm": radius, "per_gait": per_gait, "loops": rows}
 
 
 def main():
@@ -385,6 +589,10 @@ def main():
                     "reading fails (writes experiments/results/bench_walktalk_limits_breakdown.json)")
     ap.add_argument("--jerk-coupling", action="store_true", help="only the splices over 2x jerk and the gesture's "
                     "reach against splice.rescale_coupling (writes experiments/results/bench_walktalk_jerk.json)")
+    ap.add_argument("--combined", action="store_true", help="only every goal for the candidate settings "
+                    "(writes experiments/results/bench_walktalk_combined.json)")
+    ap.add_argument("--loop-seams", action="store_true", help="only what the loops' seam correction does to the "
+                    "recordings (writes experiments/results/bench_walktalk_loop_seams.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -406,7 +614,7 @@ def main():
         print(*(result[k] for k in tail))
 
     if a.limits_breakdown:
-        return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_gait_method", 4,
+        return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_loop", 4,
                           ["limit_clips", "load_average"])
     if a.jerk_coupling:
         jc = jerk_coupling(data_dir)
@@ -414,6 +622,19 @@ def main():
         for r in jc["reach"]:
             print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
         return None
+    if a.loop_seams:
+        res = loop_seams(data_dir)
+        write_only(res, "bench_walktalk_loop_seams.json", "per_gait", 3, ["torso_radius_cm"])
+        for r in res["loops"]:
+            if r["in_eval"] or r["hand_in_torso_frac"] > 0:
+                print({k: (round(v, 2) if isinstance(v, float) else v) for k, v in r.items()})
+        return None
+    if a.combined:
+        result.update(combined(data_dir))
+        result["load_average"] = list(os.getloadavg())
+        RESULTS.mkdir(parents=True, exist_ok=True)
+        write_json_atomic(RESULTS / "bench_walktalk_combined.json", result)
+        return print_combined(result)
     if a.elbow_diagnosis:
         return write_only(elbow_diagnosis(data_dir), "bench_walktalk_elbow_diagnosis.json", "per_gait_variant", 3,
                           ["loops_spread"])

@@ -12,7 +12,7 @@ import pytest
 from omegaconf import OmegaConf
 
 from convsynth_jax.config import compose, run_task
-from convsynth_jax.errors import WalkTalkError
+from convsynth_jax.errors import ConfigError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh, save_bvh
 from convsynth_jax.walktalk.body import find_body, joint_positions
 from convsynth_jax.walktalk.gestures import make_gesture
@@ -239,6 +239,16 @@ def test_in_sample_violation_floor_planted():
     np.testing.assert_allclose(got["walk"]["one_arm_frac"], 0.005, atol=1e-3)
     np.testing.assert_allclose(got["all"]["both_arms_frac"], 0.01, atol=2e-3)
     assert in_sample_violations(lib, dof_limits(lib, (0.0, 100.0)))["all"]["both_arms_frac"] == 0.0
+    # with a torso radius: the left hand planted inside on 20 other frames; the per-frame reading of
+    # a one-handed splice on the clip itself is then (10 + 20) / 1000 (left), 20 / 1000 (right)
+    d = np.full((1000, 2), 30.0)
+    d[100:120, 0] = 5.0
+    lib = dataclasses.replace(lib, source_torso=[d])
+    got = in_sample_violations(lib, dof_limits(lib, (0.5, 99.5)), 10.0)["walk"]
+    assert got["hand_in_torso_frac"] == pytest.approx(0.02)
+    assert got["frame_reading_frac"] == pytest.approx(0.025, abs=1e-3)
+    assert got["frame_reading_clip_median"] == got["frame_reading_frac"] and got["clips_ge_1pct"] == 1.0
+    assert "hand_in_torso_frac" not in in_sample_violations(lib, dof_limits(lib))["walk"]
 
 
 def test_elbow_tracking_follows_the_loop_on_fixtures():
@@ -396,24 +406,143 @@ def test_joint_limits_pool_every_clip_walk_turns_included(tmp_path):
     assert (a.hi[row] - a.lo[row]).max() > (b.hi[row] - b.lo[row]).max() + np.radians(10)
 
 
+def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
+    """Defect: the hands-in-the-torso part of the joint-limit metric was a fixed 12 cm capsule about
+    the hips-neck segment, and it fired on unmodified recordings: a recorded jogger's right wrist
+    swings to 10.1 cm of that axis (bandai2 run 047, the excerpt in tests/data; 0.8% of all run
+    hand-frames). A clip cannot put its hand inside its own torso, so those were false positives.
+    The radius is now calibrated from the library's recordings (evaluate.torso_radius, quantile 0
+    by default): no frame of any recorded clip is inside; a fixed radius is still an option, and a
+    hand planted on the spine axis is still inside."""
+    from convsynth_jax.walktalk.evaluate import (
+        EvalParams,
+        dof_limits,
+        hand_torso_distance,
+        in_sample_violations,
+        limit_violations,
+        load_library,
+        torso_radius,
+    )
+    from convsynth_jax.walktalk.gestures import Phases
+
+    for f in FIXTURES.glob("*.bvh"):
+        shutil.copy(f, tmp_path / f.name)
+    excerpt = Path(__file__).resolve().parent / "data" / "dataset-2_run_normal_047_f68-88.bvh"
+    shutil.copy(excerpt, tmp_path / excerpt.name)
+    lib = load_library(WalkTalkParams(), tmp_path, 1, single_peak_only=True)
+    assert len(lib.source_torso) == len(lib.source_euler) == 5
+    closest = min(float(d.min()) for d in lib.source_torso)
+    assert 10.0 < closest < 10.3
+    # the old proxy flags the recording itself
+    old = EvalParams(torso_radius_cm=12.0)
+    assert torso_radius(lib, old) == 12.0
+    assert in_sample_violations(lib, dof_limits(lib), 12.0)["jog"]["hand_in_torso_frac"] > 0
+    # the calibrated one (the evaluation's default) flags no recorded frame
+    radius = torso_radius(lib, EvalParams())
+    assert radius == pytest.approx(closest)
+    got = in_sample_violations(lib, dof_limits(lib), radius)
+    assert all(v["hand_in_torso_frac"] == 0.0 for v in got.values())
+    m = load_bvh(excerpt, fps=30.0)
+    pos = joint_positions(m)
+    ph = Phases(0, 4, 5, 12, 13, m.num_frames - 1, (8,))
+    joints = lib.body.arm("r")
+    lim = dof_limits(lib)
+    assert limit_violations(m, pos, ph, joints, lib.body, lim, 12.0)[1].any()
+    assert not limit_violations(m, pos, ph, joints, lib.body, lim, radius)[1].any()
+    # a hand on the torso axis is inside at the calibrated radius
+    planted = pos.copy()
+    b = lib.body.joints
+    planted[3, b["hand_l"]] = 0.5 * (pos[3, b["hips"]] + pos[3, b["neck"]])
+    d = hand_torso_distance(planted, lib.body)
+    assert d[3, 0] < 1e-9 and limit_violations(m, planted, ph, joints, lib.body, lim, radius)[1][3]
+    with pytest.raises(ConfigError, match="torso_radius_quantile"):
+        torso_radius(lib, EvalParams(torso_radius_quantile=1.5))
+    with pytest.raises(ConfigError, match="torso_radius_cm"):
+        torso_radius(lib, EvalParams(torso_radius_cm=-1.0))
+    # through the task: the radius and the recordings' own rates land in summary.json
+    cfg = compose(["task=walktalk_eval", f"walktalk.data_dir={tmp_path}", "task.loops_per_gait=1",
+                   "task.figures=false", "task.methods=[naive]"])
+    summary = run_task(cfg, tmp_path / "out")
+    assert summary["torso_radius_cm"] == pytest.approx(closest)
+    assert summary["limits_in_sample_violation"]["jog"]["hand_in_torso_frac"] == 0.0
+
+
+def test_source_readings_against_a_frame_by_frame_reference():
+    """evaluate.source_readings scores the unmodified loops (one arm at a time, either hand in the
+    torso) and gestures (t_Pb..t_Re, the gesturing arm(s)) as the per-frame and cell readings score
+    a splice; checked against a plain loop over frames, with a radius that puts some frames inside."""
+    from convsynth_jax.walktalk.evaluate import dof_limits, load_library, source_readings
+
+    lib = load_library(WalkTalkParams(), FIXTURES, 1, single_peak_only=True)
+    lim = dof_limits(lib)
+    body = lib.body
+    radius = 17.0   # between the fixtures' closest hands (15.5 cm) and most frames
+
+    def inside(pos_t):
+        a, b = pos_t[body.joints["hips"]], pos_t[body.joints["neck"]]
+        for s in ("l", "r"):
+            h = pos_t[body.joints[f"hand_{s}"]]
+            t = min(max(np.dot(h - a, b - a) / np.dot(b - a, b - a), 0.0), 1.0)
+            if np.linalg.norm(h - (a + t * (b - a))) < radius:
+                return True
+        return False
+
+    def out_of_limits(eu_t, joints):
+        return lim.violations(eu_t[None], joints)[0]
+
+    got = source_readings(lib, lim, radius)
+    for gait, lcs in lib.loops.items():
+        lc = lcs[0]
+        pos = joint_positions(lc.loop.motion)
+        frames, cells = [], []
+        for s in ("l", "r"):
+            rows = [lc.joints.index(j) for j in body.arm(s)]
+            js = [lc.joints[i] for i in rows]
+            bad = [out_of_limits(lc.euler[t, rows], js) for t in range(len(pos))]
+            frames.append(np.mean([b.any() or inside(pos[t]) for t, b in enumerate(bad)]))
+            cells.append(np.mean(bad))
+        assert got[f"loops_{gait}"]["per_frame"]["mean"] == pytest.approx(np.mean(frames))
+        assert got[f"loops_{gait}"]["per_cell"]["mean"] == pytest.approx(np.mean(cells))
+    frames, cells = [], []
+    for gc in lib.gestures:
+        g = gc.gesture
+        pos = joint_positions(g.motion)
+        ph = g.phases
+        frames.append(np.mean([out_of_limits(gc.euler[t], gc.joints).any() or inside(pos[t])
+                               for t in range(ph.pb, ph.re + 1)]))
+        cells.append(np.mean([out_of_limits(gc.euler[t], gc.joints) for t in range(ph.pb + 1, ph.re)]))
+    assert got["gestures"]["per_frame"]["mean"] == pytest.approx(np.mean(frames))
+    assert got["gestures"]["per_cell"]["mean"] == pytest.approx(np.mean(cells))
+    assert 0 < got["loops_jog"]["per_frame"]["mean"] < 1
+    none_inside = source_readings(lib, lim, 0.0)
+    assert none_inside["loops_jog"]["per_frame"]["mean"] < got["loops_jog"]["per_frame"]["mean"]
+    assert none_inside["loops_jog"]["per_cell"] == got["loops_jog"]["per_cell"]
+
+
 def test_limit_readings_report_both_readings_against_naive():
     """evaluate.limit_readings: per gait x method, the frame and the cell reading of the joint-limit
     acceptance, each with the loop alone and naive, "<= naive" and "< 1%" decided per reading.
-    Planted rows: jog stylized is under naive in both readings but over 1% per frame; walk
-    stylized is over naive per cell; the gait "all" is left out."""
+    Planted rows: jog stylized is under naive in both readings but over 1% per frame, while what it
+    introduces over its own loop is under 1% (the excess reading); walk stylized is over naive per
+    cell; the gait "all" is left out."""
     from convsynth_jax.walktalk.evaluate import limit_readings
 
-    def row(gait, method, frame, cell, torso=0.0):
+    def row(gait, method, frame, cell, torso=0.0, new=0.0, new_cell=0.0):
         return {"gait": gait, "method": method, "violation_frac_mean": frame, "loop_violation_frac_mean": 0.2,
                 "limit_cell_frac_mean": cell, "loop_limit_cell_frac_mean": 0.01,
-                "hand_in_torso_gesturing_frac_mean": torso, "loop_hand_in_torso_gesturing_frac_mean": 0.02}
+                "hand_in_torso_gesturing_frac_mean": torso, "loop_hand_in_torso_gesturing_frac_mean": 0.02,
+                "new_violation_frac_mean": new, "new_limit_cell_frac_mean": new_cell}
 
-    rows = [row("jog", "naive", 0.06, 0.003, 0.008), row("jog", "stylized", 0.05, 0.002, 0.006),
+    rows = [row("jog", "naive", 0.06, 0.003, 0.008, 0.02, 0.001), row("jog", "stylized", 0.05, 0.002, 0.006, 0.004),
             row("walk", "naive", 0.01, 0.0005), row("walk", "stylized", 0.003, 0.0009), row("all", "naive", 0.1, 0.1)]
     got = {(r["gait"], r["method"]): r for r in limit_readings(rows)}
     assert set(got) == {("jog", "naive"), ("jog", "stylized"), ("walk", "naive"), ("walk", "stylized")}
     js = got[("jog", "stylized")]
-    assert js["per_frame"] == {"value": 0.05, "loop_alone": 0.2, "naive": 0.06, "le_naive": True, "lt_1pct": False}
+    assert js["per_frame"] == {"value": 0.05, "loop_alone": 0.2, "naive": 0.06, "introduced": 0.004,
+                               "introduced_naive": 0.02, "le_naive": True, "lt_1pct": False,
+                               "introduced_lt_1pct": True}
+    assert js["met_per_frame_introduced"] and not js["met_per_frame"]
+    assert js["per_cell"]["introduced_naive"] == 0.001
     assert js["per_cell"]["le_naive"] and js["per_cell"]["lt_1pct"] and js["per_cell"]["hand_in_torso_naive"] == 0.008
     assert (js["met_per_frame"], js["met_per_cell"]) == (False, True)
     ws = got[("walk", "stylized")]

@@ -20,7 +20,9 @@ from ..walktalk.evaluate import (
     load_library,
     resolve_data_dir,
     run_evaluation,
+    source_readings,
     summarize,
+    torso_radius,
 )
 from ..walktalk.params import params_from_dict
 
@@ -30,7 +32,8 @@ REPO = Path(__file__).resolve().parents[2]
 def eval_params(task_cfg) -> EvalParams:
     t = OmegaConf.to_container(task_cfg, resolve=True)
     return EvalParams(loops_per_gait=int(t["loops_per_gait"]), methods=tuple(t["methods"]),
-                      torso_radius_cm=float(t["torso_radius_cm"]),
+                      torso_radius_cm=None if t.get("torso_radius_cm") is None else float(t["torso_radius_cm"]),
+                      torso_radius_quantile=float(t.get("torso_radius_quantile", 0.0)),
                       max_gestures=None if t.get("max_gestures") is None else int(t["max_gestures"]),
                       limit_percentiles=tuple(t["limit_percentiles"]),
                       limit_tolerance_deg=float(t["limit_tolerance_deg"]))
@@ -47,6 +50,7 @@ def run(cfg, out_dir: Path) -> dict:
     t2 = time.perf_counter()
     summary = summarize(df)
     scored = dof_limits(lib, ep.limit_percentiles, ep.limit_tolerance_deg)
+    radius = torso_radius(lib, ep)
     with atomic_path(out_dir / "walktalk_eval.csv") as tmp:
         df.to_csv(tmp, index=False)
     with atomic_path(out_dir / "walktalk_eval_summary.csv") as tmp:
@@ -62,7 +66,15 @@ def run(cfg, out_dir: Path) -> dict:
             # table's clips per kind (walks, runs, gestures, limits-only walk-turns)
             "joint_limit_readings": limit_readings(summary),
             "limit_table_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)},
-            "limits_in_sample_violation": in_sample_violations(lib, scored),
+            # the recorded clips themselves under both parts of the metric (DOFs, hands in the torso)
+            "limits_in_sample_violation": in_sample_violations(lib, scored, radius),
+            # both readings on the evaluation's own loops and gestures, unmodified (evaluate.source_readings)
+            "limits_sources": source_readings(lib, scored, radius),
+            # the torso check's radius (evaluate.torso_radius): fixed, or calibrated from the recordings
+            "torso_radius_cm": radius,
+            "torso_radius_source": ("task.torso_radius_cm" if ep.torso_radius_cm is not None else
+                                    f"calibrated: quantile {ep.torso_radius_quantile} of the recorded hands' distance "
+                                    f"to the hips-neck segment over {len(lib.source_torso)} clips"),
             "loop_contact_frac": {g: float(np.mean([lc.loop.contact.mean() for lc in v])) for g, v in lib.loops.items() if v},
             "load_seconds": t1 - t0, "eval_seconds": t2 - t1, "figures": figures}
 

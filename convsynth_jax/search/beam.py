@@ -40,6 +40,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import kernel_cache
 from ..errors import ConfigError, GraphError, LabelError
 from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
@@ -383,9 +384,11 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     reqs, pw, reset, check, paper_arrs = padded_inputs(c)
     paper_dev = prep.paper_device if paper else None
     prune = feas is not None
-    out = _beam_kernel(prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
-                       np.int32(graph.num_states), paper_dev, paper_arrs, feas if prune else np.zeros((1, 1), np.uint8),
-                       beam=B, M=M, N=N, H=H, D=prep.max_degree, paper=paper, prune=prune)
+    out = kernel_cache.call(_beam_kernel, "beam",
+                            (prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
+                             np.int32(graph.num_states), paper_dev, paper_arrs,
+                             feas if prune else np.zeros((1, 1), np.uint8)),
+                            {"beam": B, "M": M, "N": N, "H": H, "D": prep.max_degree, "paper": paper, "prune": prune})
     path, rank, alive_any = (np.asarray(x)[:T] for x in out)
     if not alive_any.all():
         fail = int(np.argmin(alive_any))

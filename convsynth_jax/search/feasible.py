@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import kernel_cache
 from .constraints import Constraints, is_peak_state, label_ok, paper_channel_step, requirement_arrays
 
 
@@ -197,8 +198,10 @@ def feasibility(prep, constraints: Constraints, padded_inputs):
     c = constraints
     reqs, pw, reset, check, paper_arrs = padded_inputs
     edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
-    return _feasible_kernel(edges, prep.device[4], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
-                            np.int32(c.num_frames), np.int32(prep.num_states), F=num_flags(c), paper=c.paper is not None)
+    return kernel_cache.call(_feasible_kernel, "feasible",
+                             (edges, prep.device[4], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
+                              np.int32(c.num_frames), np.int32(prep.num_states)),
+                             {"F": num_flags(c), "paper": c.paper is not None})
 
 
 def solvable(bits0, start_ok, flag0) -> bool:

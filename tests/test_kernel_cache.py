@@ -1,0 +1,162 @@
+"""Exported kernels kept between runs (convsynth_jax/kernel_cache.py; issue #15, part 3): an exported
+kernel gives the same outputs as the jitted one, a stale, corrupt or truncated file is never used (it
+is ignored and written anew), and deleting the folder is safe. No timing assertions."""
+import dataclasses
+import os
+import shutil
+import subprocess
+import sys
+from functools import partial
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+import pytest
+
+from convsynth_jax import kernel_cache
+from convsynth_jax.search.beam import beam_search, lookahead
+from convsynth_jax.search.constraints import build_constraints
+from convsynth_jax.search.params import SearchParams
+from test_search_beam_kernel import FPS, hub_graph, input_from_clip
+
+REPO = Path(__file__).resolve().parent.parent
+
+
+@pytest.fixture
+def export_dir(tmp_path):
+    """Exports go to a fresh folder; each test starts with nothing loaded in the process."""
+    old = kernel_cache.export_dir()
+    kernel_cache.set_export_dir(tmp_path / "jax_export")
+    kernel_cache._LOADED.clear()
+    try:
+        yield tmp_path / "jax_export"
+    finally:
+        kernel_cache.set_export_dir(old)
+        kernel_cache._LOADED.clear()
+
+
+@partial(jax.jit, static_argnames=("scale",))
+def _toy(x, pair, scale: int):
+    a, b = pair
+    return jnp.cumsum(x * scale) + a.sum(), (b[::-1] * 2, x.shape[0])
+
+
+def _files(d: Path):
+    return sorted(d.glob(f"*{kernel_cache.SUFFIX}")) if d.exists() else []
+
+
+def test_exported_call_equals_jitted_and_is_stored(export_dir):
+    x, pair = np.arange(5, dtype=np.float32), (np.ones(3, np.int32), np.arange(4, dtype=np.int32))
+    want = _toy(x, pair, scale=3)
+    got = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 3})
+    assert len(_files(export_dir)) == 1
+    for g, w in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
+        np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
+    # another static argument or shape is another file; the same call again reads the stored one
+    kernel_cache.call(_toy, "toy", (x, pair), {"scale": 4})
+    kernel_cache.call(_toy, "toy", (x[:4], pair), {"scale": 3})
+    assert len(_files(export_dir)) == 3
+    kernel_cache._LOADED.clear()
+    again = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 3})
+    np.testing.assert_array_equal(np.asarray(again[0]), np.asarray(want[0]))
+    assert len(_files(export_dir)) == 3
+
+
+@pytest.mark.parametrize("damage", ["truncate", "flip", "other_key", "garbage"])
+def test_damaged_file_is_ignored_and_rewritten(export_dir, damage):
+    x, pair = np.arange(6, dtype=np.float32), (np.ones(2, np.int32), np.arange(3, dtype=np.int32))
+    want = np.asarray(_toy(x, pair, scale=2)[0])
+    kernel_cache.call(_toy, "toy", (x, pair), {"scale": 2})
+    (path,) = _files(export_dir)
+    good = path.read_bytes()
+    if damage == "truncate":
+        bad = good[:len(good) // 2]
+    elif damage == "flip":
+        bad = bytearray(good); bad[-20] ^= 0xFF; bad = bytes(bad)
+    elif damage == "other_key":   # a complete file written for another key (e.g. renamed): never used
+        other = _files(export_dir)
+        kernel_cache.call(_toy, "toy", (x, pair), {"scale": 5})
+        bad = [p for p in _files(export_dir) if p not in other][0].read_bytes()
+    else:
+        bad = b"not an export"
+    path.write_bytes(bad)
+    kernel_cache._LOADED.clear()
+    got = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 2})
+    np.testing.assert_array_equal(np.asarray(got[0]), want)
+    key = path.name[len("toy-"):-len(kernel_cache.SUFFIX)]
+    assert path.read_bytes() != bad and kernel_cache._read(path, key) is not None   # written anew, complete
+
+
+def test_stale_source_gives_another_key(export_dir, monkeypatch):
+    """The key holds the package's source hash: after an edit the old files are not read."""
+    x, pair = np.arange(3, dtype=np.float32), (np.ones(1, np.int32), np.arange(2, dtype=np.int32))
+    k0 = kernel_cache.kernel_key("toy", (x, pair), {"scale": 1})
+    monkeypatch.setattr(kernel_cache, "_ENV", [kernel_cache._environment() + " edited"])
+    assert kernel_cache.kernel_key("toy", (x, pair), {"scale": 1}) != k0
+    assert kernel_cache.kernel_key("toy", (x, pair), {"scale": 2}) != kernel_cache.kernel_key("toy", (x, pair), {"scale": 1})
+    assert kernel_cache.kernel_key("toy", (x.astype(np.float64), pair), {"scale": 1}) != k0 or not jax.config.jax_enable_x64
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_search_through_exports_equals_the_jitted_search(export_dir, matching):
+    """The look-ahead and the beam kernel through their exports: the same bits and the same path as
+    the jitted kernels; after the folder is deleted the search exports them again and still agrees."""
+    g, audio = hub_graph(np.random.default_rng(3))
+    own, par = input_from_clip(audio, "c3", 40)
+    cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0,
+                       matching=matching)
+    cons = build_constraints(own, par, 40, FPS, cfg)
+    kernel_cache.set_export_dir(None)
+    want_feas, want_ok = lookahead(g, cons, 24)
+    want = beam_search(g, cons, cfg, seed=3)
+    kernel_cache.set_export_dir(export_dir)
+    for _ in range(2):
+        feas, ok = lookahead(g, cons, 24)
+        res = beam_search(g, cons, cfg, seed=3)
+        assert {p.name.split("-")[0] for p in _files(export_dir)} == {"feasible", "beam"}
+        np.testing.assert_array_equal(np.asarray(feas), np.asarray(want_feas))
+        assert ok == want_ok and res.success == want.success
+        if want.success:
+            np.testing.assert_array_equal(res.path, want.path)
+            assert res.cost == want.cost
+        shutil.rmtree(export_dir)                # safe to delete
+        kernel_cache._LOADED.clear()
+    no_look = beam_search(g, cons, dataclasses.replace(cfg, lookahead=False), seed=3)
+    assert no_look.success in (True, False)      # the unpruned kernel (prune=False) runs through its export too
+
+
+def test_task_writes_exports_and_null_turns_them_off(tmp_path):
+    from convsynth_jax.config import compose
+    from convsynth_jax.tasks.common import enable_compilation_cache
+
+    try:
+        enable_compilation_cache(compose([f"cache_dir={tmp_path}"]))
+        assert kernel_cache.export_dir() == (tmp_path / "jax_export").resolve()
+        enable_compilation_cache(compose([f"cache_dir={tmp_path}", "jax_cache.export_dir=null"]))
+        assert kernel_cache.export_dir() is None
+        enable_compilation_cache(compose([f"cache_dir={tmp_path}"]))
+        enable_compilation_cache(compose([f"cache_dir={tmp_path}", "jax_cache.dir=null"]))
+        assert kernel_cache.export_dir() is None
+    finally:
+        enable_compilation_cache(compose(["jax_cache.dir=null"]))
+
+
+def test_a_fresh_process_uses_the_stored_export(export_dir):
+    """Written by this process, read by another one: the same outputs."""
+    x, pair = np.arange(7, dtype=np.float32), (np.ones(2, np.int32), np.arange(5, dtype=np.int32))
+    want = np.asarray(kernel_cache.call(_toy, "toy", (x, pair), {"scale": 6})[0])
+    code = ("import sys, numpy as np; sys.path.insert(0, %r)\n"
+            "from convsynth_jax import kernel_cache\nimport test_kernel_cache as t\n"
+            "kernel_cache.set_export_dir(%r)\n"
+            "import jax.export\n"
+            "def boom(*a, **k): raise SystemExit('exported again')\n"
+            "jax.export.export = boom\n"
+            "x = np.arange(7, dtype=np.float32); pair = (np.ones(2, np.int32), np.arange(5, dtype=np.int32))\n"
+            "np.save(sys.argv[1], np.asarray(kernel_cache.call(t._toy, 'toy', (x, pair), {'scale': 6})[0]))\n"
+            ) % (str(REPO / "tests"), str(export_dir))
+    out = export_dir.parent / "out.npy"
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    r = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True, cwd=str(REPO))
+    assert r.returncode == 0, r.stderr[-2000:]
+    np.testing.assert_array_equal(np.load(out), want)

@@ -114,7 +114,7 @@ def test_search_through_exports_equals_the_jitted_search(export_dir, matching):
     for _ in range(2):
         feas, ok = lookahead(g, cons, 24)
         res = beam_search(g, cons, cfg, seed=3)
-        assert {p.name.split("-")[0] for p in _files(export_dir)} == {"feasible", "beam"}
+        assert {p.name.split("-")[0] for p in _files(export_dir)} == {"feasible", "lookahead_beam"}
         np.testing.assert_array_equal(np.asarray(feas), np.asarray(want_feas))
         assert ok == want_ok and res.success == want.success
         if want.success:
@@ -122,8 +122,12 @@ def test_search_through_exports_equals_the_jitted_search(export_dir, matching):
             assert res.cost == want.cost
         shutil.rmtree(export_dir)                # safe to delete
         kernel_cache._LOADED.clear()
-    no_look = beam_search(g, cons, dataclasses.replace(cfg, lookahead=False), seed=3)
-    assert no_look.success in (True, False)      # the unpruned kernel (prune=False) runs through its export too
+    kernel_cache.set_export_dir(None)
+    want = beam_search(g, cons, dataclasses.replace(cfg, lookahead=False), seed=3)
+    kernel_cache.set_export_dir(export_dir)
+    res = beam_search(g, cons, dataclasses.replace(cfg, lookahead=False), seed=3)   # the plain beam kernel
+    assert "beam" in {p.name.split("-")[0] for p in _files(export_dir)}
+    assert res.success == want.success and (not want.success or (res.path == want.path).all())
 
 
 def test_task_writes_exports_and_null_turns_them_off(tmp_path):

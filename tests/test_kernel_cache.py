@@ -1,4 +1,4 @@
-"""Exported kernels kept between runs (convsynth_jax/kernel_cache.py; issue #15, part 3): an exported
+"""Compiled kernels kept between runs (convsynth_jax/kernel_cache.py; issue #15, part 3): a stored
 kernel gives the same outputs as the jitted one, a stale, corrupt or truncated file is never used (it
 is ignored and written anew), and deleting the folder is safe. No timing assertions."""
 import dataclasses
@@ -24,15 +24,15 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture
-def export_dir(tmp_path):
-    """Exports go to a fresh folder; each test starts with nothing loaded in the process."""
-    old = kernel_cache.export_dir()
-    kernel_cache.set_export_dir(tmp_path / "jax_export")
+def kdir(tmp_path):
+    """Kernels go to a fresh folder; each test starts with nothing loaded in the process."""
+    old = kernel_cache.kernel_dir()
+    kernel_cache.set_kernel_dir(tmp_path / "jax_kernels")
     kernel_cache._LOADED.clear()
     try:
-        yield tmp_path / "jax_export"
+        yield tmp_path / "jax_kernels"
     finally:
-        kernel_cache.set_export_dir(old)
+        kernel_cache.set_kernel_dir(old)
         kernel_cache._LOADED.clear()
 
 
@@ -46,40 +46,40 @@ def _files(d: Path):
     return sorted(d.glob(f"*{kernel_cache.SUFFIX}")) if d.exists() else []
 
 
-def test_exported_call_equals_jitted_and_is_stored(export_dir):
+def test_stored_kernel_equals_jitted_and_is_stored(kdir):
     x, pair = np.arange(5, dtype=np.float32), (np.ones(3, np.int32), np.arange(4, dtype=np.int32))
     want = _toy(x, pair, scale=3)
     got = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 3})
-    assert len(_files(export_dir)) == 1
+    assert len(_files(kdir)) == 1
     for g, w in zip(jax.tree.leaves(got), jax.tree.leaves(want)):
         np.testing.assert_array_equal(np.asarray(g), np.asarray(w))
     # another static argument or shape is another file; the same call again reads the stored one
     kernel_cache.call(_toy, "toy", (x, pair), {"scale": 4})
     kernel_cache.call(_toy, "toy", (x[:4], pair), {"scale": 3})
-    assert len(_files(export_dir)) == 3
+    assert len(_files(kdir)) == 3
     kernel_cache._LOADED.clear()
     again = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 3})
     np.testing.assert_array_equal(np.asarray(again[0]), np.asarray(want[0]))
-    assert len(_files(export_dir)) == 3
+    assert len(_files(kdir)) == 3
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip", "other_key", "garbage"])
-def test_damaged_file_is_ignored_and_rewritten(export_dir, damage):
+def test_damaged_file_is_ignored_and_rewritten(kdir, damage):
     x, pair = np.arange(6, dtype=np.float32), (np.ones(2, np.int32), np.arange(3, dtype=np.int32))
     want = np.asarray(_toy(x, pair, scale=2)[0])
     kernel_cache.call(_toy, "toy", (x, pair), {"scale": 2})
-    (path,) = _files(export_dir)
+    (path,) = _files(kdir)
     good = path.read_bytes()
     if damage == "truncate":
         bad = good[:len(good) // 2]
     elif damage == "flip":
         bad = bytearray(good); bad[-20] ^= 0xFF; bad = bytes(bad)
     elif damage == "other_key":   # a complete file written for another key (e.g. renamed): never used
-        other = _files(export_dir)
+        other = _files(kdir)
         kernel_cache.call(_toy, "toy", (x, pair), {"scale": 5})
-        bad = [p for p in _files(export_dir) if p not in other][0].read_bytes()
+        bad = [p for p in _files(kdir) if p not in other][0].read_bytes()
     else:
-        bad = b"not an export"
+        bad = b"not a kernel"
     path.write_bytes(bad)
     kernel_cache._LOADED.clear()
     got = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 2})
@@ -88,78 +88,93 @@ def test_damaged_file_is_ignored_and_rewritten(export_dir, damage):
     assert path.read_bytes() != bad and kernel_cache._read(path, key) is not None   # written anew, complete
 
 
-def test_stale_source_gives_another_key(export_dir, monkeypatch):
-    """The key holds the package's source hash: after an edit the old files are not read."""
+def test_stale_source_gives_another_key(kdir, monkeypatch):
+    """The key holds the source hash of the kernel's folder: after an edit the old files are not read."""
+    from convsynth_jax.search import beam
+
     x, pair = np.arange(3, dtype=np.float32), (np.ones(1, np.int32), np.arange(2, dtype=np.int32))
-    k0 = kernel_cache.kernel_key("toy", (x, pair), {"scale": 1})
-    monkeypatch.setattr(kernel_cache, "_ENV", [kernel_cache._environment() + " edited"])
-    assert kernel_cache.kernel_key("toy", (x, pair), {"scale": 1}) != k0
-    assert kernel_cache.kernel_key("toy", (x, pair), {"scale": 2}) != kernel_cache.kernel_key("toy", (x, pair), {"scale": 1})
-    assert kernel_cache.kernel_key("toy", (x.astype(np.float64), pair), {"scale": 1}) != k0 or not jax.config.jax_enable_x64
+    k0 = kernel_cache.kernel_key(_toy, "toy", (x, pair), {"scale": 1})
+    assert kernel_cache.kernel_key(_toy, "toy", (x, pair), {"scale": 2}) != k0
+    assert kernel_cache.kernel_key(_toy, "toy", (x[:2], pair), {"scale": 1}) != k0
+    env = dict(kernel_cache._environment(_toy) and kernel_cache._ENV)
+    monkeypatch.setattr(kernel_cache, "_ENV", {f: e + " edited" for f, e in env.items()})
+    assert kernel_cache.kernel_key(_toy, "toy", (x, pair), {"scale": 1}) != k0
+    monkeypatch.setattr(kernel_cache, "_ENV", {})
+    k1 = kernel_cache.kernel_key(beam._beam_kernel, "beam", (x,), {})
+    src = Path(beam.__file__).resolve().parent
+    assert src in kernel_cache._ENV   # the search kernels hash convsynth_jax/search/
+    (Path(kdir).parent / "search").mkdir()
+    for p in src.glob("*.py"):
+        (Path(kdir).parent / "search" / p.name).write_bytes(p.read_bytes())
+    (Path(kdir).parent / "search" / "feasible.py").write_text("# edited\n", "utf-8")
+    fake = type(sys)("fake_search_module"); fake.__file__ = str(Path(kdir).parent / "search" / "beam.py")
+    monkeypatch.setitem(sys.modules, "fake_search_module", fake)
+    edited = partial(lambda: None); edited.__module__ = "fake_search_module"
+    assert kernel_cache.kernel_key(edited, "beam", (x,), {}) != k1
 
 
 @pytest.mark.parametrize("matching", ["paper", "labels"])
-def test_search_through_exports_equals_the_jitted_search(export_dir, matching):
-    """The look-ahead and the beam kernel through their exports: the same bits and the same path as
-    the jitted kernels; after the folder is deleted the search exports them again and still agrees."""
+def test_search_through_stored_kernels_equals_the_jitted_search(kdir, matching):
+    """The look-ahead and the beam kernels through their stored executables: the same bits and the same
+    path as the jitted kernels; after the folder is deleted the search stores them again and agrees."""
     g, audio = hub_graph(np.random.default_rng(3))
     own, par = input_from_clip(audio, "c3", 40)
     cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0,
                        matching=matching)
     cons = build_constraints(own, par, 40, FPS, cfg)
-    kernel_cache.set_export_dir(None)
+    kernel_cache.set_kernel_dir(None)
     want_feas, want_ok = lookahead(g, cons, 24)
     want = beam_search(g, cons, cfg, seed=3)
-    kernel_cache.set_export_dir(export_dir)
+    kernel_cache.set_kernel_dir(kdir)
     for _ in range(2):
         feas, ok = lookahead(g, cons, 24)
         res = beam_search(g, cons, cfg, seed=3)
-        assert {p.name.split("-")[0] for p in _files(export_dir)} == {"feasible", "lookahead_beam"}
+        assert {p.name.split("-")[0] for p in _files(kdir)} == {"feasible", "lookahead_beam"}
         np.testing.assert_array_equal(np.asarray(feas), np.asarray(want_feas))
         assert ok == want_ok and res.success == want.success
         if want.success:
             np.testing.assert_array_equal(res.path, want.path)
             assert res.cost == want.cost
-        shutil.rmtree(export_dir)                # safe to delete
+        shutil.rmtree(kdir)                # safe to delete
         kernel_cache._LOADED.clear()
-    kernel_cache.set_export_dir(None)
+    kernel_cache.set_kernel_dir(None)
     want = beam_search(g, cons, dataclasses.replace(cfg, lookahead=False), seed=3)
-    kernel_cache.set_export_dir(export_dir)
+    kernel_cache.set_kernel_dir(kdir)
     res = beam_search(g, cons, dataclasses.replace(cfg, lookahead=False), seed=3)   # the plain beam kernel
-    assert "beam" in {p.name.split("-")[0] for p in _files(export_dir)}
+    assert "beam" in {p.name.split("-")[0] for p in _files(kdir)}
     assert res.success == want.success and (not want.success or (res.path == want.path).all())
 
 
-def test_task_writes_exports_and_null_turns_them_off(tmp_path):
+def test_task_sets_the_kernel_folder_and_null_turns_it_off(tmp_path):
     from convsynth_jax.config import compose
     from convsynth_jax.tasks.common import enable_compilation_cache
 
     try:
         enable_compilation_cache(compose([f"cache_dir={tmp_path}"]))
-        assert kernel_cache.export_dir() == (tmp_path / "jax_export").resolve()
-        enable_compilation_cache(compose([f"cache_dir={tmp_path}", "jax_cache.export_dir=null"]))
-        assert kernel_cache.export_dir() is None
+        assert kernel_cache.kernel_dir() == (tmp_path / "jax_kernels").resolve()
+        enable_compilation_cache(compose([f"cache_dir={tmp_path}", "jax_cache.kernel_dir=null"]))
+        assert kernel_cache.kernel_dir() is None
         enable_compilation_cache(compose([f"cache_dir={tmp_path}"]))
         enable_compilation_cache(compose([f"cache_dir={tmp_path}", "jax_cache.dir=null"]))
-        assert kernel_cache.export_dir() is None
+        assert kernel_cache.kernel_dir() is None
     finally:
         enable_compilation_cache(compose(["jax_cache.dir=null"]))
 
 
-def test_a_fresh_process_uses_the_stored_export(export_dir):
+def test_a_fresh_process_uses_the_stored_kernel(kdir):
     """Written by this process, read by another one: the same outputs."""
     x, pair = np.arange(7, dtype=np.float32), (np.ones(2, np.int32), np.arange(5, dtype=np.int32))
     want = np.asarray(kernel_cache.call(_toy, "toy", (x, pair), {"scale": 6})[0])
     code = ("import sys, numpy as np; sys.path.insert(0, %r)\n"
             "from convsynth_jax import kernel_cache\nimport test_kernel_cache as t\n"
-            "kernel_cache.set_export_dir(%r)\n"
-            "import jax.export\n"
-            "def boom(*a, **k): raise SystemExit('exported again')\n"
-            "jax.export.export = boom\n"
+            "kernel_cache.set_kernel_dir(%r)\n"
+            "import jax\n"
+            "def boom(*a, **k): raise SystemExit('compiled again')\n"
+            "jax.jit = boom\n"
             "x = np.arange(7, dtype=np.float32); pair = (np.ones(2, np.int32), np.arange(5, dtype=np.int32))\n"
             "np.save(sys.argv[1], np.asarray(kernel_cache.call(t._toy, 'toy', (x, pair), {'scale': 6})[0]))\n"
-            ) % (str(REPO / "tests"), str(export_dir))
-    out = export_dir.parent / "out.npy"
+            ) % (str(REPO / "tests"), str(kdir))
+    out = kdir.parent / "out.npy"
     env = dict(os.environ, PYTHONPATH=str(REPO))
     r = subprocess.run([sys.executable, "-c", code, str(out)], env=env, capture_output=True, text=True, cwd=str(REPO))
     assert r.returncode == 0, r.stderr[-2000:]

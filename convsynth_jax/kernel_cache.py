@@ -6,7 +6,7 @@ consulted only after a kernel has been traced to a jaxpr and lowered to StableHL
 search kernels costs 0.1-0.3 s each in a fresh process. :func:`call` runs a jitted kernel through its
 compiled executable stored by ``jax.experimental.serialize_executable`` instead: the first time a
 kernel is called with given argument shapes, dtypes and static arguments it is lowered and compiled
-(the compilation cache still applies) and the executable is written to
+(afresh: see :func:`_fresh_compilation`) and the executable is written to
 ``<jax_cache.kernel_dir>/<name>-<key>.jaxexe``; a later process loads that file and calls it.
 
 The key hashes the kernel's name, the argument tree, every argument's shape and dtype, the static
@@ -24,6 +24,7 @@ folder (``jax_cache.dir=null`` or ``jax_cache.kernel_dir=null``, and in library 
 """
 from __future__ import annotations
 
+import contextlib
 import hashlib
 import logging
 import pickle
@@ -158,14 +159,43 @@ def call(fun, name: str, args: tuple, static: dict | None = None):
     leaves, tree = jax.tree.flatten(args)
     key = kernel_key(fun, name, args, static)
     f = _LOADED.get(key)
-    if f is None:
-        path = path_of(name, key)
-        f = _read(path, key)
-        if f is None:
-            def flat(*xs):
-                return fun(*jax.tree.unflatten(tree, xs), **static)
+    if f is not None:
+        return f(*leaves)
+    path = path_of(name, key)
 
-            f = jax.jit(flat).lower(*leaves).compile()
-            _write(path, key, f)
-        _LOADED[key] = f
+    def flat(*xs):
+        return fun(*jax.tree.unflatten(tree, xs), **static)
+
+    f = _read(path, key)
+    if f is not None:
+        try:   # a loaded program that cannot run (e.g. written by an older version of this module): never again
+            out = jax.block_until_ready(f(*leaves))
+            _LOADED[key] = f
+            return out
+        except jax.errors.JaxRuntimeError as e:
+            log.warning("%s: the stored kernel does not run (%s); compiling it again", path, str(e)[:200])
+    with _fresh_compilation():
+        f = jax.jit(flat).lower(*leaves).compile()
+    _write(path, key, f)
+    _LOADED[key] = f
     return f(*leaves)
+
+
+@contextlib.contextmanager
+def _fresh_compilation():
+    """Compile without JAX's persistent compilation cache: an executable that was itself loaded from that
+    cache serializes without its compiled functions on the CPU backend (loading it then fails with
+    "Function ... not found"), so a stored kernel is always compiled afresh (once, when it is written)."""
+    from jax._src import compilation_cache
+
+    old = jax.config.jax_compilation_cache_dir
+    if not old:
+        yield
+        return
+    jax.config.update("jax_compilation_cache_dir", None)
+    compilation_cache.reset_cache()
+    try:
+        yield
+    finally:
+        jax.config.update("jax_compilation_cache_dir", old)
+        compilation_cache.reset_cache()

@@ -254,3 +254,27 @@ def test_lookahead_kernel_equals_reference(seed, matching):
     assert not got[:-1].all()                     # the windows constrain something
     if matching == "labels" and seed != 2:
         assert ok                                 # the clip the input was copied from is a path
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+@pytest.mark.parametrize("seed", range(3))
+def test_lookahead_and_beam_in_one_kernel_equal_the_two_kernels(seed, matching):
+    """beam._lookahead_beam_kernel (the look-ahead and the first pruned attempt in one program) gives the
+    same look-ahead bits, solvability and path as feasible's kernel followed by the beam kernel."""
+    from convsynth_jax.search.beam import _beam_search_once, lookahead
+
+    rng = np.random.default_rng(seed)
+    g, audio = hub_graph(rng)
+    own, par = input_from_clip(audio, f"c{seed % 5}", 30)
+    if seed == 2:   # shifted: some placements no longer fit (unsolvable in paper mode)
+        own = own.assign(start=own.start + 0.3, end=own.end + 0.3, peak=own.peak + 0.3)
+    cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, matching=matching)
+    cons = build_constraints(own, par, 30, FPS, cfg)
+    feas, ok = lookahead(g, cons, 24)
+    want = _beam_search_once(g, cons, cfg, seed, 0.05, feas)
+    got, feas2, ok2 = _beam_search_once(g, cons, cfg, seed, 0.05, lookahead=True)
+    np.testing.assert_array_equal(np.asarray(feas2), np.asarray(feas))
+    assert ok2 == ok and got.success == want.success and got.failed_frame == want.failed_frame
+    if want.success:
+        np.testing.assert_array_equal(got.path, want.path)
+        assert got.cost == want.cost

@@ -40,10 +40,11 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import kernel_cache
 from ..errors import ConfigError, GraphError, LabelError
 from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
-from .feasible import feasibility, lookahead_edges
+from .feasible import _feasible_kernel, feasibility, lookahead_edges, num_flags
 from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
 
@@ -343,9 +344,10 @@ def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int
         wide = dataclasses.replace(params, beam_size=int(params.retry_beam_size),
                                    max_candidates=max(int(params.retry_max_candidates), int(params.max_candidates)))
         attempts += [(wide, t) for t in temps]
-    feas = None
+    feas, first = None, 0
     if params.lookahead and constrained(constraints):
-        feas, ok = lookahead(graph, constraints, int(params.max_degree))
+        # the look-ahead and the first attempt in one kernel call (one program to load per graph)
+        res, feas, ok = _beam_search_once(graph, constraints, params, seed, temps[0], lookahead=True)
         if not ok:
             res = _beam_search_once(graph, constraints, params, seed, temps[0], None)
             if not res.success:
@@ -353,10 +355,12 @@ def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int
                                f"{int(params.max_degree)} cheapest edges) meets every constraint of the window")
             res.seconds = time.perf_counter() - t0
             return res
-    for k, (p, temp) in enumerate(attempts):
-        res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp, feas)
-        if res.success:
-            break
+        first = 1
+    if first == 0 or not res.success:
+        for k, (p, temp) in enumerate(attempts[first:], start=first):
+            res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp, feas)
+            if res.success:
+                break
     res.seconds = time.perf_counter() - t0
     return res
 
@@ -370,10 +374,16 @@ def _check_sizes(params: SearchParams):
 
 
 def _beam_search_once(graph, constraints: Constraints, params: SearchParams, seed: int,
-                      temperature: float, feas=None) -> SearchResult:
+                      temperature: float, feas=None, lookahead: bool = False):
+    """One beam search; ``feas``: a look-ahead to prune with (None: none). ``lookahead``: compute the
+    look-ahead in the same kernel call and prune with it (:func:`_lookahead_beam_kernel`); then returns
+    (result, feas, solvable)."""
     t0 = time.perf_counter()
     max_deg, beam, budget = _check_sizes(params)
     prep = _prepare(graph, max_deg)
+    if lookahead and prep.max_degree > 255:
+        raise ConfigError(f"search.lookahead counts edges in bytes: search.max_degree must be <= 255 "
+                          f"(got {max_deg})")
     dev = prep.device
     c = constraints
     paper = c.paper is not None
@@ -383,9 +393,23 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     reqs, pw, reset, check, paper_arrs = padded_inputs(c)
     paper_dev = prep.paper_device if paper else None
     prune = feas is not None
-    out = _beam_kernel(prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T),
-                       np.int32(graph.num_states), paper_dev, paper_arrs, feas if prune else np.zeros((1, 1), np.uint8),
-                       beam=B, M=M, N=N, H=H, D=prep.max_degree, paper=paper, prune=prune)
+    static = {"beam": B, "M": M, "N": N, "H": H, "D": prep.max_degree, "paper": paper}
+    args = (prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T), np.int32(graph.num_states),
+            paper_dev, paper_arrs)
+    if lookahead:
+        edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
+        feas, ok, out = kernel_cache.call(_lookahead_beam_kernel, "lookahead_beam",
+                                          (edges, prep.paper_device[1], *args), {**static, "F": num_flags(c)})
+        res = _result(prep, c, out, t0)
+        return res, feas, bool(ok)
+    out = kernel_cache.call(_beam_kernel, "beam", (*args, feas if prune else np.zeros((1, 1), np.uint8)),
+                            {**static, "prune": prune})
+    return _result(prep, c, out, t0)
+
+
+def _result(prep, c: Constraints, out, t0) -> SearchResult:
+    """The search result of a beam kernel's (path, ranks, alive) outputs."""
+    T = c.num_frames
     path, rank, alive_any = (np.asarray(x)[:T] for x in out)
     if not alive_any.all():
         fail = int(np.argmin(alive_any))
@@ -398,6 +422,22 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     return SearchResult(True, path, float(edge_cost.sum()), int(edge_syn.sum()), c.total, c.total, None, None,
                         time.perf_counter() - t0, "beam", [float(x) for x in edge_cost[edge_syn]],
                         (np.flatnonzero(edge_syn) + 1).tolist())
+
+
+@partial(jax.jit, static_argnames=("beam", "M", "N", "H", "D", "paper", "F"))
+def _lookahead_beam_kernel(edges, info, key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset,
+                           check, temp, num_frames, num_states, paper_dev, paper_arrs, beam: int, M: int, N: int,
+                           H: int, D: int, paper: bool, F: int):
+    """The look-ahead (``feasible._feasible_kernel``: ``edges`` its :class:`~.feasible.LookaheadEdges`,
+    ``info`` the segment info (S, 5)) and the beam pruned by it (:func:`_beam_kernel`) in one program:
+    returns (feas, solvable, (path, ranks, alive)). The same computations as the two kernels called
+    one after the other (a fresh process loads one compiled program instead of two)."""
+    feas, ok = _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states,
+                                F=F, paper=paper)
+    out = _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset, check, temp,
+                       num_frames, num_states, paper_dev, paper_arrs, feas, beam=beam, M=M, N=N, H=H, D=D,
+                       paper=paper, prune=True)
+    return feas, ok, out
 
 
 @partial(jax.jit, static_argnames=("S", "N", "M", "Tp"))

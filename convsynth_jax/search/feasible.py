@@ -35,6 +35,7 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
+from .. import kernel_cache
 from .constraints import Constraints, is_peak_state, label_ok, paper_channel_step, requirement_arrays
 
 
@@ -125,7 +126,9 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     Per frame t, with G[t] as one byte of F bits per state:
 
     * arriving in y at frame t with flags f is completable, A[y, f] = label_ok_t(y) and ok_t(y, f) and
-      G[t][y, f'_t(y, f)]. For ``labels`` ok/f' depend on y only through its peak flag (elementwise).
+      G[t][y, f'_t(y, f)]; label_ok of every frame is computed before the scan ((Tp, S) bool: one
+      wide elementwise pass is cheaper than Tp narrow ones). For ``labels`` ok/f' depend on y only
+      through its peak flag (elementwise).
       For ``paper`` they depend on y only where y enters a source segment (offset 0: the ``entry``
       states); for every other state the channel rule is the frame's: f' = f and not reset, ok = not
       check or f'. So A is computed for all states with that rule and recomputed with
@@ -146,9 +149,11 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         two = jnp.array([[False, True]])                                  # a channel's flag values
         no = jnp.zeros((entry.shape[0], 1), bool)
     all_ones = u8((1 << F) - 1)
+    # the label rule of every frame at once (Tp, S): one wide elementwise pass instead of one per frame
+    labs = label_ok(own_y[None, :], par_y[None, :], tuple(r[:, None] for r in reqs))
 
     def step(G_next, t):
-        lab = label_ok(own_y, par_y, tuple(r[t] for r in reqs))            # (S,)
+        lab = labs[t]                                                      # (S,)
         A = jnp.zeros(S, u8)
         if paper:
             oa, pa = tuple(a[t] for a in own_a), tuple(a[t] for a in par_a)
@@ -197,8 +202,10 @@ def feasibility(prep, constraints: Constraints, padded_inputs):
     c = constraints
     reqs, pw, reset, check, paper_arrs = padded_inputs
     edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
-    return _feasible_kernel(edges, prep.device[4], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
-                            np.int32(c.num_frames), np.int32(prep.num_states), F=num_flags(c), paper=c.paper is not None)
+    return kernel_cache.call(_feasible_kernel, "feasible",
+                             (edges, prep.device[4], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
+                              np.int32(c.num_frames), np.int32(prep.num_states)),
+                             {"F": num_flags(c), "paper": c.paper is not None})
 
 
 def solvable(bits0, start_ok, flag0) -> bool:

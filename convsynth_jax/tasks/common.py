@@ -17,13 +17,19 @@ def enable_compilation_cache(cfg) -> Path | None:
     compiled executables and is safe to delete (the next run recompiles). Entries are written for
     kernels that took at least ``jax_cache.min_compile_time_s`` to compile (default 0: every kernel,
     since on CPU many small ones add up) and are at least ``jax_cache.min_entry_size_bytes`` large.
+    The search kernels' executables are also stored whole in ``jax_cache.kernel_dir`` (default
+    ``${cache_dir}/jax_kernels``; :mod:`convsynth_jax.kernel_cache`), so a second run skips their
+    tracing and lowering too; null turns that off, and so does ``jax_cache.dir=null``.
     Returns the directory (or None when disabled)."""
     import jax
+
+    from .. import kernel_cache
 
     node = cfg.get("jax_cache") if hasattr(cfg, "get") else None
     path = node.get("dir") if node is not None else None
     if not path:
         _set_cache_dir(jax, None)  # off, also when an earlier task of this process turned it on
+        kernel_cache.set_kernel_dir(None)
         return None
     path = Path(str(path)).expanduser().resolve()
     try:
@@ -33,6 +39,8 @@ def enable_compilation_cache(cfg) -> Path | None:
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(node.get("min_compile_time_s", 0.0)))
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", int(node.get("min_entry_size_bytes", 0)))
     _set_cache_dir(jax, str(path))
+    kdir = node.get("kernel_dir")
+    kernel_cache.set_kernel_dir(Path(str(kdir)).expanduser().resolve() if kdir else None)
     log.debug("jax compilation cache: %s", path)
     return path
 

@@ -1,0 +1,201 @@
+"""Compiled search kernels kept between runs (issue #15, part 3): a second run skips JAX's tracing
+and lowering, not only the compilation.
+
+JAX's persistent compilation cache (``jax_cache.dir``) stores compiled executables, but it is
+consulted only after a kernel has been traced to a jaxpr and lowered to StableHLO, which for the
+search kernels costs 0.1-0.3 s each in a fresh process. :func:`call` runs a jitted kernel through its
+compiled executable stored by ``jax.experimental.serialize_executable`` instead: the first time a
+kernel is called with given argument shapes, dtypes and static arguments it is lowered and compiled
+(afresh: see :func:`_fresh_compilation`) and the executable is written to
+``<jax_cache.kernel_dir>/<name>-<key>.jaxexe``; a later process loads that file and calls it.
+
+The key hashes the kernel's name, the argument tree, every argument's shape and dtype, the static
+arguments, the package version and the source of every module in the kernel's folder (for the
+search kernels ``convsynth_jax/search/``, where their helpers live) and of this module, the JAX and jaxlib
+versions, the backend, the machine and its CPU feature flags, and the JAX settings that change what a
+kernel computes (64-bit mode, the PRNG implementation). So a file is never used for other code,
+other shapes or another machine: an edited source file gives new keys (the old files are simply not
+read again). A file holds a magic line, the key and a SHA-256 of its payload; one that does not check
+out (truncated, corrupt, another key) is ignored and written anew, never loaded. Like JAX's cache the
+folder holds executable code: keep it where only you can write. It is safe to delete. Writes are
+atomic (temporary file, then rename). Within a process the loaded kernel is kept per key. Without a
+folder (``jax_cache.dir=null`` or ``jax_cache.kernel_dir=null``, and in library use unless
+:func:`set_kernel_dir` was called) :func:`call` calls the jitted kernel directly.
+"""
+from __future__ import annotations
+
+import contextlib
+import hashlib
+import logging
+import pickle
+import sys
+from pathlib import Path
+
+import jax
+import numpy as np
+
+from .utils import atomic_path
+
+log = logging.getLogger(__name__)
+
+MAGIC = b"convsynth-jax-executable 1\n"
+SUFFIX = ".jaxexe"
+
+_DIR: Path | None = None
+_LOADED: dict = {}      # key -> the loaded compiled kernel (one per process and key)
+_ENV: dict = {}         # kernel folder -> the environment part of the key (once per process)
+
+
+def set_kernel_dir(path: str | Path | None) -> None:
+    """Store compiled kernels under ``path`` (created when the first one is written); None: off."""
+    global _DIR
+    _DIR = None if path is None else Path(path)
+
+
+def kernel_dir() -> Path | None:
+    return _DIR
+
+
+def _cpu_flags() -> str:
+    """The machine and its CPU feature flags (an executable compiled for one CPU may not run on another)."""
+    import platform
+
+    try:
+        with open("/proc/cpuinfo") as f:
+            flags = next((line for line in f if line.startswith(("flags", "Features"))), "")
+    except OSError:
+        flags = platform.processor()
+    return platform.machine() + " " + hashlib.sha256(flags.encode()).hexdigest()
+
+
+def _environment(fun) -> str:
+    """The source of the kernel's package folder (every ``.py`` beside the module that defines ``fun``,
+    where a kernel's helpers live) and of this module, the package version, JAX/jaxlib versions,
+    backend, machine, and the settings kernels depend on."""
+    mod = sys.modules.get(getattr(fun, "__module__", None) or "")
+    folder = Path(mod.__file__).resolve().parent if getattr(mod, "__file__", None) else None
+    if folder not in _ENV:
+        import jaxlib
+
+        from . import __version__
+
+        h = hashlib.sha256()
+        files = sorted(folder.glob("*.py")) if folder is not None else []
+        for p in [*files, Path(__file__).resolve()]:
+            h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
+        _ENV[folder] = repr((__version__, h.hexdigest(), jax.__version__, jaxlib.__version__, jax.default_backend(),
+                             _cpu_flags(), bool(jax.config.jax_enable_x64), str(jax.config.jax_default_prng_impl),
+                             bool(jax.config.jax_threefry_partitionable)))
+    return _ENV[folder]
+
+
+def _dtype(x):
+    d = getattr(x, "dtype", None)
+    return np.dtype(d) if d is not None else np.result_type(x)
+
+
+def kernel_key(fun, name: str, args: tuple, static: dict) -> str:
+    """The file key of kernel ``fun`` named ``name`` called with ``args`` (a pytree of arrays) and
+    ``static`` arguments."""
+    leaves, tree = jax.tree.flatten(args)
+    avals = tuple((tuple(np.shape(x)), _dtype(x).str) for x in leaves)
+    text = repr((name, str(tree), avals, sorted(static.items()), _environment(fun)))
+    return hashlib.sha256(text.encode()).hexdigest()[:40]
+
+
+def path_of(name: str, key: str) -> Path:
+    return _DIR / f"{name}-{key}{SUFFIX}"
+
+
+def _read(path: Path, key: str):
+    """The compiled kernel stored at ``path`` for ``key``, or None when absent or not exactly what was
+    written."""
+    from jax.experimental import serialize_executable
+
+    try:
+        data = path.read_bytes()
+    except FileNotFoundError:
+        return None
+    except OSError as e:
+        log.warning("%s: cannot read the stored kernel (%s); compiling it again", path, e)
+        return None
+    head = MAGIC + key.encode() + b"\n"
+    digest = data[len(head):len(head) + 64]
+    payload = data[len(head) + 65:]
+    if (not data.startswith(head) or data[len(head) + 64:len(head) + 65] != b"\n"
+            or hashlib.sha256(payload).hexdigest().encode() != digest):
+        log.warning("%s: not a complete stored kernel for this key (corrupt or truncated); compiling it again", path)
+        return None
+    try:
+        return serialize_executable.deserialize_and_load(*pickle.loads(payload))
+    except Exception as e:  # noqa: BLE001 - a checked file that this JAX cannot load: compile again
+        log.warning("%s: cannot load the stored kernel (%s); compiling it again", path, e)
+        return None
+
+
+def _write(path: Path, key: str, compiled) -> None:
+    from jax.experimental import serialize_executable
+
+    try:
+        payload = pickle.dumps(serialize_executable.serialize(compiled))
+    except Exception as e:  # noqa: BLE001 - a backend that cannot serialize: run without storing
+        log.warning("%s: cannot serialize the compiled kernel (%s); not stored", path, e)
+        return
+    try:
+        with atomic_path(path) as tmp:
+            tmp.write_bytes(MAGIC + key.encode() + b"\n" + hashlib.sha256(payload).hexdigest().encode() + b"\n"
+                            + payload)
+    except OSError as e:
+        log.warning("%s: cannot store the compiled kernel (%s); the next run compiles it again", path, e)
+
+
+def call(fun, name: str, args: tuple, static: dict | None = None):
+    """``fun(*args, **static)`` for a jitted ``fun``, through its stored executable when a folder is set
+    (module docstring). ``args``: positional arguments (pytrees of arrays; None allowed); ``static``: the
+    static keyword arguments (hashable). The outputs are the same arrays as the jitted call's."""
+    static = dict(static or {})
+    if _DIR is None:
+        return fun(*args, **static)
+    leaves, tree = jax.tree.flatten(args)
+    key = kernel_key(fun, name, args, static)
+    f = _LOADED.get(key)
+    if f is not None:
+        return f(*leaves)
+    path = path_of(name, key)
+
+    def flat(*xs):
+        return fun(*jax.tree.unflatten(tree, xs), **static)
+
+    f = _read(path, key)
+    if f is not None:
+        try:   # a loaded program that cannot run (e.g. written by an older version of this module): never again
+            out = jax.block_until_ready(f(*leaves))
+            _LOADED[key] = f
+            return out
+        except jax.errors.JaxRuntimeError as e:
+            log.warning("%s: the stored kernel does not run (%s); compiling it again", path, str(e)[:200])
+    with _fresh_compilation():
+        f = jax.jit(flat).lower(*leaves).compile()
+    _write(path, key, f)
+    _LOADED[key] = f
+    return f(*leaves)
+
+
+@contextlib.contextmanager
+def _fresh_compilation():
+    """Compile without JAX's persistent compilation cache: an executable that was itself loaded from that
+    cache serializes without its compiled functions on the CPU backend (loading it then fails with
+    "Function ... not found"), so a stored kernel is always compiled afresh (once, when it is written)."""
+    from jax._src import compilation_cache
+
+    old = jax.config.jax_compilation_cache_dir
+    if not old:
+        yield
+        return
+    jax.config.update("jax_compilation_cache_dir", None)
+    compilation_cache.reset_cache()
+    try:
+        yield
+    finally:
+        jax.config.update("jax_compilation_cache_dir", old)
+        compilation_cache.reset_cache()

@@ -278,3 +278,32 @@ def test_lookahead_and_beam_in_one_kernel_equal_the_two_kernels(seed, matching):
     if want.success:
         np.testing.assert_array_equal(got.path, want.path)
         assert got.cost == want.cost
+
+
+def test_edge_or_is_a_bitwise_or_over_each_states_edges():
+    """The look-ahead's OR over a state's listed edges (feasible.edge_or) against np.bitwise_or.at:
+    flag sets that are not nested (own entry flag only 0b1010, partner flag only 0b1100: 0b1110; a
+    segment_max over the bytes, used before, gave 0b1100), random bytes of 4 and 2 bits, and a state
+    with the most edges the beam allows (255) all carrying every bit."""
+    import jax.numpy as jnp
+
+    from convsynth_jax.search.feasible import edge_or
+
+    S = 300
+    A = np.zeros(S, np.uint8)
+    A[1], A[2] = 0b1010, 0b1100
+    src, tgt = [0, 0], [1, 2]
+    A[3] = 0b1111
+    src += [4] * 255; tgt += [3] * 255
+    rng = np.random.default_rng(0)
+    A[10:] = rng.integers(0, 16, S - 10)
+    extra_src = np.sort(rng.integers(5, S, 2000)); extra_tgt = rng.integers(0, S, 2000)
+    src = np.concatenate([src, extra_src]).astype(np.int32); tgt = np.concatenate([tgt, extra_tgt]).astype(np.int32)
+    for F in (4, 2):
+        a = A & np.uint8((1 << F) - 1)
+        want = np.zeros(S, np.uint8)
+        np.bitwise_or.at(want, src, a[tgt])
+        got = np.asarray(edge_or(jnp.asarray(a), jnp.asarray(src), jnp.asarray(tgt), S, F))
+        np.testing.assert_array_equal(got, want)
+        if F == 4:
+            assert got[0] == 0b1110 and got[4] == 0b1111

@@ -21,7 +21,7 @@ window (short of the beam's candidate budget dropping every completable edge of 
 
 :func:`feasibility` is the JAX kernel (a reverse ``lax.scan`` over bytes of F bits per state; per
 frame the arrival rule, computed per state only where it depends on the state, and the OR over the
-kept edges as a shift for the original transitions plus a sorted ``segment_max`` over the others,
+kept edges as a shift for the original transitions plus a sorted per-bit OR over the others (:func:`edge_or`),
 the statically forbidden ones dropped on the host: :class:`LookaheadEdges`);
 :func:`reference_feasibility` is the slow, obvious version (Python sets, one edge at a time) the
 tests compare it with. Both return (T, S) uint8, bit f of [t, s] set iff (s, f) is in G[t].
@@ -115,6 +115,23 @@ def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np
     return LookaheadEdges(has_next, src_p, tgt_p, ent_p)
 
 
+def edge_or(A, src, tgt, S: int, F: int):
+    """Bitwise OR of the bytes A[tgt[e]] over the edges e of each source state: (S,) uint8.
+
+    A: (S,) uint8 of F <= 4 flag bits; src (E,) int32 sorted, tgt (E,) int32. Each bit goes to its own
+    byte lane of a uint32 and the lanes are summed per source (``segment_sum``), so a lane counts the
+    edges whose target has that bit: exact while no state has more than 255 listed edges (the beam
+    rejects ``search.max_degree`` > 255 with the look-ahead). A ``segment_max`` over the bytes, used
+    before, is an OR only when the sets are nested: targets completable with the own entry flag only
+    and with the partner flag only (0b1010 and 0b1100) gave 0b1100, dropping a completable flag."""
+    lanes = jnp.asarray([1 << (8 * b) for b in range(F)], jnp.uint32)
+    bits = ((A[:, None] >> jnp.arange(F, dtype=jnp.uint8)) & 1).astype(jnp.uint32)       # (S, F)
+    spread = jnp.sum(bits * lanes, axis=1)                                                # (S,)
+    counts = jax.ops.segment_sum(spread[tgt], src, num_segments=S, indices_are_sorted=True)
+    hit = ((counts[:, None] >> (8 * jnp.arange(F, dtype=jnp.uint32))) & 0xFF) != 0        # (S, F)
+    return jnp.sum(hit.astype(jnp.uint8) << jnp.arange(F, dtype=jnp.uint8), axis=1).astype(jnp.uint8)
+
+
 @partial(jax.jit, static_argnames=("F", "paper"))
 def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states, F: int,
                      paper: bool):
@@ -134,7 +151,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
       check or f'. So A is computed for all states with that rule and recomputed with
       ``paper_channel_step`` for the entry states only;
     * G[t-1][x] = A[x + 1] where x has its original transition (a shift), OR the max of the bytes
-      A[y] over x's other edges (``segment_max`` over the list sorted by source)."""
+      A[y] over x's other edges (:func:`edge_or` over the list sorted by source)."""
     from .beam import start_rule, unpack_code
 
     has_next, src, tgt, entry = edges
@@ -183,7 +200,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         A = jnp.where(lab, A, u8(0)).at[last].set(0)                      # the padding state of missing edges
         # materialized once per frame: else XLA may fuse the rule into the edge gathers (per edge)
         A = jax.lax.optimization_barrier(A)
-        G = jax.ops.segment_max(A[tgt], src, num_segments=S, indices_are_sorted=True)
+        G = edge_or(A, src, tgt, S, F)
         G = G | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
         G = jnp.where(t - 1 >= num_frames - 1, all_ones, G)
         return G, G

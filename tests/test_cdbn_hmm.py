@@ -258,3 +258,96 @@ def test_float32_emissions_match_the_float64_reference(offset):
                                           jnp.asarray(covs, jnp.float32)))
     assert got.shape == (500, K) and np.all(np.isfinite(got))
     assert np.max(np.abs(got - want) / np.maximum(1.0, np.abs(want))) < 5e-5
+
+
+def _packed_terms(initial, transitions, log_liks, cons, T, rows, dtype):
+    """Sequences (log emissions (T_i, K) and constraints) packed back to back into ``rows`` rows of T
+    frames (resets at each start, padding after) -> the batch's TransitionTerms, flattened."""
+    import jax
+    import jax.numpy as jnp
+
+    from convsynth_jax.cdbn.hmm import _smoother
+
+    K = log_liks[0].shape[1]
+    ll = np.zeros((rows, T, K))
+    cc = np.zeros((rows, T), np.int32)
+    resets = np.zeros((rows, T), bool)
+    resets[:, 0] = True
+    lengths = np.zeros(rows, np.int32)
+    r = 0
+    for le, c in zip(log_liks, cons):
+        if lengths[r] + len(le) > T:
+            r += 1
+        a = lengths[r]
+        ll[r, a:a + len(le)], cc[r, a:a + len(le)], resets[r, a] = le, c, True
+        lengths[r] += len(le)
+    ll[np.arange(T)[None, :] >= lengths[:, None]] = 7.0      # padding frames: arbitrary emissions
+    f = jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, 0))
+    _, _, _, terms = f(jnp.asarray(initial, dtype), jnp.asarray(transitions, dtype), jnp.asarray(ll, dtype),
+                       jnp.asarray(cc), jnp.asarray(lengths), jnp.asarray(resets))
+    return jax.tree_util.tree_map(lambda a: a.reshape((rows * T,) + a.shape[2:]), terms)
+
+
+@pytest.mark.parametrize("x64", [False, True])
+@pytest.mark.parametrize("fast_span", [None, -np.inf])
+def test_expected_transitions_match_reference(x64, fast_span):
+    """hmm.expected_transitions (after the scans, over the flattened frames of a packed batch) against
+    the float64 reference's xi summed over the sequences: a sparse 5-state model with 3 constraints
+    padded with 3 inert states whose emissions are the best of all (so that unreachable states carry
+    the largest beta), five sequences packed into two rows with resets (one of a single frame), an
+    all-padding row; by the factorized sum (default) and by the exact log-space sum for every frame
+    (fast_span=-inf). Structural zeros and the inert states get exactly 0. By default every frame here
+    takes the factorized sum (the result equals fast_span=inf's), unreachable inert states included."""
+    import contextlib
+
+    import jax.numpy as jnp
+
+    from convsynth_jax.cdbn.hmm import expected_transitions, pad_states
+
+    rng = np.random.default_rng(8)
+    model = random_model(rng, K=5, C=3)
+    seqs, cons = zip(*[sample(rng, model, T) for T in (70, 25, 40, 9, 1)])
+    les = [ref.log_emissions(x, model.means, model.covariances, range(4)) for x in seqs]
+    want = sum(ref.forward_backward(model.initial, model.transitions, le, c)[3] for le, c in zip(les, cons))
+    _, _, initial, trans = pad_states(model.means, model.covariances, model.initial, model.transitions)
+    inert = [np.concatenate([le, np.full((len(le), 3), le.max() + 50.0)], axis=1) for le in les]
+    with enable_x64() if x64 else contextlib.nullcontext():
+        dtype = jnp.float64 if x64 else jnp.float32
+        terms = _packed_terms(initial, trans, inert, cons, 96, 3, dtype)
+        kw = {} if fast_span is None else {"fast_span": fast_span}
+        got = np.asarray(expected_transitions(terms, jnp.asarray(trans, dtype), **kw), np.float64)
+        if fast_span is None:
+            fast = np.asarray(expected_transitions(terms, jnp.asarray(trans, dtype), fast_span=np.inf), np.float64)
+            np.testing.assert_array_equal(got, fast)
+    assert got.shape == (3, 8, 8)
+    assert np.all(got[trans == 0] == 0.0) and np.all(got[:, 5:] == 0.0) and np.all(got[:, :, 5:] == 0.0)
+    if x64:
+        np.testing.assert_allclose(got[:, :5, :5], want, atol=ref.POSTERIOR_ATOL)
+    else:
+        np.testing.assert_allclose(got[:, :5, :5], want, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
+
+
+def test_expected_transitions_across_a_structural_zero_float32():
+    """alpha_{t-1} on state 0 and gamma_t on state 3 with a structural zero 0 -> 3: the transition into
+    t is 2 -> 3 with alpha_{t-1,2} = e^-300 relative (or 0 -> 1 with b_1 = e^-300), which no float32
+    factorization holds (s_t ~ 300). Those frames take the exact log-space sum: float32 counts equal
+    the float64 reference's, packed with resets and padding; the factorized sum alone
+    (fast_span=inf) loses the 2 -> 3 counts."""
+    import jax.numpy as jnp
+
+    from convsynth_jax.cdbn.hmm import expected_transitions
+
+    A = np.array([[[0.5, 0.5, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]]])
+    initial = np.array([[0.5, 0, 0.5, 0]])
+    f0 = [0.0, -1000.0, -300.0, -1000.0]          # state 0 best, state 2 e^-300 below
+    f1 = [-1000.0, -300.0, -1000.0, 0.0]          # state 3 best (unreachable from 0), state 1 e^-300 below
+    les = [np.array([f0, f1]), np.array([f0, f1, f1]), np.array([f0, f0, f1, f1])]
+    cons = [np.zeros(len(le), np.int32) for le in les]
+    want = sum(ref.forward_backward(initial, A, le, c)[3] for le, c in zip(les, cons))
+    assert want[0, 2, 3] > 0.4 and want[0, 0, 1] > 0.4      # both routes carry real mass
+    terms = _packed_terms(initial, A, les, cons, 8, 3, jnp.float32)
+    got = np.asarray(expected_transitions(terms, jnp.asarray(A, jnp.float32)), np.float64)
+    np.testing.assert_allclose(got, want, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
+    assert np.all(got[A == 0] == 0.0)
+    fast_only = np.asarray(expected_transitions(terms, jnp.asarray(A, jnp.float32), fast_span=np.inf), np.float64)
+    assert not np.allclose(fast_only, want, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)

@@ -1,5 +1,6 @@
 """HMM inference for the (constrained) DBN in JAX: forward filter, backward pass, smoother, expected
-transition counts and Viterbi, each a ``lax.scan`` over a named ``_step`` (dynamax style).
+transition counts and Viterbi; the recursions are ``lax.scan`` over a named ``_step`` (dynamax
+style), the expected transition counts are summed after them, in parallel over frames.
 
 The constraint sequence c_t selects the transition matrix at every frame (Eq. 5:
 a^k_ij = P(q_t = j | q_{t-1} = i, C_t = k)) and the initial distribution at the first frame.
@@ -7,8 +8,10 @@ Everything runs in log space (log-sum-exp over the previous state at every frame
 of the transition matrices are -inf and stay exact, and no frame underflows even when the emissions
 of every reachable state are thousands of nats below an unreachable one (a scaled float32
 recursion, tried first, failed exactly there on concatenated held-out turns). The forward message is
-renormalized per frame (the normalizers sum to the log-likelihood); the backward message is shifted
-per frame (it is defined up to a per-frame factor); expected transitions are normalized per frame.
+renormalized per frame (the normalizers sum to the log-likelihood); the backward message is scaled
+per frame so that sum_i alpha_{t-1,i} beta_{t-1,i} = 1 (it is defined up to a per-frame factor; this
+one keeps the states that alpha can reach near 0 even when unreachable ones, such as the inert
+padding states, have far larger beta), and that factor normalizes the expected transitions.
 
 Primitives work on one sequence of ``T`` frames of which the first ``length`` are valid (the rest
 is padding, so that batches of sequences share one compiled shape); batch them with ``jax.vmap``.
@@ -105,43 +108,116 @@ def hmm_filter(initial, transitions, log_lik, constraints, length, resets=None):
     return ll, jnp.exp(log_alpha), log_alpha
 
 
-def _backward_step(carry, inp, log_transitions):
-    log_beta, xi_sum = carry
-    loglik_t, c_t, valid_t, start_t, log_alpha_prev = inp
-    valid_t = valid_t & ~start_t       # no transition into the first frame of a (packed) sequence
-    m = log_transitions[c_t] + (loglik_t + log_beta)[None, :]          # (K, K): i -> j
-    row = jnp.max(m, axis=1)
-    row = jnp.where(jnp.isfinite(row), row, 0.0)
-    e = jnp.exp(m - row[:, None])                                       # the one K x K exp per frame
-    log_beta_prev = row + jnp.log(jnp.sum(e, axis=1))
-    # xi_ij = alpha_i a_ij b_j beta_j / sum(...) reuses e: its normalizer is lse_i(alpha_i + beta_prev_i)
-    norm = _lse(log_alpha_prev + log_beta_prev, axis=0)
-    scale = jnp.exp(jnp.where(jnp.isfinite(log_alpha_prev), log_alpha_prev + row - norm, -jnp.inf))
-    xi = jnp.where(valid_t, e * scale[:, None], 0.0)
-    mx = jnp.max(log_beta_prev)
-    log_beta_prev = log_beta_prev - jnp.where(jnp.isfinite(mx), mx, 0.0)   # per-frame factor is free
-    log_beta_prev = jnp.where(valid_t, log_beta_prev, jnp.zeros_like(log_beta_prev))
-    xi_sum = xi_sum.at[c_t].add(xi)
-    return (log_beta_prev, xi_sum), log_beta_prev
+def _backward_step(log_beta, inp, log_transitions):
+    loglik_t, c_t, into_t, log_alpha_prev = inp   # into_t: a transition into frame t exists (valid, not a start)
+    ub = _lse(log_transitions[c_t] + (loglik_t + log_beta)[None, :], axis=1)   # beta_{t-1,i} = sum_j a_ij b_j beta_j
+    norm = _lse(log_alpha_prev + ub, axis=0)          # sum_ij alpha_{t-1,i} a_ij b_j beta_j: the transition's normalizer
+    norm = jnp.where(into_t & jnp.isfinite(norm), norm, 0.0)
+    log_beta_prev = jnp.where(into_t, ub - norm, 0.0)   # scaled so that sum_i alpha_{t-1,i} beta_{t-1,i} = 1
+    return log_beta_prev, (log_beta_prev, norm)
+
+
+class TransitionTerms(NamedTuple):
+    """What the expected transition into frame t needs, per frame (N frames: one sequence, or a batch
+    flattened): log_alpha_prev (N, K) log alpha_{t-1} (filtered); log_obs (N, K) log b_j(x_t) +
+    log beta_tj; log_norm (N,) log sum_ij alpha_{t-1,i} a^c_ij b_j(x_t) beta_tj (beta in the same
+    per-frame scale); log_gamma (N, K) log P(q_t = j | x); constraints (N,) c_t; into (N,) bool,
+    frames with a transition into them (valid and not the first frame of a sequence)."""
+
+    log_alpha_prev: jnp.ndarray
+    log_obs: jnp.ndarray
+    log_norm: jnp.ndarray
+    log_gamma: jnp.ndarray
+    constraints: jnp.ndarray
+    into: jnp.ndarray
+
+
+XI_FAST_SPAN = 60.0     # largest log factor s_t of a frame summed by the matrix product
+XI_NEGLIGIBLE = -40.0   # log P(q_t = j | x) below which state j's transitions into t are left out of it
+XI_EXACT_BLOCK = 64     # frames per block of the exact log-space sum
+
+
+def expected_transitions(terms: TransitionTerms, transitions, fast_span: float = XI_FAST_SPAN):
+    """Expected transition counts per constraint, summed in parallel over frames after the scans:
+    xi_sum[c]_ij = sum over frames t with c_t = c and into_t of
+    exp(log_alpha_prev_ti + log a^c_ij + log_obs_tj - log_norm_t)   (= P(q_{t-1}=i, q_t=j | x)).
+    terms: :class:`TransitionTerms` of N frames; transitions: (C, K, K) (zeros: structural);
+    fast_span: see below (-inf: every frame by the exact log-space sum) -> (C, K, K).
+
+    Most frames factorize: xi_t = a^c * (P_t R_t^T) with P_ti = alpha_{t-1,i} (<= 1) and
+    R_tj = b_j beta_tj / norm_t = gamma_tj / pred_tj, so the sum over frames is one matrix product
+    per constraint, with 2K exponentials per frame instead of K x K. Scaled as e^{s_t/2} P_t and
+    e^{-s_t/2} R_t, s_t = max_i log P_ti + max_j log R_tj, both factors lie in [0, e^{s_t/2}] and
+    every term above e^{-30} needs factors >= e^{-s_t/2-30}: for s_t <= fast_span (60) nothing that
+    matters under- or overflows in float32. States j with gamma_tj < e^-40 (all their xi_tij are
+    smaller) are left out of R_t, so that states that alpha_{t-1} cannot reach (pred_tj = 0, e.g. the
+    inert padding states) do not set s_t. A larger s_t means that alpha_{t-1} and gamma_t sit on
+    states with (near) structural zeros between them (a sparse CDBN on concatenated turns); those
+    frames, usually none, are summed exactly in log space, XI_EXACT_BLOCK at a time (a loop of zero
+    iterations when there are none). Structural zeros get exactly 0 either way."""
+    C = transitions.shape[0]
+    la, constraints, into = terms.log_alpha_prev, terms.constraints, terms.into
+    dt = la.dtype
+    log_r = jnp.where(terms.log_gamma >= XI_NEGLIGIBLE, terms.log_obs - terms.log_norm[:, None], -jnp.inf)  # (N, K)
+    m1 = jnp.max(la, axis=1)
+    m1 = jnp.where(jnp.isfinite(m1), m1, 0.0)
+    m2 = jnp.max(log_r, axis=1)
+    m2 = jnp.where(jnp.isfinite(m2), m2, 0.0)
+    span = m1 + m2                                                              # (N,) s_t
+    fast = into & (span <= fast_span)
+    h = jnp.where(fast, 0.5 * span, 0.0)[:, None]
+    p = jnp.where(fast[:, None], jnp.exp(la - m1[:, None] + h), 0.0)          # (N, K) e^{s/2} P_t / max P_t
+    r = jnp.exp(log_r - m2[:, None] + h)                                        # (N, K) e^{s/2} R_t / max R_t
+    s = jnp.stack([jnp.where((constraints == c)[:, None], p, 0.0).T @ r for c in range(C)])   # (C, K, K)
+    xi = jnp.where(transitions > 0, transitions * s, 0.0)
+    # the other frames exactly, in blocks of M gathered by their rank among them
+    slow = into & ~fast
+    rank = jnp.cumsum(slow) - 1
+    n_slow = rank[-1] + 1
+    M = XI_EXACT_BLOCK
+    log_a = jnp.log(transitions)
+    frame = jnp.arange(slow.shape[0])
+
+    def block(k, acc):
+        here = slow & (rank // M == k)
+        idx = jnp.zeros(M, frame.dtype).at[jnp.where(here, rank - k * M, M)].set(frame, mode="drop")   # (M,)
+        ok = k * M + jnp.arange(M) < n_slow
+        c = constraints[idx]
+        e = jnp.exp(la[idx][:, :, None] + log_a[c] + terms.log_obs[idx][:, None, :]
+                    - terms.log_norm[idx][:, None, None])                       # (M, K, K) xi_t
+        e = jnp.where(ok[:, None, None], e, 0.0)
+        onehot = (c[:, None] == jnp.arange(C)[None, :]).astype(dt)
+        return acc + jnp.einsum("mc,mij->cij", onehot, e)
+
+    return lax.fori_loop(0, (n_slow + M - 1) // M, block, xi)
+
+
+def _smoother(initial, transitions, log_lik, constraints, length, resets):
+    """Both scans of one sequence (shapes as :func:`hmm_filter`). Returns (log_likelihood, filtered
+    (T, K), smoothed (T, K), :class:`TransitionTerms` of its T frames (frame 0: into = False))."""
+    T, K = log_lik.shape
+    ll, alpha, log_alpha = hmm_filter(initial, transitions, log_lik, constraints, length, resets)
+    into = (jnp.arange(T) < length) & ~_starts(T, resets)
+    step = partial(_backward_step, log_transitions=jnp.log(transitions))
+    _, (log_betas, log_norms) = lax.scan(step, jnp.zeros(K, log_lik.dtype),
+                                         (log_lik[1:], constraints[1:], into[1:], log_alpha[:-1]), reverse=True)
+    log_beta = jnp.concatenate([log_betas, jnp.zeros((1, K), log_lik.dtype)], axis=0)   # (T, K), scaled
+    lg = log_alpha + log_beta
+    norm = _lse(lg, axis=1)                                                     # (T,)
+    log_gamma = lg - norm[:, None]
+    g = jnp.exp(log_gamma)
+    g = jnp.where(jnp.isfinite(g), g, 0.0)                    # empty (length 0) sequences
+    log_norm = jnp.concatenate([jnp.zeros(1, log_lik.dtype), log_norms])      # (T,) of the transition into t
+    log_alpha_prev = jnp.concatenate([log_alpha[:1], log_alpha[:-1]], axis=0)
+    return ll, alpha, g, TransitionTerms(log_alpha_prev, log_lik + log_beta, log_norm, log_gamma, constraints, into)
 
 
 def hmm_posterior(initial, transitions, log_lik, constraints, length, resets=None) -> Posterior:
     """Forward-backward (smoother) in log space with expected transition counts per constraint.
-    Shapes as :func:`hmm_filter`."""
-    T, K = log_lik.shape
-    C = transitions.shape[0]
-    ll, alpha, log_alpha = hmm_filter(initial, transitions, log_lik, constraints, length, resets)
-    starts = _starts(T, resets)
-    t = jnp.arange(1, T)
-    step = partial(_backward_step, log_transitions=jnp.log(transitions))
-    init = (jnp.zeros(K, log_lik.dtype), jnp.zeros((C, K, K), log_lik.dtype))
-    (_, xi_sum), log_betas = lax.scan(step, init, (log_lik[1:], constraints[1:], t < length, starts[1:], log_alpha[:-1]),
-                                      reverse=True)
-    log_beta = jnp.concatenate([log_betas, jnp.zeros((1, K), log_lik.dtype)], axis=0)
-    lg = log_alpha + log_beta
-    g = jnp.exp(lg - _lse(lg, axis=1)[:, None])
-    g = jnp.where(jnp.isfinite(g), g, 0.0)                    # empty (length 0) sequences
-    return Posterior(ll, alpha, g, xi_sum)
+    Shapes as :func:`hmm_filter`. The backward scan carries log beta only; the expected transitions
+    are summed afterwards, in parallel over frames (:func:`expected_transitions`)."""
+    ll, alpha, g, terms = _smoother(initial, transitions, log_lik, constraints, length, resets)
+    return Posterior(ll, alpha, g, expected_transitions(terms, transitions))
 
 
 def _viterbi_step(delta, inp, log_transitions):
@@ -237,12 +313,16 @@ def batch_statistics(x, constraints, lengths, resets, shift, means, covariances,
     first (K, D) = sum_t gamma_t (x_t - shift), second (K, D, D) = sum_t gamma_t (x_t - shift)(x_t - shift)^T,
     initial counts (C, K) by first constraint, xi_sum (C, K, K)). ``shift`` (D,) centres the data
     (a global mean) so that float32 sums keep their precision."""
-    post = batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims, resets)
+    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    lls, _, smoothed, terms = jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, 0))(initial, transitions, ll,
+                                                                                    constraints, lengths, resets)
     B, T, D = x.shape
     K = means.shape[0]
     C = initial.shape[0]
+    flat = jax.tree_util.tree_map(lambda a: a.reshape((B * T,) + a.shape[2:]), terms)
+    xi = expected_transitions(flat, transitions)                              # all frames at once
     valid = (jnp.arange(T)[None, :] < lengths[:, None]).astype(x.dtype)
-    g = (post.smoothed * valid[..., None]).reshape(B * T, K)
+    g = (smoothed * valid[..., None]).reshape(B * T, K)
     xc = (x - shift).reshape(B * T, D)
     counts = jnp.sum(g, axis=0)
     first = g.T @ xc
@@ -250,4 +330,4 @@ def batch_statistics(x, constraints, lengths, resets, shift, means, covariances,
     starts = (resets * valid).reshape(B * T)
     onehot = (constraints.reshape(B * T)[:, None] == jnp.arange(C)[None, :]).astype(x.dtype) * starts[:, None]
     init = onehot.T @ g                                                       # (C, K) over sequence starts
-    return jnp.sum(post.log_likelihood), counts, first, second, init, jnp.sum(post.xi_sum, axis=0)
+    return jnp.sum(lls), counts, first, second, init, xi

@@ -9,6 +9,8 @@ from scipy.special import logsumexp
 POSTERIOR_ATOL = 1e-5      # JAX smoother/filter (float64) vs reference
 LOGLIK_RTOL = 1e-9         # JAX log-likelihood (float64) vs reference
 MONOTONE_ATOL = 1e-9       # EM per-frame log-likelihood may not fall by more than this (float64)
+XI_FLOAT32_RTOL = 1e-5     # float32 expected transition counts vs reference (relative ...
+XI_FLOAT32_ATOL = 1e-5     # ... and absolute, per count)
 
 
 def log_gauss(x, mean, cov):

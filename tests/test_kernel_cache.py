@@ -181,48 +181,8 @@ def test_a_fresh_process_uses_the_stored_kernel(kdir):
     np.testing.assert_array_equal(np.load(out), want)
 
 
-_SEARCH = """
-import sys, numpy as np, jax
-sys.path.insert(0, {tests!r})
-jax.config.update("jax_compilation_cache_dir", {jc!r})
-jax.config.update("jax_persistent_cache_min_compile_time_secs", 0.0)
-jax.config.update("jax_persistent_cache_min_entry_size_bytes", 0)
-from convsynth_jax import kernel_cache
-from convsynth_jax.search.beam import beam_search
-from convsynth_jax.search.constraints import build_constraints
-from convsynth_jax.search.params import SearchParams
-from test_search_beam_kernel import FPS, hub_graph, input_from_clip
-kernel_cache.set_kernel_dir(sys.argv[1])
-g, audio = hub_graph(np.random.default_rng(4))
-own, par = input_from_clip(audio, "c4", 40)
-cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0)
-res = beam_search(g, build_constraints(own, par, 40, FPS, cfg), cfg, seed=4)
-np.save(sys.argv[2], np.asarray(res.path if res.success else [-1]))
-"""
-
-
-def test_stored_kernels_with_the_persistent_compilation_cache(tmp_path):
-    """With JAX's persistent compilation cache on (as in every task): a kernel folder written by one
-    process, a second folder written by another process after the first populated the compilation
-    cache, and both read back by fresh processes give the jitted search's path. (A stored executable
-    that came out of the compilation cache lost its compiled functions on this backend: the third
-    process failed with "Function ... not found" before kernels were compiled afresh for storing.)"""
-    g, audio = hub_graph(np.random.default_rng(4))
-    own, par = input_from_clip(audio, "c4", 40)
-    cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0)
-    want = beam_search(g, build_constraints(own, par, 40, FPS, cfg), cfg, seed=4)
-    want = want.path if want.success else np.array([-1])
-    code = _SEARCH.format(tests=str(REPO / "tests"), jc=str(tmp_path / "jax_cache"))
-    env = dict(os.environ, PYTHONPATH=str(REPO))
-    for k, folder in enumerate(["k1", "k2", "k2", "k1"]):
-        out = tmp_path / f"path{k}.npy"
-        r = subprocess.run([sys.executable, "-c", code, str(tmp_path / folder), str(out)], env=env,
-                           capture_output=True, text=True, cwd=str(REPO))
-        assert r.returncode == 0, r.stderr[-2000:]
-        np.testing.assert_array_equal(np.load(out), want)
-
-
-_BROKEN = """
+# the set-up of a fresh process running the hub-graph search with the persistent compilation cache on
+_SCRIPT_SETUP = """
 import sys, numpy as np, jax
 sys.path.insert(0, {tests!r})
 jax.config.update("jax_compilation_cache_dir", {jc!r})
@@ -237,6 +197,41 @@ kernel_cache.set_kernel_dir(sys.argv[1])
 g, audio = hub_graph(np.random.default_rng(4))
 own, par = input_from_clip(audio, "c4", 40)
 cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0)
+"""
+
+_SEARCH = _SCRIPT_SETUP + """
+res = beam.beam_search(g, build_constraints(own, par, 40, FPS, cfg), cfg, seed=4)
+np.save(sys.argv[2], np.asarray(res.path if res.success else [-1]))
+"""
+
+
+def _hub_search_path():
+    """The jitted search's path on the scripts' hub graph (-1 when it fails)."""
+    g, audio = hub_graph(np.random.default_rng(4))
+    own, par = input_from_clip(audio, "c4", 40)
+    cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0)
+    res = beam_search(g, build_constraints(own, par, 40, FPS, cfg), cfg, seed=4)
+    return res.path if res.success else np.array([-1])
+
+
+def test_stored_kernels_with_the_persistent_compilation_cache(tmp_path):
+    """With JAX's persistent compilation cache on (as in every task): a kernel folder written by one
+    process, a second folder written by another process after the first populated the compilation
+    cache, and both read back by fresh processes give the jitted search's path. (A stored executable
+    that came out of the compilation cache lost its compiled functions on this backend: the third
+    process failed with "Function ... not found" before kernels were compiled afresh for storing.)"""
+    want = _hub_search_path()
+    code = _SEARCH.format(tests=str(REPO / "tests"), jc=str(tmp_path / "jax_cache"))
+    env = dict(os.environ, PYTHONPATH=str(REPO))
+    for k, folder in enumerate(["k1", "k2", "k2", "k1"]):
+        out = tmp_path / f"path{k}.npy"
+        r = subprocess.run([sys.executable, "-c", code, str(tmp_path / folder), str(out)], env=env,
+                           capture_output=True, text=True, cwd=str(REPO))
+        assert r.returncode == 0, r.stderr[-2000:]
+        np.testing.assert_array_equal(np.load(out), want)
+
+
+_BROKEN = _SCRIPT_SETUP + """
 cons = build_constraints(own, par, 40, FPS, cfg)
 if sys.argv[3] == "plant":   # store the program as the compilation cache returns it (it cannot run)
     import contextlib
@@ -255,11 +250,7 @@ else:
 def test_a_stored_kernel_that_does_not_run_is_compiled_again(tmp_path):
     """A complete, checksummed file whose program fails when run (here: written from an executable the
     persistent compilation cache returned) is replaced: the search still gives the jitted path."""
-    g, audio = hub_graph(np.random.default_rng(4))
-    own, par = input_from_clip(audio, "c4", 40)
-    cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0)
-    want = beam_search(g, build_constraints(own, par, 40, FPS, cfg), cfg, seed=4)
-    want = want.path if want.success else np.array([-1])
+    want = _hub_search_path()
     code = _BROKEN.format(tests=str(REPO / "tests"), jc=str(tmp_path / "jax_cache"))
     env = dict(os.environ, PYTHONPATH=str(REPO))
     kdir = tmp_path / "k"

@@ -55,7 +55,7 @@ def test_parameter_counts_match_paper():
 
 @pytest.mark.parametrize("seed", [0, 1])
 def test_smoother_filter_viterbi_match_reference(seed):
-    from convsynth_jax.cdbn.hmm import batch_filter, batch_posterior, batch_viterbi
+    from convsynth_jax.cdbn.hmm import batch_filter, batch_posterior, batch_smoothed, batch_viterbi
 
     rng = np.random.default_rng(seed)
     model = random_model(rng)
@@ -69,6 +69,7 @@ def test_smoother_filter_viterbi_match_reference(seed):
                 jnp.asarray(model.transitions))
         for dims in ((0, 1, 2, 3), (0, 1)):  # joint and speech-only emissions
             post = batch_posterior(*args, dims)
+            smoothed = batch_smoothed(*args, dims)     # synthesis: gamma without the transition counts
             filt_ll, filt = batch_filter(*args, dims)
             paths, scores = batch_viterbi(*args, dims)
             for i, (x, c) in enumerate(zip(seqs, cons)):
@@ -78,6 +79,7 @@ def test_smoother_filter_viterbi_match_reference(seed):
                 assert np.isclose(float(post.log_likelihood[i]), ll, rtol=ref.LOGLIK_RTOL)
                 assert np.isclose(float(filt_ll[i]), ll, rtol=ref.LOGLIK_RTOL)
                 np.testing.assert_allclose(np.asarray(post.smoothed[i, :T]), s, atol=ref.POSTERIOR_ATOL)
+                np.testing.assert_allclose(np.asarray(smoothed[i, :T]), s, atol=ref.POSTERIOR_ATOL)
                 np.testing.assert_allclose(np.asarray(post.filtered[i, :T]), f, atol=ref.POSTERIOR_ATOL)
                 np.testing.assert_allclose(np.asarray(filt[i, :T]), f, atol=ref.POSTERIOR_ATOL)
                 np.testing.assert_allclose(np.asarray(post.xi_sum[i]), xi, atol=ref.POSTERIOR_ATOL)

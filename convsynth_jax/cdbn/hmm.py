@@ -276,17 +276,28 @@ def pad_states(means, covariances, initial, transitions, multiple: int = STATE_M
     return means, covariances, initial, t
 
 
-@partial(jax.jit, static_argnames=("dims",))
-def batch_log_likelihoods(x, means, covariances, dims: tuple):
-    """(B, T, D) -> (B, T, K) log emissions of the columns ``dims``."""
+def _batch_emissions(x, means, covariances, dims: tuple):
+    """(B, T, D) -> (B, T, K) log emissions of the columns ``dims`` (inside the batch kernels)."""
     return jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+
+
+batch_log_likelihoods = partial(jax.jit, static_argnames=("dims",))(_batch_emissions)
+
+
+@partial(jax.jit, static_argnames=("dims",))
+def batch_smoothed(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple):
+    """Smoothed posteriors (B, T, K) of a padded batch: both scans, without the expected transition
+    counts (synthesis needs gamma only). Shapes as :func:`batch_posterior`."""
+    ll = _batch_emissions(x, means, covariances, dims)
+    return jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, None))(initial, transitions, ll, constraints, lengths,
+                                                                     None)[2]
 
 
 @partial(jax.jit, static_argnames=("dims",))
 def batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple, resets=None):
     """Smoother over a padded batch. x: (B, T, D); constraints: (B, T); lengths: (B,); resets: (B, T)
     bool or None (see :func:`hmm_filter`)."""
-    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    ll = _batch_emissions(x, means, covariances, dims)
     if resets is None:
         return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
     return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0, 0))(initial, transitions, ll, constraints, lengths,
@@ -295,13 +306,13 @@ def batch_posterior(x, constraints, lengths, means, covariances, initial, transi
 
 @partial(jax.jit, static_argnames=("dims",))
 def batch_viterbi(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple):
-    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    ll = _batch_emissions(x, means, covariances, dims)
     return jax.vmap(hmm_viterbi, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
 
 
 @partial(jax.jit, static_argnames=("dims",))
 def batch_filter(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple):
-    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    ll = _batch_emissions(x, means, covariances, dims)
     out = jax.vmap(hmm_filter, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
     return out[0], out[1]
 
@@ -313,7 +324,7 @@ def batch_statistics(x, constraints, lengths, resets, shift, means, covariances,
     first (K, D) = sum_t gamma_t (x_t - shift), second (K, D, D) = sum_t gamma_t (x_t - shift)(x_t - shift)^T,
     initial counts (C, K) by first constraint, xi_sum (C, K, K)). ``shift`` (D,) centres the data
     (a global mean) so that float32 sums keep their precision."""
-    ll = jax.vmap(lambda xb: stream_log_likelihoods(xb, means, covariances, dims))(x)
+    ll = _batch_emissions(x, means, covariances, dims)
     lls, _, smoothed, terms = jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, 0))(initial, transitions, ll,
                                                                                     constraints, lengths, resets)
     B, T, D = x.shape

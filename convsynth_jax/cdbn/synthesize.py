@@ -17,7 +17,7 @@ import numpy as np
 
 from ..errors import CDBNError
 from .features import check_finite, head_euler_to_quat
-from .hmm import batch_filter, batch_posterior, batch_viterbi, pad_states
+from .hmm import batch_filter, batch_smoothed, batch_viterbi, pad_states
 from .params import POSTERIORS, DBNModel
 
 
@@ -39,7 +39,7 @@ def _posteriors(model: DBNModel, x, cc, lengths, posterior: str) -> np.ndarray:
     args = (jnp.asarray(x), jnp.asarray(cc), jnp.asarray(lengths)) + tuple(jnp.asarray(a, jnp.float32) for a in params)
     dims = tuple(model.speech_dims)
     if posterior == "smoother":
-        g = np.asarray(batch_posterior(*args, dims).smoothed, np.float64)
+        g = np.asarray(batch_smoothed(*args, dims), np.float64)
     elif posterior == "filter":
         g = np.asarray(batch_filter(*args, dims)[1], np.float64)
     else:

@@ -312,14 +312,19 @@ def padded_inputs(c: Constraints):
     return reqs, padb(c.peak_window, False), padb(c.peak_reset, False), padb(c.peak_check, False), paper_arrs
 
 
+def _check_lookahead_degree(prep, max_degree: int) -> None:
+    """The look-ahead counts a state's listed edges per flag bit in a byte (``feasible.edge_or``)."""
+    if prep.max_degree > 255:
+        raise ConfigError(f"search.lookahead counts edges in bytes: search.max_degree must be <= 255 "
+                          f"(got {max_degree})")
+
+
 def lookahead(graph, constraints: Constraints, max_degree: int):
     """(feas (Tp, S_pad) uint8 device array, solvable): the look-ahead of ``search.lookahead``
     (:mod:`convsynth_jax.search.feasible`) over the beam's edge set (each state's ``max_degree``
     cheapest out-edges) and whether any start state can complete the window."""
     prep = _prepare(graph, max_degree)
-    if prep.max_degree > 255:
-        raise ConfigError(f"search.lookahead counts edges in bytes: search.max_degree must be <= 255 "
-                          f"(got {max_degree})")
+    _check_lookahead_degree(prep, max_degree)
     feas, ok = feasibility(prep, constraints, padded_inputs(constraints))
     return feas, bool(ok)
 
@@ -381,9 +386,8 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     t0 = time.perf_counter()
     max_deg, beam, budget = _check_sizes(params)
     prep = _prepare(graph, max_deg)
-    if lookahead and prep.max_degree > 255:
-        raise ConfigError(f"search.lookahead counts edges in bytes: search.max_degree must be <= 255 "
-                          f"(got {max_deg})")
+    if lookahead:
+        _check_lookahead_degree(prep, max_deg)
     dev = prep.device
     c = constraints
     paper = c.paper is not None

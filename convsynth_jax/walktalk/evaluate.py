@@ -165,6 +165,13 @@ def dof_limits(lib: Library, percentiles=(0.5, 99.5), tolerance_deg: float = 0.0
     return joint_limits(lib.source_euler, _arm_joints(lib.body), percentiles, tolerance_deg)
 
 
+def _frame_reading(bad: np.ndarray, arms: dict, inside: np.ndarray) -> float:
+    """The per-frame joint-limit reading of a recording: the share of frames with a DOF of one arm
+    out (``bad`` (F, J, 3) from ``JointLimits.violations``, ``arms`` side -> its rows) or either hand
+    inside the torso (``inside`` (F,)), the mean of the two arms (a one-handed splice is scored on one)."""
+    return float(np.mean([np.mean(bad[:, arms[s]].any(axis=(1, 2)) | inside) for s in ("l", "r")]))
+
+
 def in_sample_violations(lib: Library, limits: JointLimits, torso_radius_cm: float | None = None) -> dict:
     """The joint-limit metric on the library's own, unmodified frames, per source kind (walk, jog,
     gesture, limits only, all): fraction of frames with a DOF of one arm outside its limits (mean
@@ -199,7 +206,7 @@ def in_sample_violations(lib: Library, limits: JointLimits, torso_radius_cm: flo
             for i in idx:
                 b = limits.violations(lib.source_euler[i], joints)
                 t = np.any(lib.source_torso[i] < torso_radius_cm, axis=1)
-                per_clip.append((float(np.mean([np.mean(b[:, arms[s]].any(axis=(1, 2)) | t) for s in ("l", "r")])),
+                per_clip.append((_frame_reading(b, arms, t),
                                  len(t), int(t.sum())))
             rates = np.array([r for r, _, _ in per_clip])
             frames = np.array([n for _, n, _ in per_clip])
@@ -236,7 +243,7 @@ def source_readings(lib: Library, limits: JointLimits, torso_radius_cm: float) -
             bad = limits.violations(lc.euler, lc.joints)
             inside = np.any(hand_torso_distance(joint_positions(lc.loop.motion), body) < torso_radius_cm, axis=1)
             rows = {s: [lc.joints.index(j) for j in body.arm(s)] for s in ("l", "r")}
-            frame.append(np.mean([np.mean(bad[:, rows[s]].any(axis=(1, 2)) | inside) for s in ("l", "r")]))
+            frame.append(_frame_reading(bad, rows, inside))
             cell.append(np.mean([bad[:, rows[s]].mean() for s in ("l", "r")]))
         out[f"loops_{gait}"] = {"per_frame": stats(frame), "per_cell": stats(cell)}
     frame, cell = [], []

@@ -1,5 +1,5 @@
-"""Compiled search kernels kept between runs (issue #15, part 3): a second run skips JAX's tracing
-and lowering, not only the compilation.
+"""Compiled kernels kept between runs (issue #15, part 3): a second run skips JAX's tracing and
+lowering, not only the compilation. Used for the search kernels and the graph construction's.
 
 JAX's persistent compilation cache (``jax_cache.dir``) stores compiled executables, but it is
 consulted only after a kernel has been traced to a jaxpr and lowered to StableHLO, which for the
@@ -11,14 +11,18 @@ kernel is called with given argument shapes, dtypes and static arguments it is l
 
 The key hashes the kernel's name, the argument tree, every argument's shape and dtype, the static
 arguments, the package version and the source of every module in the kernel's folder (for the
-search kernels ``convsynth_jax/search/``, where their helpers live) and of this module, the JAX and jaxlib
+search kernels ``convsynth_jax/search/``, where their helpers live; for the construction's
+``convsynth_jax/graph/`` or ``convsynth_jax/``) and of this module, the JAX and jaxlib
 versions, the backend, the machine and its CPU feature flags, and the JAX settings that change what a
 kernel computes (64-bit mode, the PRNG implementation). So a file is never used for other code,
 other shapes or another machine: an edited source file gives new keys (the old files are simply not
 read again). A file holds a magic line, the key and a SHA-256 of its payload; one that does not check
 out (truncated, corrupt, another key) is ignored and written anew, never loaded. Like JAX's cache the
 folder holds executable code: keep it where only you can write. It is safe to delete. Writes are
-atomic (temporary file, then rename). Within a process the loaded kernel is kept per key. Without a
+atomic (temporary file, then rename). Within a process the loaded kernel is kept per key; loading
+and compiling are serialized by a lock (the construction calls its tile kernel from several threads).
+:func:`compiled` returns the kernel as a function, for a loop that calls it many times with the same
+shapes (no key per call). Without a
 folder (``jax_cache.dir=null`` or ``jax_cache.kernel_dir=null``, and in library use unless
 :func:`set_kernel_dir` was called) :func:`call` calls the jitted kernel directly.
 """
@@ -29,6 +33,7 @@ import hashlib
 import logging
 import pickle
 import sys
+import threading
 from pathlib import Path
 
 import jax
@@ -44,6 +49,7 @@ SUFFIX = ".jaxexe"
 _DIR: Path | None = None
 _LOADED: dict = {}      # key -> the loaded compiled kernel (one per process and key)
 _ENV: dict = {}         # kernel folder -> the environment part of the key (once per process)
+_LOCK = threading.RLock()
 
 
 def set_kernel_dir(path: str | Path | None) -> None:
@@ -156,29 +162,56 @@ def call(fun, name: str, args: tuple, static: dict | None = None):
     static = dict(static or {})
     if _DIR is None:
         return fun(*args, **static)
-    leaves, tree = jax.tree.flatten(args)
-    key = kernel_key(fun, name, args, static)
-    f = _LOADED.get(key)
+    leaves = jax.tree.leaves(args)
+    f = _LOADED.get(kernel_key(fun, name, args, static))
     if f is not None:
         return f(*leaves)
-    path = path_of(name, key)
+    f, out = _load_or_compile(fun, name, args, static)
+    return out if out is not None else f(*leaves)
 
-    def flat(*xs):
-        return fun(*jax.tree.unflatten(tree, xs), **static)
 
-    f = _read(path, key)
-    if f is not None:
-        try:   # a loaded program that cannot run (e.g. written by an older version of this module): never again
-            out = jax.block_until_ready(f(*leaves))
-            _LOADED[key] = f
-            return out
-        except jax.errors.JaxRuntimeError as e:
-            log.warning("%s: the stored kernel does not run (%s); compiling it again", path, str(e)[:200])
-    with _fresh_compilation():
-        f = jax.jit(flat).lower(*leaves).compile()
-    _write(path, key, f)
-    _LOADED[key] = f
-    return f(*leaves)
+def compiled(fun, name: str, args: tuple, static: dict | None = None):
+    """A function ``g(*args2)`` equal to ``fun(*args2, **static)`` for arguments ``args2`` of the same
+    tree, shapes and dtypes as ``args`` (example arguments, run once when a stored file is loaded, to
+    check that it runs), through the stored executable
+    when a folder is set: the key is computed once, not per call. Without a folder: the jitted
+    ``fun`` with ``static`` bound."""
+    static = dict(static or {})
+    if _DIR is None:
+        return lambda *a: fun(*a, **static)
+    f = _LOADED.get(kernel_key(fun, name, args, static))
+    if f is None:
+        f, _ = _load_or_compile(fun, name, args, static, run=False)
+    return lambda *a: f(*jax.tree.leaves(a))
+
+
+def _load_or_compile(fun, name, args, static, run: bool = True):
+    """(the loaded or freshly compiled kernel taking the flat leaves, its outputs on ``args`` or None
+    when ``run`` is false or it was compiled), stored under its key; one thread at a time."""
+    leaves, tree = jax.tree.flatten(args)
+    key = kernel_key(fun, name, args, static)
+    with _LOCK:
+        f = _LOADED.get(key)
+        if f is not None:
+            return f, None
+        path = path_of(name, key)
+
+        def flat(*xs):
+            return fun(*jax.tree.unflatten(tree, xs), **static)
+
+        f = _read(path, key)
+        if f is not None:
+            try:   # a loaded program that cannot run (e.g. written by an older version of this module): never again
+                out = jax.block_until_ready(f(*leaves))
+                _LOADED[key] = f
+                return f, (out if run else None)
+            except jax.errors.JaxRuntimeError as e:
+                log.warning("%s: the stored kernel does not run (%s); compiling it again", path, str(e)[:200])
+        with _fresh_compilation():
+            f = jax.jit(flat).lower(*leaves).compile()
+        _write(path, key, f)
+        _LOADED[key] = f
+        return f, None
 
 
 @contextlib.contextmanager

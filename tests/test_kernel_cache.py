@@ -263,3 +263,42 @@ def test_a_stored_kernel_that_does_not_run_is_compiled_again(tmp_path):
             np.testing.assert_array_equal(np.load(out), want)
         if k == 1:
             assert "does not run" in r.stderr
+
+
+def test_graph_construction_through_stored_kernels_equals_the_jitted_one(kdir):
+    """The construction's kernels (forward kinematics, root-relative features, pivots, cost tiles) are
+    stored too (issue #15: a second bandai2 construction skips their tracing); the graph built through
+    the stored executables, written by this process and then read back, is the jitted one exactly."""
+    from convsynth_jax.graph import build_database, build_graph
+    from convsynth_jax.graph.params import GraphParams
+    from test_graph_build import random_clips
+
+    clips = random_clips(11)
+    old = kernel_cache.kernel_dir()
+    kernel_cache.set_kernel_dir(None)
+    want = build_graph(build_database(clips), GraphParams())
+    kernel_cache.set_kernel_dir(old)
+    first = build_graph(build_database(clips), GraphParams())          # compiled and written
+    names = {p.name.split("-")[0] for p in _files(kdir)}
+    assert {"fk", "root_relative", "farthest_point", "masked_tile_costs"} <= names
+    kernel_cache._LOADED.clear()
+    again = build_graph(build_database(clips), GraphParams())          # read back from the files
+    for g in (first, again):
+        for field in ("indptr", "indices", "cost", "synthetic", "clip", "frame"):
+            np.testing.assert_array_equal(getattr(g, field), getattr(want, field))
+        assert g.meta["threshold"] == want.meta["threshold"]
+
+
+def test_compiled_kernel_called_from_threads(kdir):
+    """:func:`kernel_cache.compiled` loads or compiles once under a lock; threads calling it at once
+    get the jitted kernel's outputs."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    x, pair = np.arange(6, dtype=np.float32), (np.ones(3, np.int32), np.arange(4, dtype=np.int32))
+    want = np.asarray(_toy(x, pair, scale=2)[0])
+    with ThreadPoolExecutor(4) as ex:
+        fs = list(ex.map(lambda _: kernel_cache.compiled(_toy, "toy", (x, pair), {"scale": 2}), range(8)))
+    assert len(_files(kdir)) == 1
+    for f in fs:
+        np.testing.assert_array_equal(np.asarray(f(x + 1, pair)[0]), np.asarray(_toy(x + 1, pair, scale=2)[0]))
+    np.testing.assert_array_equal(np.asarray(fs[0](x, pair)[0]), want)

@@ -38,6 +38,8 @@ import jax.numpy as jnp
 from jax import lax
 import numpy as np
 
+from .. import kernel_cache
+
 log = logging.getLogger(__name__)
 
 # relative safety margin on tile lower bounds (computed from float32 pivot distances)
@@ -165,7 +167,8 @@ def pivot_embedding(X, cand, n_pivots, rng):
     cand = np.asarray(cand)
     first = int(np.flatnonzero(cand == int(rng.choice(cand)))[0])  # the row of the random start
     xa = _pad_rows(X[cand], _bucket(len(cand)))
-    rows, emb = _farthest_point_kernel(xa, np.int32(len(cand)), np.int32(first), n_pivots)
+    rows, emb = kernel_cache.call(_farthest_point_kernel, "farthest_point",
+                                  (xa, np.int32(len(cand)), np.int32(first)), {"n_pivots": n_pivots})
     piv = np.asarray(cand)[np.asarray(rows)[:n_pivots]].astype(np.int64)
     return piv, np.asarray(emb, np.float64)[:len(cand)]
 
@@ -311,7 +314,11 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
         stats.update({"tiles_computed": int(pairs.shape[0]), "tiles_skipped": n_total - int(pairs.shape[0]),
                       "tile": int(tile), "pivots": int(piv.size), "symmetric": sym,
                       "pairs_evaluated": int(pairs.shape[0]) * tile * tile})
-    thr32, gap32 = jnp.float32(thr), jnp.int32(min_gap)
+    thr32, gap32 = np.float32(thr), np.int32(min_gap)
+    # the tile kernel through its stored executable (kernel_cache.py), its key computed once
+    tile_costs = kernel_cache.compiled(masked_tile_costs, "masked_tile_costs",
+                                       (ta.x, tb.x, ta.i32, tb.i32, ta.c32, tb.c32, np.int32(0), np.int32(0), thr32,
+                                        gap32))
     in_src = np.zeros(clip.size, bool)
     in_src[src] = True
     in_dst = np.zeros(clip.size, bool)
@@ -320,8 +327,8 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
     def dispatched(chunk, depth=16):
         """(tile pair, masked costs) with at most ``depth`` tiles in flight (bounded memory)."""
         for s in range(0, len(chunk), depth):
-            batch = [(p, masked_tile_costs(ta.x, tb.x, ta.i32, tb.i32, ta.c32, tb.c32, np.int32(p[0]), np.int32(p[1]),
-                                           thr32, gap32)) for p in chunk[s:s + depth]]
+            batch = [(p, tile_costs(ta.x, tb.x, ta.i32, tb.i32, ta.c32, tb.c32, np.int32(p[0]), np.int32(p[1]),
+                                    thr32, gap32)) for p in chunk[s:s + depth]]
             yield from batch
 
     cap = int(max_out_degree) if max_out_degree else None
@@ -393,7 +400,7 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
         out = []
         for s in range(0, len(chunk), depth):
             ps = chunk[s:s + depth]
-            ms = [masked_tile_costs(ta.x, tb.x, ta.i32, tb.i32, ta.c32, tb.c32, np.int32(pa), np.int32(pb), thr32, gap32)
+            ms = [tile_costs(ta.x, tb.x, ta.i32, tb.i32, ta.c32, tb.c32, np.int32(pa), np.int32(pb), thr32, gap32)
                   for pa, pb in ps]
             if overflow:
                 break

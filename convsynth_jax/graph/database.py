@@ -48,8 +48,10 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     """Root-relative positions and velocities of many clips of one skeleton with one FK call (the
     frame count is padded to a power of two so the kernels compile for few shapes). Velocities are
     differenced within each clip. Returns float32 (N, J, 3) arrays."""
-    from ..kinematics import fk_kernel, root_relative_kernel
     import jax
+
+    from .. import kernel_cache
+    from ..kinematics import fk_kernel, root_relative_kernel
 
     n = sum(m.rotations.shape[0] for m in motions)
     size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
@@ -66,8 +68,11 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     if 0 < n < size:
         rot[n:] = rot[n - 1]
         tr[n:] = tr[n - 1]
-    pos, grot = fk_kernel(jax.device_put(rot), jax.device_put(tr), tuple(motions[0].skeleton.parents))
-    rel = np.asarray(root_relative_kernel(pos, grot, up_axis=up_axis, remove_yaw=remove_yaw))[:n]
+    # through the stored executables (kernel_cache.py): a second run skips tracing the joint chain
+    pos, grot = kernel_cache.call(fk_kernel, "fk", (jax.device_put(rot), jax.device_put(tr)),
+                                  {"parents": tuple(motions[0].skeleton.parents)})
+    rel = np.asarray(kernel_cache.call(root_relative_kernel, "root_relative", (pos, grot),
+                                       {"up_axis": up_axis, "remove_yaw": remove_yaw}))[:n]
     vel = np.empty_like(rel)
     start = 0
     for m in motions:

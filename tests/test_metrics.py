@@ -87,3 +87,41 @@ def test_seam_ratio_equals_the_slow_loop():
     assert np.isnan(seam_ratio(pos, gt, 30.0, []))
     # the pop dominates: a seam around frame 16 is sharper than anything in the ground truth
     assert seam_ratio(pos, gt, 30.0, [16]) > 1.0
+
+
+def test_seam_content_ratio_equals_the_slow_loop():
+    """The source content at the seams (new source frames and, during each blend, the previous clip's
+    continuation), against a loop over frames, joints and transitions with the clips' own accelerations."""
+    from convsynth_jax.evaluation.metrics import clip_acceleration, seam_content_ratio
+
+    rng = np.random.default_rng(5)
+    fps = 30.0
+    clips = {n: np.cumsum(rng.normal(0, 1, (40, 4, 3)), axis=0) for n in ("a", "b", "c")}
+    clips["c"][20:, 2] += 50.0   # a fast burst in clip c around its frame 20 (its own content, no seam)
+    gt = np.cumsum(rng.normal(0, 1, (24, 4, 3)), axis=0)
+    # a path: a 0..9, b 5..11 (transition at 10), c 18..22 (transition at 17), a 30.. (transition at 22)
+    src = ["a"] * 10 + ["b"] * 7 + ["c"] * 5 + ["a"] * 2
+    frm = list(range(10)) + list(range(5, 12)) + list(range(18, 23)) + [30, 31]
+    syn, blend = [10, 17, 22], 4
+    acc = {n: clip_acceleration(p, fps) for n, p in clips.items()}
+
+    def own_acc(n, f):   # clip n's acceleration at frame f (central difference), every joint, by hand
+        p = clips[n]
+        f = min(max(f, 1), len(p) - 2)
+        r = [p[f + d] - p[f + d][0] for d in (-1, 0, 1)]
+        return float(np.linalg.norm((r[2] - 2 * r[1] + r[0]) * fps * fps, axis=-1).max())
+
+    want = 0.0
+    for u in range(len(src)):
+        if any(abs(u - t) <= 3 for t in syn):
+            want = max(want, own_acc(src[u], frm[u]))
+            for t in syn:
+                if t <= u < t + blend:
+                    want = max(want, own_acc(src[t - 1], min(frm[t - 1] + u - t + 1, 39)))
+    gmax = max(float(np.linalg.norm(((gt[u + 1] - gt[u + 1][0]) - 2 * (gt[u] - gt[u][0]) + (gt[u - 1] - gt[u - 1][0]))
+                                    * fps * fps, axis=-1).max()) for u in range(1, 23))
+    got = seam_content_ratio(acc, src, frm, gt, fps, syn, blend)
+    assert got == pytest.approx(want / gmax, rel=1e-12)
+    # the burst in c is played next to the transition at 17: the content alone is over the ground truth
+    assert got > 1.0
+    assert np.isnan(seam_content_ratio(acc, src, frm, gt, fps, [], blend))

@@ -183,6 +183,32 @@ def _metric_points(motion, head_only: bool, params) -> np.ndarray:
     return np.asarray(forward_kinematics(motion), dtype=np.float64)
 
 
+_CLIP_ACC: dict = {}   # id(motion) -> (motion, per-frame acceleration): each training clip's once per process
+
+
+def _clip_acceleration(motion) -> np.ndarray:
+    """(F, J) root-relative acceleration magnitudes of a whole source clip (metrics.clip_acceleration),
+    forward kinematics with the frames padded to a power of two (one compile per size), cached."""
+    from .. import kernel_cache
+    from ..kinematics import fk_kernel
+    from . import metrics
+
+    hit = _CLIP_ACC.get(id(motion))
+    if hit is not None and hit[0] is motion:
+        return hit[1]
+    n = motion.num_frames
+    size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
+    pad = np.r_[np.arange(n), np.full(size - n, n - 1)]
+    rot = np.asarray(motion.rotations, np.float32)[pad]
+    tr = np.asarray(motion.translations, np.float32)[pad]
+    pos, _ = kernel_cache.call(fk_kernel, "fk", (rot, tr), {"parents": tuple(motion.skeleton.parents)})
+    acc = metrics.clip_acceleration(np.asarray(pos, np.float64)[:n], motion.fps)
+    if len(_CLIP_ACC) > 256:
+        _CLIP_ACC.clear()
+    _CLIP_ACC[id(motion)] = (motion, acc)
+    return acc
+
+
 def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition: str, gt_motion, clip_audio: dict,
                     params, *, gt_thresholds: dict, synth_thresholds: dict) -> tuple[dict, object]:
     """One row (generic fields + metrics) and the synthesized Motion (None on failure).
@@ -232,6 +258,13 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
             "num_synthetic_transitions": len(res.synthetic_at) if res.synthetic_at is not None else np.nan,
             "seam_ratio": metrics.seam_ratio(pos, gt_pos, fps, [] if res.synthetic_at is None else list(res.synthetic_at)),
         })
+        clips = getattr(model, "motions", None)     # a motion-graph model: the source clips' own content
+        if (not head_only and clips is not None and res.source_clip is not None and res.synthetic_at
+                and all(c in clips for c in res.source_clip)):
+            acc = {c: _clip_acceleration(clips[c]) for c in set(res.source_clip)}
+            row["seam_content_ratio"] = metrics.seam_content_ratio(
+                acc, list(res.source_clip), [int(f) for f in res.source_frame], gt_pos, fps, list(res.synthetic_at),
+                int(getattr(getattr(params, "synth", None), "blend_frames", 0)))
     return row, (res.motion if res.success else None)
 
 

@@ -110,3 +110,46 @@ def seam_ratio(positions: np.ndarray, gt_positions: np.ndarray, fps: float, synt
     if rows.size == 0 or gt.size == 0 or gt.max() <= 0:
         return float("nan")
     return float(acc[rows].max() / gt.max())
+
+
+def seam_content_ratio(clip_acc: dict, source_clip, source_frame, gt_positions: np.ndarray, fps: float,
+                       synthetic_at, blend_frames: int, radius: int = SEAM_RADIUS) -> float:
+    """What the source motion brings to the seams, on the scale of :func:`seam_ratio` (a diagnostic,
+    ours): the largest root-relative acceleration that the played source clips have by themselves at
+    the seam frames (output frames within ``radius`` of a synthetic transition; per frame the new
+    source's frame and, during the ``blend_frames`` after a transition at t, the previous clip's
+    continuation, clip[t - 1] at frame[t - 1] + u - t + 1), over the ground-truth window's largest.
+    A window whose ``seam_ratio`` is over 1 while this is too has fast source content at its seams,
+    which any blend inherits; ``seam_ratio`` above both points at the blend.
+
+    clip_acc: clip name -> (F, J) acceleration magnitudes of the whole clip per frame (row f: frame
+    f's central difference; the first and last rows repeat their neighbours), from the clip's own
+    motion (:func:`clip_acceleration`). NaN as :func:`seam_ratio`."""
+    gt = root_relative_acceleration(gt_positions, fps)
+    T = len(source_frame)
+    syn = sorted({int(t) for t in synthetic_at if 0 < int(t) < T})
+    if not syn or gt.size == 0 or gt.max() <= 0:
+        return float("nan")
+
+    def acc_at(clip, frame):
+        a = clip_acc[clip]
+        return float(a[min(max(int(frame), 0), a.shape[0] - 1)].max())
+
+    best = 0.0
+    centres = {u for t in syn for u in range(t - radius, t + radius + 1) if 0 <= u < T}
+    for u in centres:
+        best = max(best, acc_at(source_clip[u], source_frame[u]))
+        for t in syn:   # the previous clip's continuation, cross-faded during the blend after t
+            if t <= u < t + blend_frames:
+                best = max(best, acc_at(source_clip[t - 1], int(source_frame[t - 1]) + u - t + 1))
+    return best / float(gt.max())
+
+
+def clip_acceleration(positions: np.ndarray, fps: float) -> np.ndarray:
+    """(F, J) per-frame root-relative acceleration magnitudes of a whole clip (as
+    :func:`root_relative_acceleration`, whose row i is frame i + 1; the first and last frames take
+    their neighbours' values), for :func:`seam_content_ratio`."""
+    a = root_relative_acceleration(positions, fps)
+    if a.shape[0] == 0:
+        return np.zeros((np.asarray(positions).shape[0], np.asarray(positions).shape[1]))
+    return np.concatenate([a[:1], a, a[-1:]])

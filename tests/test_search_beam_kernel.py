@@ -307,3 +307,41 @@ def test_edge_or_is_a_bitwise_or_over_each_states_edges():
         np.testing.assert_array_equal(got, want)
         if F == 4:
             assert got[0] == 0b1110 and got[4] == 0b1111
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_shared_shapes_give_the_same_searches(monkeypatch, matching):
+    """share_shapes pads two graphs' kernel arrays to one shape (one compiled program per conversation);
+    the searches on both are the unshared ones exactly. Small buckets so the two graphs' own shapes differ."""
+    from convsynth_jax.search import beam, feasible
+
+    for mod, name, v in ((beam, "STATE_BUCKET", 64), (beam, "EDGE_BUCKET", 64), (feasible, "EDGE_BUCKET", 64),
+                         (feasible, "ENTRY_BUCKET", 16)):
+        monkeypatch.setattr(mod, name, v)
+    monkeypatch.setattr(beam, "_CACHE", [])
+    graphs = [hub_graph(np.random.default_rng(1), n_clips=5), hub_graph(np.random.default_rng(2), n_clips=8)]
+    cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, matching=matching)
+
+    def run():
+        out = []
+        for k, (g, audio) in enumerate(graphs):
+            own, par = input_from_clip(audio, "c1", 40)
+            cons = build_constraints(own, par, 40, FPS, cfg)
+            res = beam_search(g, cons, cfg, seed=7 + k)
+            prep = beam._prepare(g, 24)
+            codes = None if cons.paper is None else (cons.paper.own_codes, cons.paper.par_codes)
+            e = prep.lookahead_edges(codes)
+            shapes = ([np.shape(x) for x in prep.device] + [np.shape(x) for x in prep.paper_device]
+                      + [np.shape(x) for x in e] + [prep.kernel_degree])
+            out.append((res.success, None if res.path is None else list(res.path), res.cost, shapes))
+        return out
+
+    alone = run()
+    assert alone[0][3] != alone[1][3]                       # on their own the two graphs' arrays differ
+    monkeypatch.setattr(beam, "_CACHE", [])
+    beam.share_shapes([g for g, _ in graphs], 24)
+    shared = run()
+    assert shared[0][3] == shared[1][3]                     # shared: one shape for both
+    assert all(s[0] for s in shared)
+    for a, s in zip(alone, shared):
+        assert a[:3] == s[:3]                               # the same searches

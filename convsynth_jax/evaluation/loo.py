@@ -58,6 +58,7 @@ def fit_fold(system: SynthesisSystem, annotations: dict, held_out: str, conditio
                                   "leave-one-out needs at least two sessions")
             models[key] = system.fit(clips, char, condition, cache_dir)
         out[char] = models[key]
+    system.prepare(out)
     return out
 
 

@@ -110,7 +110,10 @@ class _Prepared:
     paper_device: tuple      # (synthetic flags (E,), segment info (S, 5)) for search.matching=paper
     host: tuple              # (first, degrees, targets, synthetic, segment info, state codes), states padded
     num_states: int
+    kernel_degree: int = 0   # the kernels' static D: max_degree, or the largest of a group sharing shapes
+    peers: tuple = ()        # the group's graphs' _Prepared (share_shapes): look-ahead lists padded alike
     _edges: dict = dataclasses.field(default_factory=dict)
+    _raw_sizes: dict = dataclasses.field(default_factory=dict)
 
     def edge_stats(self, src: np.ndarray, rank: np.ndarray):
         """(costs, synthetic flags) of the edges taken from states ``src`` at edge ranks ``rank``."""
@@ -122,17 +125,31 @@ class _Prepared:
         with (own codes, partner codes), or for ``labels`` (None); built once per codes."""
         key = None if codes is None else (int(codes[0]), int(codes[1]))
         if key not in self._edges:
-            e = lookahead_edges(*self.host, self.num_states, key)
+            n_e, n_ent = 0, 0
+            for p in self.peers:   # a group sharing one compiled kernel: every member's lists, padded alike
+                a, b = p.lookahead_sizes(key)
+                n_e, n_ent = max(n_e, a), max(n_ent, b)
+            e = lookahead_edges(*self.host, self.num_states, key, n_e, n_ent)
+            self._raw_sizes[key] = (e.src.size, e.entry.size)
             self._edges[key] = type(e)(*(jax.device_put(x) for x in e))
         return self._edges[key]
+
+    def lookahead_sizes(self, key):
+        """(edge list, entry list) lengths of this graph's own look-ahead lists for ``key``."""
+        if key not in self._raw_sizes:
+            e = lookahead_edges(*self.host, self.num_states, key)
+            self._raw_sizes[key] = (e.src.size, e.entry.size)
+        return self._raw_sizes[key]
 
 
 _CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)
 
 
-def _prepare(graph, max_degree) -> _Prepared:
+def _prepare(graph, max_degree, shape=None) -> _Prepared:
+    """The graph made ready for the kernels (cached). ``shape``: (states, edges, D) to pad to at least
+    (share_shapes); None: the graph's own."""
     for g, d, prep in _CACHE:
-        if g is graph and d == max_degree:
+        if g is graph and d == max_degree and shape is None:
             return prep
     if graph.num_states >= 2 ** (31 - CODE_BITS):
         raise GraphError(f"graph too large for the packed beam search ({graph.num_states} states, "
@@ -140,24 +157,57 @@ def _prepare(graph, max_degree) -> _Prepared:
     first, deg, tgt, cost, syn, D = kept_edges(graph, max_degree)
     code = state_codes(graph)
     packed = tgt << CODE_BITS | code[tgt]
-    S_pad = padded_states(graph.num_states)
-    E = tgt.size
-    E_pad = E + (-E % EDGE_BUCKET) + D
+    S_pad, E_pad, D_k = _own_shape(graph.num_states, tgt.size, D)
+    if shape is not None:
+        S_pad, E_pad, D_k = max(S_pad, shape[0]), max(E_pad, shape[1]), max(D_k, shape[2])
 
     def pad(x, n, v):   # host array padded to n entries (first axis) with v
         return np.concatenate([x, np.full((n - x.shape[0],) + x.shape[1:], v, x.dtype)])
 
     info_p, code_p = pad(segment_info(graph), S_pad, 0), pad(code, S_pad, 0)
-    first_p, deg_p = pad(first, S_pad, E), pad(deg, S_pad, 0)   # padding states: no edges, never a start state
+    first_p, deg_p = pad(first, S_pad, tgt.size), pad(deg, S_pad, 0)   # padding states: no edges, never a start state
     put = jax.device_put
     host = (first_p, deg_p, tgt, syn, info_p, code_p)
     prep = _Prepared(first, cost, syn, D, median_synthetic_cost(graph),
                      (put(first_p), put(pad(packed, E_pad, 0)), put(pad(cost, E_pad, np.inf)), put(deg_p),
                       put(code_p)),
-                     (put(pad(syn, E_pad, False)), put(info_p)), host, graph.num_states)
+                     (put(pad(syn, E_pad, False)), put(info_p)), host, graph.num_states, D_k)
+    _CACHE[:] = [x for x in _CACHE if not (x[0] is graph and x[1] == max_degree)]
     _CACHE.append((graph, max_degree, prep))
     del _CACHE[:-4]
     return prep
+
+
+def _own_shape(num_states: int, num_edges: int, D: int) -> tuple:
+    """(padded states, padded flat edges, D) of a graph on its own: states to a multiple of
+    STATE_BUCKET (at least one padding state), edges to a multiple of EDGE_BUCKET plus D (so first +
+    rank never runs over)."""
+    return padded_states(num_states), num_edges + (-num_edges % EDGE_BUCKET) + D, D
+
+
+def share_shapes(graphs, max_degree: int) -> None:
+    """Pad the kernels' arrays of ``graphs`` (e.g. both characters' graphs of one conversation) to one
+    shape, so that their searches run one compiled program: a fresh process loads it once instead of
+    once per graph (``kernel_cache``), and a leave-one-out fold compiles it once. The searches' results
+    are unchanged: padding states are never start states and have no edges, padding edges are never
+    reached, the noise of a state does not depend on the padded length (threefry draws are
+    prefix-stable) and a larger D only bounds ranks no path has."""
+    graphs = [g for g in graphs if g is not None]
+    if len(graphs) < 2:
+        return
+    cached = [next((p for g2, d, p in _CACHE if g2 is g and d == max_degree), None) for g in graphs]
+    if all(p is not None and len(p.peers) == len(graphs) and all(q is r for q, r in zip(p.peers, cached))
+           for p in cached):
+        return   # already shared (fit_fold prepares a fold's models once per condition)
+    shapes = []
+    for g in graphs:
+        deg = np.diff(g.indptr)
+        D = int(min(max(1, deg.max() if deg.size else 1), max_degree))
+        shapes.append(_own_shape(g.num_states, int(np.minimum(deg, D).sum()), D))
+    common = tuple(max(s[k] for s in shapes) for k in range(3))
+    preps = [_prepare(g, max_degree, common) for g in graphs]
+    for p in preps:
+        object.__setattr__(p, "peers", tuple(preps))
 
 
 def sizes(num_states: int, beam: int, max_degree: int, max_candidates: int, keys_per_state: int = 2):
@@ -397,7 +447,7 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     reqs, pw, reset, check, paper_arrs = padded_inputs(c)
     paper_dev = prep.paper_device if paper else None
     prune = feas is not None
-    static = {"beam": B, "M": M, "N": N, "H": H, "D": prep.max_degree, "paper": paper}
+    static = {"beam": B, "M": M, "N": N, "H": H, "D": prep.kernel_degree, "paper": paper}
     args = (prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T), np.int32(graph.num_states),
             paper_dev, paper_arrs)
     if lookahead:

@@ -84,13 +84,15 @@ class LookaheadEdges(NamedTuple):
 
 
 def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np.ndarray, info: np.ndarray,
-                    state_code: np.ndarray, num_states: int, codes=None) -> LookaheadEdges:
+                    state_code: np.ndarray, num_states: int, codes=None, min_edges: int = 0,
+                    min_entries: int = 0) -> LookaheadEdges:
     """:class:`LookaheadEdges` of the kept edges in the beam's flat layout (``beam.kept_edges``: state
     s's edges are tgt/syn[first[s] : first[s] + deg[s]]), for S states of which those from
     ``num_states`` on are padding (the last one, S - 1, is where padded entries point). ``info``:
     (S, 5) ``constraints.segment_info``; ``state_code`` (S,) ``beam.state_codes``; ``codes``: (own
     codes, partner codes) of a ``paper`` window (its static contiguity rule is applied), None for
-    ``labels`` (every kept edge stays). Host NumPy."""
+    ``labels`` (every kept edge stays). ``min_edges`` / ``min_entries``: pad the edge and entry lists
+    to at least that many (graphs that share one compiled kernel, ``beam.share_shapes``). Host NumPy."""
     S = first.shape[0]
     pad_state = S - 1
     row = np.repeat(np.arange(S, dtype=np.int32), deg)               # kept edges are stored state after state
@@ -104,12 +106,12 @@ def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np
     src, dst = row[rest], tgt[rest]                                   # sorted by source
     has_next = np.zeros(S, bool)
     has_next[row[nxt]] = True
-    n = src.size + (-src.size % EDGE_BUCKET) if src.size else EDGE_BUCKET
+    n = max(src.size + (-src.size % EDGE_BUCKET) if src.size else EDGE_BUCKET, int(min_edges))
     src_p = np.full(n, pad_state, np.int32)
     tgt_p = np.full(n, pad_state, np.int32)
     src_p[:src.size], tgt_p[:src.size] = src, dst
     ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
-    m = ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET
+    m = max(ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET, int(min_entries))
     ent_p = np.full(m, pad_state, np.int32)
     ent_p[:ent.size] = ent
     return LookaheadEdges(has_next, src_p, tgt_p, ent_p)

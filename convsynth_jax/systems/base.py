@@ -135,6 +135,10 @@ class SynthesisSystem(abc.ABC):
     def synthesize(self, model: Any, window: WindowInput, condition: str) -> WindowResult:
         """Motion for one window of held-out audio."""
 
+    def prepare(self, models: Mapping[str, Any]) -> None:
+        """Called with the fitted models of one conversation (character -> model) before its windows
+        are synthesized, e.g. to let their kernels share one compiled program; default: nothing."""
+
     def fit_seconds(self, model: Any) -> float:
         """Construction / training time of ``model`` (for Table 3), NaN if unknown."""
         return float(getattr(model, "seconds", float("nan")))

@@ -58,6 +58,14 @@ class MotionGraphSystem(SynthesisSystem):
             g.save(cached)
         return GraphModel(g, motions, seconds)
 
+    def prepare(self, models) -> None:
+        """The beam search's arrays of the characters' graphs padded to one shape: one compiled search
+        program for the conversation (search/beam.py: share_shapes; results unchanged)."""
+        if self.params.search.method == "beam":
+            from ..search.beam import share_shapes
+
+            share_shapes([getattr(m, "graph", None) for m in models.values()], int(self.params.search.max_degree))
+
     def search_params(self, condition: str):
         return dataclasses.replace(self.params.search, **self.condition_options(condition))
 

@@ -46,6 +46,7 @@ def _given_graphs(given, ann, system):
                 raise ConfigError(f"graph {path}: clip {cn!r} is not a recording of the configured corpus")
             motions[cn] = ann[s_name][role].motion
         out[char] = GraphModel(g, motions, 0.0)
+    system.prepare(out)
     return out
 
 

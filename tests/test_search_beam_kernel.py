@@ -1,6 +1,7 @@
 """The JAX beam kernel against its slow NumPy reference (same noise, same documented rules)."""
 import dataclasses
 
+import jax
 import numpy as np
 import pandas as pd
 import pytest
@@ -245,12 +246,15 @@ def test_lookahead_kernel_equals_reference(seed, matching):
     prep = _prepare(g, 24)
     codes = None if cons.paper is None else (cons.paper.own_codes, cons.paper.par_codes)
     e = prep.lookahead_edges(codes)
-    src = np.asarray(e.src)
-    n_flat = int((src < g.num_states).sum())
-    assert np.asarray(e.has_next)[:g.num_states].any() and n_flat > 0   # both the shift and the flat list
+
+    def listed(edges):   # real (non-padding) entries of the dense rows
+        return sum(int((np.asarray(t) < g.num_states).sum()) for t in edges.tgt)
+
+    n_flat = listed(e)
+    assert np.asarray(e.has_next)[:g.num_states].any() and n_flat > 0   # both the shift and the rows
     assert (np.asarray(e.entry) < g.num_states).any()                    # entry states get the full rule
     if codes is not None:   # the static contiguity rule dropped some synthetic edges
-        assert n_flat < int((np.asarray(prep.lookahead_edges(None).src) < g.num_states).sum())
+        assert n_flat < listed(prep.lookahead_edges(None))
     assert not got[:-1].all()                     # the windows constrain something
     if matching == "labels" and seed != 2:
         assert ok                                 # the clip the input was copied from is a path
@@ -281,32 +285,42 @@ def test_lookahead_and_beam_in_one_kernel_equal_the_two_kernels(seed, matching):
 
 
 def test_edge_or_is_a_bitwise_or_over_each_states_edges():
-    """The look-ahead's OR over a state's listed edges (feasible.edge_or) against np.bitwise_or.at:
-    flag sets that are not nested (own entry flag only 0b1010, partner flag only 0b1100: 0b1110; a
-    segment_max over the bytes, used before, gave 0b1100), random bytes of 4 and 2 bits, and a state
-    with the most edges the beam allows (255) all carrying every bit."""
+    """The look-ahead's OR over a state's listed edges (feasible.edge_or over the dense rows of
+    feasible.edge_rows) against np.bitwise_or.at: flag sets that are not nested (own entry flag only
+    0b1010, partner flag only 0b1100: 0b1110; a segment_max over the bytes, used before, gave 0b1100),
+    random bytes of 4 and 2 bits, states with 1 to 300 edges (every row width, more than the 255 the
+    byte-lane sum of last session allowed) and rows padded to more than needed."""
     import jax.numpy as jnp
 
-    from convsynth_jax.search.feasible import edge_or
+    from convsynth_jax.search.feasible import edge_or, edge_rows, row_widths
 
-    S = 300
+    S = 400
+    pad = S - 1
     A = np.zeros(S, np.uint8)
     A[1], A[2] = 0b1010, 0b1100
     src, tgt = [0, 0], [1, 2]
     A[3] = 0b1111
-    src += [4] * 255; tgt += [3] * 255
+    src += [4] * 300; tgt += [3] * 300
     rng = np.random.default_rng(0)
-    A[10:] = rng.integers(0, 16, S - 10)
-    extra_src = np.sort(rng.integers(5, S, 2000)); extra_tgt = rng.integers(0, S, 2000)
+    A[10:pad] = rng.integers(0, 16, pad - 10)
+    extra_src = np.sort(rng.integers(5, pad, 2000)); extra_tgt = rng.integers(0, pad, 2000)
     src = np.concatenate([src, extra_src]).astype(np.int32); tgt = np.concatenate([tgt, extra_tgt]).astype(np.int32)
+    widths = row_widths(300)
+    assert widths == (4, 8, 16, 32, 64, 128, 256, 512)
     for F in (4, 2):
         a = A & np.uint8((1 << F) - 1)
         want = np.zeros(S, np.uint8)
         np.bitwise_or.at(want, src, a[tgt])
-        got = np.asarray(edge_or(jnp.asarray(a), jnp.asarray(src), jnp.asarray(tgt), S, F))
-        np.testing.assert_array_equal(got, want)
+        for min_rows in (None, (300,) * len(widths)):
+            s_rows, t_rows = edge_rows(src, tgt, pad, widths, min_rows)
+            assert sum(int((t < pad).sum()) for t in t_rows) == src.size      # every edge listed once
+            got = np.asarray(edge_or(jnp.asarray(a), tuple(map(jnp.asarray, s_rows)), tuple(map(jnp.asarray, t_rows)),
+                                     S))
+            np.testing.assert_array_equal(got, want)
         if F == 4:
             assert got[0] == 0b1110 and got[4] == 0b1111
+    with pytest.raises(ValueError, match="widest row"):
+        edge_rows(src, tgt, pad, row_widths(64))
 
 
 @pytest.mark.parametrize("matching", ["paper", "labels"])
@@ -315,7 +329,7 @@ def test_shared_shapes_give_the_same_searches(monkeypatch, matching):
     the searches on both are the unshared ones exactly. Small buckets so the two graphs' own shapes differ."""
     from convsynth_jax.search import beam, feasible
 
-    for mod, name, v in ((beam, "STATE_BUCKET", 64), (beam, "EDGE_BUCKET", 64), (feasible, "EDGE_BUCKET", 64),
+    for mod, name, v in ((beam, "STATE_BUCKET", 64), (beam, "EDGE_BUCKET", 64), (feasible, "ROW_BUCKET", 8),
                          (feasible, "ENTRY_BUCKET", 16)):
         monkeypatch.setattr(mod, name, v)
     monkeypatch.setattr(beam, "_CACHE", [])
@@ -332,7 +346,7 @@ def test_shared_shapes_give_the_same_searches(monkeypatch, matching):
             codes = None if cons.paper is None else (cons.paper.own_codes, cons.paper.par_codes)
             e = prep.lookahead_edges(codes)
             shapes = ([np.shape(x) for x in prep.device] + [np.shape(x) for x in prep.paper_device]
-                      + [np.shape(x) for x in e] + [prep.kernel_degree])
+                      + [np.shape(x) for x in jax.tree.leaves(e)] + [prep.kernel_degree])
             out.append((res.success, None if res.path is None else list(res.path), res.cost, shapes))
         return out
 

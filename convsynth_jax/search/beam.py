@@ -125,20 +125,20 @@ class _Prepared:
         with (own codes, partner codes), or for ``labels`` (None); built once per codes."""
         key = None if codes is None else (int(codes[0]), int(codes[1]))
         if key not in self._edges:
-            n_e, n_ent = 0, 0
+            rows, n_ent = None, 0
             for p in self.peers:   # a group sharing one compiled kernel: every member's lists, padded alike
                 a, b = p.lookahead_sizes(key)
-                n_e, n_ent = max(n_e, a), max(n_ent, b)
-            e = lookahead_edges(*self.host, self.num_states, key, n_e, n_ent)
-            self._raw_sizes[key] = (e.src.size, e.entry.size)
-            self._edges[key] = type(e)(*(jax.device_put(x) for x in e))
+                rows = a if rows is None else tuple(max(x, y) for x, y in zip(rows, a))
+                n_ent = max(n_ent, b)
+            e = lookahead_edges(*self.host, self.num_states, key, rows, n_ent, self.kernel_degree)
+            self._edges[key] = jax.tree.map(jax.device_put, e)
         return self._edges[key]
 
     def lookahead_sizes(self, key):
-        """(edge list, entry list) lengths of this graph's own look-ahead lists for ``key``."""
+        """(rows per width, entry list length) of this graph's own look-ahead lists for ``key``."""
         if key not in self._raw_sizes:
-            e = lookahead_edges(*self.host, self.num_states, key)
-            self._raw_sizes[key] = (e.src.size, e.entry.size)
+            e = lookahead_edges(*self.host, self.num_states, key, max_degree=self.kernel_degree)
+            self._raw_sizes[key] = (tuple(x.shape[0] for x in e.src), e.entry.size)
         return self._raw_sizes[key]
 
 
@@ -362,19 +362,11 @@ def padded_inputs(c: Constraints):
     return reqs, padb(c.peak_window, False), padb(c.peak_reset, False), padb(c.peak_check, False), paper_arrs
 
 
-def _check_lookahead_degree(prep, max_degree: int) -> None:
-    """The look-ahead counts a state's listed edges per flag bit in a byte (``feasible.edge_or``)."""
-    if prep.max_degree > 255:
-        raise ConfigError(f"search.lookahead counts edges in bytes: search.max_degree must be <= 255 "
-                          f"(got {max_degree})")
-
-
 def lookahead(graph, constraints: Constraints, max_degree: int):
     """(feas (Tp, S_pad) uint8 device array, solvable): the look-ahead of ``search.lookahead``
     (:mod:`convsynth_jax.search.feasible`) over the beam's edge set (each state's ``max_degree``
     cheapest out-edges) and whether any start state can complete the window."""
     prep = _prepare(graph, max_degree)
-    _check_lookahead_degree(prep, max_degree)
     feas, ok = feasibility(prep, constraints, padded_inputs(constraints))
     return feas, bool(ok)
 
@@ -436,8 +428,6 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     t0 = time.perf_counter()
     max_deg, beam, budget = _check_sizes(params)
     prep = _prepare(graph, max_deg)
-    if lookahead:
-        _check_lookahead_degree(prep, max_deg)
     dev = prep.device
     c = constraints
     paper = c.paper is not None

@@ -210,3 +210,21 @@ def test_loo_task_for_any_system(tiny_corpus_dir, tiny, tmp_path):
     bad = run_task(compose(["task=loo", "system=random_playback", "condition=all", "corpus=synthetic_tiny",
                             f"corpus.root={tiny_corpus_dir}", f"cache_dir={cache}", "progress=false"]), tmp_path / "b")
     assert not bad["success"] and "no condition" in bad["error"]
+
+
+def test_fit_fold_lets_the_characters_share_one_search_program(tiny):
+    """fit_fold hands the fold's models to SynthesisSystem.prepare; the motion graph system pads both
+    characters' search arrays to one shape there (search/beam.py: share_shapes), so a fold runs one
+    compiled search program."""
+    from convsynth_jax.evaluation.loo import fit_fold
+    from convsynth_jax.search import beam
+    from convsynth_jax.systems.base import make_system
+
+    p, ann, cache = tiny
+    system = make_system(p, p.system)
+    assert system.name == "motion_graph"
+    models = fit_fold(system, ann, list(ann)[1], "all", cache)
+    preps = [beam._prepare(m.graph, int(p.search.max_degree)) for m in models.values()]
+    assert len(preps) == 2 and all(len(q.peers) == 2 and q in q.peers for q in preps)
+    assert [np.shape(x) for x in preps[0].device] == [np.shape(x) for x in preps[1].device]
+    assert preps[0].kernel_degree == preps[1].kernel_degree

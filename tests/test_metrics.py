@@ -125,3 +125,10 @@ def test_seam_content_ratio_equals_the_slow_loop():
     # the burst in c is played next to the transition at 17: the content alone is over the ground truth
     assert got > 1.0
     assert np.isnan(seam_content_ratio(acc, src, frm, gt, fps, [], blend))
+    # a burst in clip b just after the frames played (5..11): only the previous clip's continuation
+    # during the blend after the transition at 17 (b frames 12..15) reaches it
+    clips["b"][13:, 1] += 80.0
+    acc["b"] = clip_acceleration(clips["b"], fps)
+    with_cont = seam_content_ratio(acc, src, frm, gt, fps, syn, blend)
+    assert with_cont > seam_content_ratio(acc, src, frm, gt, fps, syn, 0) + 1.0
+    assert with_cont == pytest.approx(own_acc("b", 12) / gmax, rel=1e-12)

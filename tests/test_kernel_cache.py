@@ -265,15 +265,21 @@ def test_a_stored_kernel_that_does_not_run_is_compiled_again(tmp_path):
             assert "does not run" in r.stderr
 
 
-def test_graph_construction_through_stored_kernels_equals_the_jitted_one(kdir):
+@pytest.mark.parametrize("source", ["synthetic", "bandai2"])
+def test_graph_construction_through_stored_kernels_equals_the_jitted_one(kdir, source, request):
     """The construction's kernels (forward kinematics, root-relative features, pivots, cost tiles) are
     stored too (issue #15: a second bandai2 construction skips their tracing); the graph built through
-    the stored executables, written by this process and then read back, is the jitted one exactly."""
+    the stored executables, written by this process and then read back, is the jitted one exactly, on
+    random clips and on real Bandai-Namco 2 clips (../shared; skipped without it)."""
     from convsynth_jax.graph import build_database, build_graph
+    from convsynth_jax.graph.database import bvh_folder_clips
     from convsynth_jax.graph.params import GraphParams
     from test_graph_build import random_clips
 
-    clips = random_clips(11)
+    if source == "bandai2":
+        clips = bvh_folder_clips(request.getfixturevalue("bandai_dir"), "*wave-both-hands_normal_00[1-4].bvh")
+    else:
+        clips = random_clips(11)
     old = kernel_cache.kernel_dir()
     kernel_cache.set_kernel_dir(None)
     want = build_graph(build_database(clips), GraphParams())

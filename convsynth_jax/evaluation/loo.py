@@ -189,20 +189,14 @@ _CLIP_ACC: dict = {}   # id(motion) -> (motion, per-frame acceleration): each tr
 
 def _clip_acceleration(motion) -> np.ndarray:
     """(F, J) root-relative acceleration magnitudes of a whole source clip (metrics.clip_acceleration),
-    forward kinematics with the frames padded to a power of two (one compile per size), cached."""
-    from .. import kernel_cache
-    from ..kinematics import fk_kernel
+    by the padded forward kinematics of graph construction (one compile per power of two), cached."""
+    from ..graph.database import padded_global_transforms
     from . import metrics
 
     hit = _CLIP_ACC.get(id(motion))
     if hit is not None and hit[0] is motion:
         return hit[1]
-    n = motion.num_frames
-    size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
-    pad = np.r_[np.arange(n), np.full(size - n, n - 1)]
-    rot = np.asarray(motion.rotations, np.float32)[pad]
-    tr = np.asarray(motion.translations, np.float32)[pad]
-    pos, _ = kernel_cache.call(fk_kernel, "fk", (rot, tr), {"parents": tuple(motion.skeleton.parents)})
+    pos, _, n = padded_global_transforms([motion])
     acc = metrics.clip_acceleration(np.asarray(pos, np.float64)[:n], motion.fps)
     if len(_CLIP_ACC) > 256:
         _CLIP_ACC.clear()

@@ -44,14 +44,16 @@ def _idle(n: int) -> FrameAudio:
     return FrameAudio(np.zeros(n, np.int8), np.full(n, -1, np.int32), np.full(n, -1, np.int32), np.full(n, -1, np.int32))
 
 
-def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
-    """Root-relative positions and velocities of many clips of one skeleton with one FK call (the
-    frame count is padded to a power of two so the kernels compile for few shapes). Velocities are
-    differenced within each clip. Returns float32 (N, J, 3) arrays."""
+def padded_global_transforms(motions):
+    """Global joint positions and rotations of many clips of one skeleton with one forward-kinematics
+    call, through its stored executable (kernel_cache.py: a second run skips tracing the joint chain).
+    The frames, concatenated, are padded with copies of the last one to a power of two so the kernel
+    compiles for few shapes. Returns (positions (P, J, 3), rotations (P, J, 4)) device float32 arrays
+    and the real frame count n <= P."""
     import jax
 
     from .. import kernel_cache
-    from ..kinematics import fk_kernel, root_relative_kernel
+    from ..kinematics import fk_kernel
 
     n = sum(m.rotations.shape[0] for m in motions)
     size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
@@ -68,9 +70,19 @@ def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
     if 0 < n < size:
         rot[n:] = rot[n - 1]
         tr[n:] = tr[n - 1]
-    # through the stored executables (kernel_cache.py): a second run skips tracing the joint chain
     pos, grot = kernel_cache.call(fk_kernel, "fk", (jax.device_put(rot), jax.device_put(tr)),
                                   {"parents": tuple(motions[0].skeleton.parents)})
+    return pos, grot, n
+
+
+def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
+    """Root-relative positions and velocities of many clips of one skeleton with one FK call
+    (:func:`padded_global_transforms`). Velocities are differenced within each clip. Returns float32
+    (N, J, 3) arrays."""
+    from .. import kernel_cache
+    from ..kinematics import root_relative_kernel
+
+    pos, grot, n = padded_global_transforms(motions)
     rel = np.asarray(kernel_cache.call(root_relative_kernel, "root_relative", (pos, grot),
                                        {"up_axis": up_axis, "remove_yaw": remove_yaw}))[:n]
     vel = np.empty_like(rel)

@@ -58,12 +58,17 @@ def padded_states(num_states: int) -> int:
     return num_states + 1 + (-(num_states + 1) % STATE_BUCKET)
 
 
+def kept_degrees(graph, max_degree: int):
+    """(each state's out-degree (S,), D: the largest kept degree, at least 1 and at most max_degree)."""
+    deg = np.diff(graph.indptr)
+    return deg, int(min(max(1, deg.max() if deg.size else 1), max_degree))
+
+
 def kept_edges(graph, max_degree: int = 64):
     """Each state's at most D cheapest out-edges, cheapest first (ties: CSR order), state after state,
     as flat arrays. Returns (first (S,) int32: index of the state's first kept edge, degree (S,) int32,
     targets (E,) int32, costs (E,) float32, synthetic (E,) bool, D)."""
-    deg = np.diff(graph.indptr)
-    D = int(min(max(1, deg.max() if deg.size else 1), max_degree))
+    deg, D = kept_degrees(graph, max_degree)
     row = np.repeat(np.arange(graph.num_states), deg)
     order = np.lexsort((np.arange(row.size), graph.cost, row))      # by row, then cost, then CSR position
     rank = np.arange(row.size) - graph.indptr[row[order]]
@@ -201,8 +206,7 @@ def share_shapes(graphs, max_degree: int) -> None:
         return   # already shared (fit_fold prepares a fold's models once per condition)
     shapes = []
     for g in graphs:
-        deg = np.diff(g.indptr)
-        D = int(min(max(1, deg.max() if deg.size else 1), max_degree))
+        deg, D = kept_degrees(g, max_degree)
         shapes.append(_own_shape(g.num_states, int(np.minimum(deg, D).sum()), D))
     common = tuple(max(s[k] for s in shapes) for k in range(3))
     preps = [_prepare(g, max_degree, common) for g in graphs]

@@ -292,7 +292,7 @@ def test_edge_or_is_a_bitwise_or_over_each_states_edges():
     byte-lane sum of last session allowed) and rows padded to more than needed."""
     import jax.numpy as jnp
 
-    from convsynth_jax.search.feasible import edge_or, edge_rows, row_widths
+    from convsynth_jax.search.feasible import LookaheadEdges, edge_or, edge_rows, pad_lookahead, row_widths
 
     S = 400
     pad = S - 1
@@ -311,8 +311,11 @@ def test_edge_or_is_a_bitwise_or_over_each_states_edges():
         a = A & np.uint8((1 << F) - 1)
         want = np.zeros(S, np.uint8)
         np.bitwise_or.at(want, src, a[tgt])
-        for min_rows in (None, (300,) * len(widths)):
-            s_rows, t_rows = edge_rows(src, tgt, pad, widths, min_rows)
+        s_rows, t_rows = edge_rows(src, tgt, pad, widths)
+        padded = pad_lookahead(LookaheadEdges(np.zeros(S, bool), s_rows, t_rows, np.zeros(0, np.int32)),
+                               (300,) * len(widths), 0)
+        assert all(x.shape[0] >= 300 for x in padded.src) and all(x.shape[0] >= 300 for x in padded.tgt)
+        for s_rows, t_rows in ((s_rows, t_rows), (padded.src, padded.tgt)):
             assert sum(int((t < pad).sum()) for t in t_rows) == src.size      # every edge listed once
             got = np.asarray(edge_or(jnp.asarray(a), tuple(map(jnp.asarray, s_rows)), tuple(map(jnp.asarray, t_rows)),
                                      S))

@@ -44,7 +44,7 @@ from .. import kernel_cache
 from ..errors import ConfigError, GraphError, LabelError
 from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
                           requirement_arrays, segment_info)
-from .feasible import _feasible_kernel, feasibility, lookahead_edges, num_flags
+from .feasible import _feasible_kernel, feasibility, lookahead_edges, num_flags, pad_lookahead
 from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
 
@@ -118,7 +118,7 @@ class _Prepared:
     kernel_degree: int = 0   # the kernels' static D: max_degree, or the largest of a group sharing shapes
     peers: tuple = ()        # the group's graphs' _Prepared (share_shapes): look-ahead lists padded alike
     _edges: dict = dataclasses.field(default_factory=dict)
-    _raw_sizes: dict = dataclasses.field(default_factory=dict)
+    _own_edges: dict = dataclasses.field(default_factory=dict)
 
     def edge_stats(self, src: np.ndarray, rank: np.ndarray):
         """(costs, synthetic flags) of the edges taken from states ``src`` at edge ranks ``rank``."""
@@ -130,21 +130,19 @@ class _Prepared:
         with (own codes, partner codes), or for ``labels`` (None); built once per codes."""
         key = None if codes is None else (int(codes[0]), int(codes[1]))
         if key not in self._edges:
-            rows, n_ent = None, 0
-            for p in self.peers:   # a group sharing one compiled kernel: every member's lists, padded alike
-                a, b = p.lookahead_sizes(key)
-                rows = a if rows is None else tuple(max(x, y) for x, y in zip(rows, a))
-                n_ent = max(n_ent, b)
-            e = lookahead_edges(*self.host, self.num_states, key, rows, n_ent, self.kernel_degree)
+            e = self.own_lookahead_edges(key)
+            if self.peers:   # a group sharing one compiled kernel: every member's lists, padded alike
+                own = [p.own_lookahead_edges(key) for p in self.peers]
+                rows = [max(x.src[k].shape[0] for x in own) for k in range(len(e.src))]
+                e = pad_lookahead(e, rows, max(x.entry.shape[0] for x in own))
             self._edges[key] = jax.tree.map(jax.device_put, e)
         return self._edges[key]
 
-    def lookahead_sizes(self, key):
-        """(rows per width, entry list length) of this graph's own look-ahead lists for ``key``."""
-        if key not in self._raw_sizes:
-            e = lookahead_edges(*self.host, self.num_states, key, max_degree=self.kernel_degree)
-            self._raw_sizes[key] = (tuple(x.shape[0] for x in e.src), e.entry.size)
-        return self._raw_sizes[key]
+    def own_lookahead_edges(self, key):
+        """This graph's look-ahead lists for ``key`` on its own (host arrays, built once per key)."""
+        if key not in self._own_edges:
+            self._own_edges[key] = lookahead_edges(*self.host, self.num_states, key, max_degree=self.kernel_degree)
+        return self._own_edges[key]
 
 
 _CACHE: list = []  # small LRU of (graph, max_degree, _Prepared)

@@ -97,9 +97,9 @@ class LookaheadEdges(NamedTuple):
     entry: np.ndarray       # (n,) int32
 
 
-def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple, min_rows=None):
+def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple):
     """(src rows per width, target rows per width) of :class:`LookaheadEdges` from flat edge lists
-    sorted by source; ``min_rows``: per width, pad to at least that many rows. Host NumPy."""
+    sorted by source. Host NumPy."""
     src = np.asarray(src, np.int64)
     dst = np.asarray(dst, np.int64)
     states, first, counts = np.unique(src, return_index=True, return_counts=True)
@@ -112,8 +112,6 @@ def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple, m
     for k, w in enumerate(widths):
         sel = np.flatnonzero(kind == k)
         n = sel.size + (-sel.size % ROW_BUCKET)
-        if min_rows is not None:
-            n = max(n, int(min_rows[k]))
         srow = np.full(n, pad_state, np.int32)
         trow = np.full((n, w), pad_state, np.int32)
         srow[:sel.size] = states[sel]
@@ -127,16 +125,15 @@ def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple, m
 
 
 def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np.ndarray, info: np.ndarray,
-                    state_code: np.ndarray, num_states: int, codes=None, min_rows=None,
-                    min_entries: int = 0, max_degree: int | None = None) -> LookaheadEdges:
+                    state_code: np.ndarray, num_states: int, codes=None,
+                    max_degree: int | None = None) -> LookaheadEdges:
     """:class:`LookaheadEdges` of the kept edges in the beam's flat layout (``beam.kept_edges``: state
     s's edges are tgt/syn[first[s] : first[s] + deg[s]]), for S states of which those from
     ``num_states`` on are padding (the last one, S - 1, is where padded entries point). ``info``:
     (S, 5) ``constraints.segment_info``; ``state_code`` (S,) ``beam.state_codes``; ``codes``: (own
     codes, partner codes) of a ``paper`` window (its static contiguity rule is applied), None for
-    ``labels`` (every kept edge stays). ``max_degree``: the widest row (default: the largest degree);
-    ``min_rows`` (per width) / ``min_entries``: pad the rows and the entry list to at least that many
-    (graphs that share one compiled kernel, ``beam.share_shapes``). Host NumPy."""
+    ``labels`` (every kept edge stays). ``max_degree``: the widest row (default: the largest degree).
+    Host NumPy."""
     S = first.shape[0]
     pad_state = S - 1
     row = np.repeat(np.arange(S, dtype=np.int32), deg)               # kept edges are stored state after state
@@ -151,12 +148,26 @@ def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np
     has_next = np.zeros(S, bool)
     has_next[row[nxt]] = True
     widths = row_widths(int(max_degree) if max_degree else int(deg.max(initial=1)))
-    s_rows, t_rows = edge_rows(src, dst, pad_state, widths, min_rows)
+    s_rows, t_rows = edge_rows(src, dst, pad_state, widths)
     ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
-    m = max(ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET, int(min_entries))
+    m = ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET
     ent_p = np.full(m, pad_state, np.int32)
     ent_p[:ent.size] = ent
     return LookaheadEdges(has_next, s_rows, t_rows, ent_p)
+
+
+def pad_lookahead(e: LookaheadEdges, min_rows, min_entries: int) -> LookaheadEdges:
+    """``e`` with each width's rows and the entry list padded (with the padding state, the last one)
+    to at least ``min_rows[k]`` / ``min_entries``: the lists of graphs that share one compiled kernel
+    (``beam.share_shapes``), without building them again. Host NumPy."""
+    pad_state = e.has_next.shape[0] - 1
+
+    def grow(x, n):
+        extra = max(int(n) - x.shape[0], 0)
+        return np.concatenate([x, np.full((extra,) + x.shape[1:], pad_state, x.dtype)]) if extra else x
+
+    return LookaheadEdges(e.has_next, tuple(grow(x, n) for x, n in zip(e.src, min_rows)),
+                          tuple(grow(x, n) for x, n in zip(e.tgt, min_rows)), grow(e.entry, min_entries))
 
 
 def edge_or(A, src, tgt, S: int):

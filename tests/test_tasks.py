@@ -98,7 +98,7 @@ def test_graph_tasks(tiny_corpus_dir, cache, tmp_path):
     run_task(cfg_for("figure4", tiny_corpus_dir, cache, "task.ks=[3]"), tmp_path / "f4")
     assert (tmp_path / "f4" / "figure4.png").is_file()
     # the figure script redraws from the CSVs alone
-    r = subprocess.run([sys.executable, str(REPO / "experiments" / "figure4.py"), str(tmp_path / "f4")],
+    r = subprocess.run([sys.executable, str(REPO / "experiments" / "paper" / "figure4.py"), str(tmp_path / "f4")],
                        capture_output=True, text=True)
     assert r.returncode == 0, r.stderr
 
@@ -156,7 +156,7 @@ def test_loo_sweep_collect_records_failures_and_figure_scripts(tiny_corpus_dir, 
     assert set(rates["condition"]) == {"all", "no_lr", "none"}
     for script, out in (("success_rates.py", "success_rates.png"), ("table3.py", "table3.md"),
                         ("ablation.py", "ablation.png")):
-        r = subprocess.run([sys.executable, str(REPO / "experiments" / script), str(tmp_path / "col"), "--out",
+        r = subprocess.run([sys.executable, str(REPO / "experiments" / "paper" / script), str(tmp_path / "col"), "--out",
                             str(tmp_path / "fig")], capture_output=True, text=True)
         assert r.returncode == 0, r.stderr
         assert (tmp_path / "fig" / out).is_file()

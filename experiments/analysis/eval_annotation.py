@@ -1,0 +1,369 @@
+"""Evidence for the annotation pipeline and Table 1 statistics.
+
+1. Synthetic default corpus (17 sessions x 106 s): detected motion events vs the planted ground truth
+   (precision over all planted movements, recall over those caused by audio), measured co-occurrence
+   rates vs the realised planted rates (events.csv) and the configured probabilities, significance
+   against chance (chi-square and permutation).
+2. Negative controls on the same corpus: audio of each session with the motion of the next session,
+   and each participant's motion circularly shifted by a third of the clip.
+3. Audio segmentation against the planted audio segments (events.csv PC/LR/HP rows): phonemic
+   clause boundaries (every clause start and end; a boundary is matched by one within
+   CLAUSE_TOL = 0.15 s), the words-per-clause distribution against the planted one, LR and HP
+   precision/recall (a segment is matched by an overlapping segment of the same kind).
+4. Fluent synthetic speech (convsynth_jax/data/fluent.py: clauses joined without any pause, F0
+   resets and final lengthening only; ``--fluent N`` passages of 7 clauses): clause-start precision
+   and recall within CLAUSE_TOL, words per clause, for the configured clause method and for ``pause``.
+5. Hand co-occurrence decomposed (why Table 1's hand rates differ from the configured ones): per
+   character and hand, over the planted clauses (events.csv), the pipeline's detector and counter
+   (``hypothesis_matches`` on the recording's speeds and Eq. 1 thresholds) against the planted
+   truth: caused and detected, caused and missed, not caused but detected (split by what the
+   detected movement overlaps: a gesture planted for another clause, a spontaneous one, a glitch of
+   that arm in glitches.csv, nothing planted = noise or a posture shift), and how the generator's
+   interval emulation ``window_matches`` counts the same clauses.
+6. Real speech (../shared/data/speech, if present): words per clause, fillers labelled HP, HP on
+   words outside the hesitation list, F0 median and peak range, suspicious (octave-jump) peaks.
+
+Writes experiments/results/eval_annotation.json and .md.
+
+    python experiments/eval_annotation.py [--cache DIR] [--fluent N]
+"""
+import argparse
+import dataclasses
+import time
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
+from _bench import REPO, RESULTS, SHARED, write
+
+from convsynth_jax.config import default_params
+from convsynth_jax.annotate.cache import annotate_corpus_cached
+from convsynth_jax.evaluation.summaries import to_markdown
+from convsynth_jax.stats.cooccurrence import cooccurrence_table
+from convsynth_jax.tasks.common import open_corpus
+
+SPEC = {"PC-LH": ("PC", ["LH"], "own"), "PC-RH": ("PC", ["RH"], "own"), "PC-LH/RH": ("PC", ["LH", "RH"], "own"),
+        "LR-Nod": ("LR", ["Nod"], "own"), "PH-Nod": ("HP", ["Nod"], "partner")}
+CLAUSE_TOL = 0.15  # s: clause boundary matching tolerance
+CONFIG_KEY = {"PC-LH": "p_pc_lh", "PC-RH": "p_pc_rh", "PC-LH/RH": "p_pc_either", "LR-Nod": "p_lr_nod",
+              "PH-Nod": "p_ph_nod"}
+
+
+def overlap_counts(planted, detected):
+    hp = sum(((detected["start"] < r.end) & (detected["end"] > r.start)).any() for r in planted.itertuples())
+    hd = sum(((planted["start"] < r.end) & (planted["end"] > r.start)).any() for r in detected.itertuples())
+    return hp, len(planted), hd, len(detected)
+
+
+def detection_scores(ann, ev):
+    per_kind = {}
+    for s, parts in ann.items():
+        for role, a in parts.items():
+            pl = ev[(ev.session == s) & (ev.participant == role)]
+            caused = pl[pl.source != "spontaneous"]
+            for k in ("LH", "RH", "Nod"):
+                d = a.events[a.events.kind == k].drop_duplicates(["start", "end"])
+                hp, n_p, _, _ = overlap_counts(caused[caused.kind == k], d)
+                _, _, hd, n_d = overlap_counts(pl[pl.kind == k], d)
+                per_kind[k] = per_kind.get(k, np.zeros(4)) + (hp, n_p, hd, n_d)
+    tot = sum(per_kind.values())
+    return {"recall": tot[0] / tot[1], "precision": tot[2] / tot[3], "planted_caused": int(tot[1]),
+            "detected": int(tot[3]),
+            "per_kind": {k: {"recall": v[0] / v[1], "precision": v[2] / v[3]} for k, v in per_kind.items()}}
+
+
+def planted_rate(ev, role, hypothesis):
+    akind, kinds, whose = SPEC[hypothesis]
+    who = (ev.participant == role) if whose == "own" else (ev.participant != role)
+    audio = ev[(ev.kind == akind) & who]
+    caused = ev[(ev.participant == role) & (ev.source == akind) & ev.kind.isin(kinds)]
+    return caused.groupby(["session", "cause_start"]).ngroups / max(1, len(audio))
+
+
+def control(ann, how):
+    names = list(ann)
+    out = []
+    for i, s in enumerate(names):
+        for role, a in ann[s].items():
+            if how == "swap":
+                m = ann[names[(i + 1) % len(names)]][role].motion
+                m = m.slice(0, min(m.num_frames, a.motion.num_frames))
+            else:
+                k = a.motion.num_frames // 3
+                m = dataclasses.replace(a.motion, rotations=np.roll(a.motion.rotations, k, 0),
+                                        translations=np.roll(a.motion.translations, k, 0))
+            out.append(dataclasses.replace(a, motion=m))
+    return out
+
+
+def _near(a, b, tol):
+    """For each value of a: is there a value of b within tol."""
+    a, b = np.asarray(a, float), np.sort(np.asarray(b, float))
+    if not b.size:
+        return np.zeros(a.size, bool)
+    i = np.clip(np.searchsorted(b, a), 1, b.size) - 1
+    j = np.clip(i + 1, 0, b.size - 1)
+    return np.minimum(np.abs(a - b[i]), np.abs(a - b[j])) <= tol
+
+
+def words_stats(n_words) -> dict:
+    n = np.asarray(n_words, int)
+    if not n.size:
+        return {"clauses": 0}
+    return {"clauses": int(n.size), "mean": float(n.mean()), "sd": float(n.std()), "median": float(np.median(n)),
+            "max": int(n.max()), "over_15": int((n > 15).sum()),
+            "histogram": {int(k): int(v) for k, v in zip(*np.unique(n, return_counts=True))}}
+
+
+def audio_scores(ann, ev):
+    """Clause boundary precision/recall (start and end of every clause, matched within CLAUSE_TOL),
+    words per clause detected vs planted, LR/HP overlap precision/recall."""
+    hits = {k: np.zeros(4) for k in ("PC", "LR", "HP")}
+    det_words, pl_words = [], []
+    for s, parts in ann.items():
+        for role, a in parts.items():
+            pl = ev[(ev.session == s) & (ev.participant == role)]
+            seg = a.segments
+            p_pc, d_pc = pl[pl.kind == "PC"], seg[seg.kind == "PC"]
+            pb = np.concatenate([p_pc.start, p_pc.end])
+            db = np.concatenate([d_pc.start, d_pc.end])
+            hits["PC"] += (_near(pb, db, CLAUSE_TOL).sum(), pb.size, _near(db, pb, CLAUSE_TOL).sum(), db.size)
+            det_words += d_pc.text.str.split().str.len().tolist()
+            pl_words += p_pc.text.str.split().str.len().tolist()
+            for k in ("LR", "HP"):
+                hits[k] += overlap_counts(pl[pl.kind == k], seg[seg.kind == k])
+    out = {k: {"recall": v[0] / max(v[1], 1), "precision": v[2] / max(v[3], 1), "planted": int(v[1]),
+               "detected": int(v[3])} for k, v in hits.items()}
+    out["PC"]["tolerance_s"] = CLAUSE_TOL
+    out["words_per_clause"] = {"detected": words_stats(det_words), "planted": words_stats(pl_words)}
+    return out
+
+
+def hand_decomposition(ann, ev, glitches, params):
+    """Section 5 of the module docstring: {(character role, hypothesis): counts}."""
+    from convsynth_jax.annotate.motion import joint_speeds, recording_thresholds, segment_windows
+    from convsynth_jax.data.synthetic import window_matches
+    from convsynth_jax.stats.cooccurrence import hypothesis_matches
+
+    ap = params
+    out = {}
+    for s, parts in ann.items():
+        for role, a in parts.items():
+            sp = joint_speeds(a.motion, ap)
+            thr = recording_thresholds(sp, ap.alpha_s)
+            fps = a.motion.fps
+            e = ev[ev.session == s]
+            chans = {r: e[(e.participant == r) & e.kind.isin(["PC", "LR", "HP"])].sort_values("start")
+                     for r in e.participant.unique()}
+            own = chans[role]
+            partner = next((c for r, c in chans.items() if r != role), own.iloc[:0])
+            pcs = own[own.kind == "PC"]
+            for h, side in (("PC-LH", "Left"), ("PC-RH", "Right")):
+                k = SPEC[h][1][0]
+                mv = e[(e.participant == role) & (e.kind == k)]
+                det, wins = hypothesis_matches(sp, own, partner, fps, h, thresholds=thr, alpha_w=ap.alpha_w,
+                                               extend_trim=ap.extend_trim)
+                found = segment_windows(sp[k], wins, float(thr[k]), ap.alpha_w, extend_trim=ap.extend_trim)
+                emu = window_matches(pcs[["start", "end"]].values, own[["start", "end"]].values,
+                                     mv[["start", "end"]].values)
+                caused = np.array([((mv.source == "PC") & (np.abs(mv.cause_start - r.start) < 1e-3)).any()
+                                   for r in pcs.itertuples()])
+                c = out.setdefault((role, h), {x: 0 for x in (
+                    "clauses", "caused", "detected", "window_matches", "caused_detected", "caused_missed",
+                    "not_caused_detected_other_clause_gesture", "not_caused_detected_spontaneous",
+                    "not_caused_detected_glitch", "not_caused_detected_nothing_planted",
+                    "caused_detected_window_matches_misses")})
+                c["clauses"] += len(pcs)
+                c["caused"] += int(caused.sum())
+                c["detected"] += int(det.sum())
+                c["window_matches"] += int(emu.sum())
+                c["caused_detected"] += int((caused & det).sum())
+                c["caused_missed"] += int((caused & ~det).sum())
+                c["caused_detected_window_matches_misses"] += int((caused & det & ~emu).sum())
+                g = glitches[(glitches.session == s) & (glitches.participant == role)
+                             & glitches.joint.str.startswith(side)]
+                for i in np.flatnonzero(~caused & det):
+                    f0, f1 = found[i][0], found[i][2]
+                    ov = mv[(mv.start < f1 / fps) & (mv.end > f0 / fps)]
+                    if (ov.source == "PC").any():
+                        c["not_caused_detected_other_clause_gesture"] += 1
+                    elif len(ov):
+                        c["not_caused_detected_spontaneous"] += 1
+                    elif ((g.start_frame < f1) & (g.end_frame > f0)).any():
+                        c["not_caused_detected_glitch"] += 1
+                    else:
+                        c["not_caused_detected_nothing_planted"] += 1
+    return out
+
+
+def fluent_scores(n_passages, base_params):
+    """Clause starts (all but the first of a passage) on fluent synthetic speech (module docstring)."""
+    from convsynth_jax.annotate.audio import annotate_audio
+    from convsynth_jax.data.fluent import fluent_speech
+
+    out = {}
+    for method in (base_params.clause_method, "pause"):
+        p = dataclasses.replace(base_params, clause_method=method)
+        hp = n_p = hd = n_d = 0
+        nw, peak_err = [], []
+        for k in range(n_passages):
+            rng = np.random.default_rng(1000 + k)
+            sizes = [int(np.clip(round(rng.normal(4.1, 2.0)), 1, 10)) for _ in range(7)]
+            audio, w, segs = fluent_speech(2000 + k, sizes, f0_base=(210.0, 118.0)[k % 2])
+            seg = annotate_audio(w, audio, p)
+            pc = seg[seg.kind == "PC"]
+            truth, det = np.array([x.start for x in segs[1:]]), pc.start.to_numpy()[1:]
+            hp += int(_near(truth, det, CLAUSE_TOL).sum())
+            n_p += truth.size
+            hd += int(_near(det, truth, CLAUSE_TOL).sum())
+            n_d += det.size
+            nw += pc.text.str.split().str.len().tolist()
+            for x in segs:
+                same = pc[(np.abs(pc.start - x.start) < CLAUSE_TOL) & (np.abs(pc.end - x.end) < CLAUSE_TOL)]
+                if len(same):
+                    peak_err.append(abs(float(same.peak.iloc[0]) - x.peak))
+        out[method] = {"passages": n_passages, "boundary_recall": hp / max(n_p, 1),
+                       "boundary_precision": hd / max(n_d, 1), "planted_boundaries": n_p, "detected_boundaries": n_d,
+                       "words_per_clause": words_stats(nw),
+                       "peak_within_0.1s_of_planted": float(np.mean(np.array(peak_err) < 0.1)) if peak_err else None}
+    return out
+
+
+def real_speech(params):
+    from convsynth_jax.annotate.audio import annotate_audio, f0_track, load_word_corpus, normalize_word
+    from convsynth_jax.annotate.clauses import guard_f0
+    from convsynth_jax.io import load_audio, load_transcript
+
+    d = SHARED / "speech"
+    if not d.is_dir():
+        return {"skipped": f"{d} not found"}
+    hesitation = set(load_word_corpus()["hesitation"])
+    out = {}
+    for name in ("acoustic_corpus", "cold_corpus"):
+        w = load_transcript(d / f"{name}.TextGrid")
+        audio = load_audio(d / f"{name}.wav")
+        seg = annotate_audio(w, audio, params)
+        fillers = w[w["word"].str.lower().isin(["uh", "um", "yknow"])]
+        hp = seg[seg.kind == "HP"]
+        in_hp = sum(((hp.start <= f.start + 1e-9) & (hp.end >= f.end - 1e-9)).any() for f in fillers.itertuples())
+        hp_content = [t for t in hp.text if " ".join(normalize_word(x) for x in t.split()) not in hesitation]
+        t, f = f0_track(audio, params)
+        g = guard_f0(t, f, params)
+        f0 = seg["f0_peak"].dropna()
+        pc = seg[seg.kind == "PC"]
+        out[name] = {"words": int(len(w)), "segments": seg["kind"].value_counts().to_dict(),
+                     "words_per_clause": words_stats(pc.text.str.split().str.len()),
+                     "clauses": pc.text.tolist(),
+                     "fillers": int(len(fillers)), "fillers_labelled_hp": int(in_hp),
+                     "hp_on_words_outside_the_hesitation_list": hp_content,
+                     "f0_median_hz": g.median, "f0_frames_dropped_by_guard": int(g.dropped.sum()),
+                     "f0_raw_max_hz": float(np.nanmax(g.raw)),
+                     "f0_peak_hz_min": float(f0.min()), "f0_peak_hz_median": float(f0.median()),
+                     "f0_peak_hz_max": float(f0.max()), "voiced_segments": int(len(f0)),
+                     "suspicious_peaks": int(seg["f0_suspect"].sum()),
+                     "peaks_inside_segments": bool(((seg.peak >= seg.start) & (seg.peak <= seg.end)).all())}
+    return out
+
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser()
+    ap.add_argument("--cache", default=str(REPO / "data_cache"))
+    ap.add_argument("--fluent", type=int, default=20, help="fluent synthetic passages (0: skip)")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    params = default_params([f"cache_dir={args.cache}", "progress=false"])
+    corpus = open_corpus(params)
+    t1 = time.perf_counter()
+    ann = annotate_corpus_cached(corpus, params.annotate, params.fps, Path(args.cache) / "annotation_cache",
+                                 progress=False)
+    t_ann = time.perf_counter() - t1
+    ev = pd.read_csv(Path(corpus.root) / "events.csv")
+    det = detection_scores(ann, ev)
+    aud = audio_scores(ann, ev)
+    t1 = time.perf_counter()
+    table = cooccurrence_table(ann, params.annotate, params.stats, params.seed)
+    t_table = time.perf_counter() - t1
+    gen = corpus.metadata.get("config") or {}
+    chars = gen.get("characters") or {}
+    roles = {"female": "main-agent", "male": "interloctr"}
+    roles_inv = {v: k for k, v in roles.items()}
+    rows = []
+    for r in table.itertuples():
+        role = roles[r.character]
+        rows.append({"character": r.character, "hypothesis": r.hypothesis, "matched": r.matched, "total": r.total,
+                     "measured_rate": r.rate, "planted_rate": planted_rate(ev, role, r.hypothesis),
+                     "configured": (chars.get(role) or {}).get(CONFIG_KEY[r.hypothesis], np.nan),
+                     "chance_rate": r.chance_rate, "p_chi2": r.p_chi2, "p_permutation": r.p_permutation})
+    comp = pd.DataFrame(rows)
+    comp["measured_minus_planted_pp"] = 100 * (comp["measured_rate"] - comp["planted_rate"])
+    glitch_path = Path(corpus.root) / "glitches.csv"
+    glitches = pd.read_csv(glitch_path) if glitch_path.is_file() else pd.DataFrame(
+        columns=["session", "participant", "joint", "start_frame", "end_frame"])
+    decomposition = hand_decomposition(ann, ev, glitches, params.annotate)
+    controls = {}
+    for how in ("swap", "shift"):
+        c = cooccurrence_table(control(ann, how), params.annotate, params.stats, params.seed)
+        controls[how] = {
+            "any_above_chance_p_lt_0.01": bool(((c.p_permutation < 0.01) | ((c.rate > c.chance_rate) & (c.p_chi2 < 0.01))).any()),
+            "min_p_permutation": float(c.p_permutation.min()),
+            "rows": c[["character", "hypothesis", "matched", "total", "rate", "chance_rate", "p_chi2",
+                       "p_permutation"]].to_dict(orient="records")}
+    res = {"corpus": str(corpus.root), "sessions": len(ann),
+           "seconds": {"total": time.perf_counter() - t0, "annotation": t_ann, "table": t_table},
+           "detection": det, "audio_segmentation": aud, "clause_method": params.annotate.clause_method,
+           "fluent_speech": fluent_scores(args.fluent, params.annotate) if args.fluent else None,
+           "max_abs_rate_error_pp": float(comp["measured_minus_planted_pp"].abs().max()),
+           "all_rows_significant_p_lt_0.01": bool((comp["p_chi2"] < 0.01).all() and (comp["p_permutation"] < 0.01).all()),
+           "rows": comp.to_dict(orient="records"),
+           "table1_minus_configured_pp": {f"{r.character} {r.hypothesis}": 100 * (r.measured_rate - r.configured)
+                                          for r in comp.itertuples()},
+           "max_abs_table1_minus_configured_pp": float((100 * (comp.measured_rate - comp.configured)).abs().max()),
+           "hand_decomposition": [{"character": roles_inv.get(r, r), "hypothesis": h, **c}
+                                  for (r, h), c in decomposition.items()],
+           "negative_controls": controls, "real_speech": real_speech(params.annotate)}
+    md = ["# Annotation evidence (synthetic default corpus)", "",
+          f"Motion events: precision {det['precision']:.3f}, recall {det['recall']:.3f} "
+          f"({det['planted_caused']} planted audio-caused movements, {det['detected']} detected).", "",
+          f"Audio segmentation (clause method {params.annotate.clause_method}): clause boundaries (starts and ends, "
+          f"within {CLAUSE_TOL} s) precision {aud['PC']['precision']:.3f}, recall {aud['PC']['recall']:.3f}; "
+          f"LR precision {aud['LR']['precision']:.3f}, recall {aud['LR']['recall']:.3f}; "
+          f"HP precision {aud['HP']['precision']:.3f}, recall {aud['HP']['recall']:.3f}.", "",
+          f"Words per clause: detected {aud['words_per_clause']['detected']}, planted "
+          f"{aud['words_per_clause']['planted']}.", "",
+          f"Largest |measured - planted| rate: {res['max_abs_rate_error_pp']:.2f} percentage points; every row "
+          f"significant at p < 0.01 (both tests): {res['all_rows_significant_p_lt_0.01']}.", "",
+          f"Largest |Table 1 - configured| rate: {res['max_abs_table1_minus_configured_pp']:.2f} percentage points.", "",
+          to_markdown(comp), "",
+          "## Hand co-occurrence decomposed (planted clauses; detector = the pipeline's counter)", "",
+          to_markdown(pd.DataFrame(res["hand_decomposition"])), ""]
+    for how, c in controls.items():
+        md += [f"## Negative control: {how}", "",
+               f"Any row above chance at p < 0.01: {c['any_above_chance_p_lt_0.01']} "
+               f"(smallest permutation p {c['min_p_permutation']:.3g}).", "", to_markdown(pd.DataFrame(c["rows"])), ""]
+    if res["fluent_speech"]:
+        md += ["## Fluent synthetic speech (no pauses between clauses)", ""]
+        for method, f in res["fluent_speech"].items():
+            md += [f"- {method}: clause-start precision {f['boundary_precision']:.3f}, recall {f['boundary_recall']:.3f} "
+                   f"({f['planted_boundaries']} planted, {f['detected_boundaries']} detected); words per clause "
+                   f"mean {f['words_per_clause']['mean']:.2f}, max {f['words_per_clause']['max']}; peak within 0.1 s "
+                   f"of the planted stressed word: {f['peak_within_0.1s_of_planted']}"]
+        md += [""]
+    md += ["## Real speech", ""]
+    for name, r in res["real_speech"].items():
+        if not isinstance(r, dict):
+            md += [f"- {name}: {r}"]
+            continue
+        wpc = r["words_per_clause"]
+        md += [f"- {name}: {wpc['clauses']} clauses, words per clause mean {wpc['mean']:.2f}, sd {wpc['sd']:.2f}, "
+               f"max {wpc['max']} (histogram {wpc['histogram']}); fillers labelled HP {r['fillers_labelled_hp']}/"
+               f"{r['fillers']}; HP on other words {r['hp_on_words_outside_the_hesitation_list']}; F0 median "
+               f"{r['f0_median_hz']:.0f} Hz, segment peaks {r['f0_peak_hz_min']:.0f}-{r['f0_peak_hz_max']:.0f} Hz "
+               f"(raw track max {r['f0_raw_max_hz']:.0f} Hz, {r['f0_frames_dropped_by_guard']} frames dropped by "
+               f"the octave guard), suspicious peaks {r['suspicious_peaks']}",
+               "  clauses: " + " | ".join(r["clauses"])]
+    md += [""]
+    RESULTS.mkdir(parents=True, exist_ok=True)
+    (RESULTS / "eval_annotation.md").write_text("\n".join(md))
+    write("eval_annotation", res)

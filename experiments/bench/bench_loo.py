@@ -1,0 +1,56 @@
+"""Benchmark: the full leave-one-out sweep on the synthetic default corpus (17 folds x 4 conditions,
+both characters) in one process, as the basic Hydra launcher runs it. Goal: under 15 minutes on the
+2-core machine. Writes experiments/results/bench_loo.json and the collected tables to
+experiments/results/loo_default/.
+
+    python experiments/bench_loo.py [--folds N] [--cache DIR]
+"""
+import argparse
+import json
+import sys
+import time
+from pathlib import Path
+
+REPO = Path(__file__).resolve().parents[2]
+sys.path.insert(0, str(REPO))
+
+import pandas as pd  # noqa: E402
+
+from convsynth_jax.config import default_params  # noqa: E402
+from convsynth_jax.evaluation.collect import write_collected  # noqa: E402
+from convsynth_jax.evaluation.loo import run_fold  # noqa: E402
+from convsynth_jax.systems.base import make_system  # noqa: E402
+from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+
+if __name__ == "__main__":
+    ap = argparse.ArgumentParser(description=__doc__)
+    ap.add_argument("--folds", type=int, default=None)
+    ap.add_argument("--cache", default=str(REPO / "data_cache"))
+    ap.add_argument("--out", default=str(REPO / "experiments" / "results" / "loo_default"))
+    ap.add_argument("overrides", nargs="*", help="config overrides, e.g. system=random_playback")
+    args = ap.parse_args()
+    t0 = time.perf_counter()
+    params = default_params([f"cache_dir={args.cache}", "progress=false", *args.overrides])
+    system = make_system(params, params.system)
+    corpus, ann = annotated_corpus(params)
+    t_corpus, t_ann = 0.0, time.perf_counter() - t0
+    cache = cache_dir(params)
+    frames = []
+    n = args.folds or len(corpus.sessions)
+    for fold in range(n):
+        models: dict = {}
+        for cond in system.conditions:
+            tf = time.perf_counter()
+            frames.append(run_fold(system, ann, fold, cond, params, cache_dir=cache, models=models,
+                                   with_audio=system.needs_audio))
+            print(f"fold {fold} {cond}: {time.perf_counter() - tf:.1f} s", flush=True)
+    cases = pd.concat(frames, ignore_index=True)
+    out = Path(args.out)
+    write_collected(cases, out)
+    total = time.perf_counter() - t0
+    rates = pd.read_csv(out / "success_rates.csv")
+    result = {"system": system.name, "folds": n, "conditions": len(system.conditions), "test_cases_per_condition": int(rates["cases"].iloc[0]),
+              "total_seconds": total, "corpus_and_annotation_seconds": t_ann,
+              "success_rates": rates.to_dict(orient="records"), "goal_seconds": 900}
+    (out / "bench_loo.json").write_text(json.dumps(result, indent=2))
+    print(json.dumps(result, indent=2))

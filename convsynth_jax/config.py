@@ -124,9 +124,9 @@ def run_task(cfg: DictConfig, out_dir: str | Path) -> dict:
         if e.name and e.name.endswith(f"tasks.{name}"):
             raise ConfigError(f"unknown task {name!r}") from None
         raise
-    from .tasks.common import enable_compilation_cache
+    from . import kernel_cache
 
-    enable_compilation_cache(cfg)
+    kernel_cache.enable_compilation_cache(cfg.get("jax_cache"))
     t0 = time.perf_counter()
     summary = module.run(cfg, out_dir) or {}
     summary = {"task": name, **summary, "task_seconds": time.perf_counter() - t0}

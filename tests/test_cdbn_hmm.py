@@ -4,7 +4,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from convsynth_jax.cdbn import reference as ref
+from convsynth_jax.testing import cdbn_reference as ref
 from convsynth_jax.cdbn.em import e_step, fit_em, m_step, make_batch
 from convsynth_jax.cdbn.params import DBNModel, TrainParams, num_parameters
 from tests.tolerances import enable_x64

@@ -13,7 +13,7 @@ from convsynth_jax.graph import build_database, build_graph, load_graph
 from convsynth_jax.graph.build import _cap_degree, _local_minima, auto_w_v, k_step_costs
 from convsynth_jax.graph.params import GraphParams
 from convsynth_jax.graph.keystates import audio_change_states, key_states, keyframes, pose_change
-from convsynth_jax.graph.reference import build_graph_reference, reference_cost_matrix
+from convsynth_jax.testing.graph_reference import build_graph_reference, reference_cost_matrix
 from convsynth_jax.skeleton import Motion, Skeleton
 
 from tolerances import COST_FLOAT32, THRESHOLD_TIE

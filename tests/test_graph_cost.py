@@ -10,7 +10,7 @@ from convsynth_jax.graph.cost import (_tile_lower_bounds, _tiling, candidate_edg
                                      pivot_embedding,
                                       feature_distance, kd_order, masked_tile_costs, pair_distance,
                                       scaled_features)
-from convsynth_jax.graph.reference import reference_cost_matrix, reference_edges
+from convsynth_jax.testing.graph_reference import reference_cost_matrix, reference_edges
 from tolerances import COST_FLOAT32, COST_FLOAT64, THRESHOLD_TIE, enable_x64
 
 

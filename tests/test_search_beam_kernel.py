@@ -12,7 +12,7 @@ from convsynth_jax.search.beam import beam_search, kept_edges
 from convsynth_jax.search.check import check_path
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.params import SearchParams
-from convsynth_jax.search.reference import reference_beam_search
+from convsynth_jax.testing.search_reference import reference_beam_search
 
 FPS = 10.0
 
@@ -230,7 +230,7 @@ def test_lookahead_kernel_equals_reference(seed, matching):
     time): the same completable (state, flags) bits at every frame, on windows copied from the database
     and on ones shifted so that some are unsolvable."""
     from convsynth_jax.search.beam import _prepare, lookahead
-    from convsynth_jax.search.feasible import reference_feasibility
+    from convsynth_jax.testing.search_reference import reference_feasibility
 
     rng = np.random.default_rng(seed)
     g, audio = hub_graph(rng)

@@ -42,8 +42,8 @@ import numpy as np
 
 from .. import kernel_cache
 from ..errors import ConfigError, GraphError, LabelError
-from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, paper_channel_step,
-                          requirement_arrays, segment_info)
+from .constraints import (Constraints, constrained, is_peak_state, label_ok, median_synthetic_cost, requirement_arrays, segment_info)
+from .rules import paper_step, start_rule, unpack_code  # noqa: F401  (unpack_code: re-exported)
 from .feasible import _feasible_kernel, feasibility, lookahead_edges, num_flags, pad_lookahead
 from .result import SearchResult, failed_segment_at, failure_reason
 from .params import SearchParams
@@ -95,10 +95,6 @@ def state_codes(graph) -> np.ndarray:
                          f"partner {par[s]})", where=f"graph state {s} (clip {graph.clip_names[graph.clip[s]]}, "
                          f"frame {graph.frame[s]})")
     return (own | (par << 4) | (is_peak_state(graph).astype(np.int64) << 8)).astype(np.int32)
-
-
-def unpack_code(x):
-    return x & 15, (x >> 4) & 15, ((x >> 8) & 1).astype(bool)
 
 
 @dataclasses.dataclass(frozen=True, eq=False)
@@ -223,33 +219,6 @@ def sizes(num_states: int, beam: int, max_degree: int, max_candidates: int, keys
     return B, M, N, H
 
 
-def _paper_step(label_x, info_x, own_y, par_y, info_y, syn, first, t, flag, own_t, par_t, codes, tol):
-    """Both channels' ``paper`` rules (constraints.paper_channel_step); flag bit 0 own, bit 1 partner."""
-    own_x, par_x = label_x
-    ok_o, fo = paper_channel_step(own_x, info_x[..., 0], info_x[..., 1], own_y, info_y[..., 0], info_y[..., 1],
-                                  info_y[..., 2], syn, first, t, (flag & 1) == 1, own_t, codes[0], tol)
-    ok_p, fp = paper_channel_step(par_x, info_x[..., 3], info_x[..., 4], par_y, info_y[..., 3], info_y[..., 4],
-                                  -1, syn, first, t, (flag & 2) == 2, par_t, codes[1], tol)
-    return ok_o & ok_p, fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
-
-
-def start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper: bool):
-    """(valid (S,), flags (S,)) of every state as the path's frame-0 state (both kernels)."""
-    S = state_code.shape[0]
-    own0, par0, peak0 = unpack_code(state_code)
-    valid0 = label_ok(own0, par0, tuple(r[0] for r in reqs))
-    if paper:
-        own_a, par_a, codes, tol = paper_arrs
-        ok0, flag0 = _paper_step((own0, par0), info, own0, par0, info, jnp.zeros(S, bool), jnp.ones(S, bool), 0,
-                                 jnp.zeros(S, jnp.int32), tuple(a[0] for a in own_a), tuple(a[0] for a in par_a),
-                                 codes, tol)
-        valid0 &= ok0
-    else:
-        flag0 = pw[0] & peak0
-        valid0 &= jnp.where(check[0], flag0, True)
-    return valid0 & (jnp.arange(S) < num_states), flag0
-
-
 @partial(jax.jit, static_argnames=("beam", "M", "N", "H", "D", "paper", "prune"))
 def _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset,
                  check, temp, num_frames, num_states, paper_dev, paper_arrs, feas, beam: int, M: int, N: int, H: int,
@@ -298,7 +267,7 @@ def _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs,
         if paper:
             x = states[row]
             own_x, par_x, _ = unpack_code(state_code[x])
-            ok, f_new = _paper_step((own_x, par_x), info[x], own, par, info[cand], flat_syn[flat], jnp.zeros(M, bool), t,
+            ok, f_new = paper_step((own_x, par_x), info[x], own, par, info[cand], flat_syn[flat], jnp.zeros(M, bool), t,
                                     flag[row], own_t, par_t, codes, tol)
             valid &= ok
             key = cand * 4 + f_new

@@ -37,7 +37,8 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import kernel_cache
-from .constraints import Constraints, is_peak_state, label_ok, paper_channel_step, requirement_arrays
+from .constraints import Constraints, label_ok, paper_channel_step
+from .rules import start_rule, unpack_code
 
 
 def num_flags(c: Constraints) -> int:
@@ -185,7 +186,7 @@ def edge_or(A, src, tgt, S: int):
 def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states, F: int,
                      paper: bool):
     """((Tp, S) uint8 bit masks, solvable); see the module docstring. The frames from num_frames - 1 on
-    are all ones; solvable: some start state (``beam.start_rule``) with its frame-0 flags is completable.
+    are all ones; solvable: some start state (``rules.start_rule``) with its frame-0 flags is completable.
     ``edges``: :class:`LookaheadEdges` (device arrays; for ``paper`` built with the window's codes).
     The last state must be a padding state.
 
@@ -201,7 +202,6 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
       ``paper_channel_step`` for the entry states only;
     * G[t-1][x] = A[x + 1] where x has its original transition (a shift), OR the bitwise OR of the
       bytes A[y] over x's other edges (:func:`edge_or` over the dense rows)."""
-    from .beam import start_rule, unpack_code
 
     has_next, src, tgt, entry = edges
     own_y, par_y, peak_y = unpack_code(state_code)
@@ -277,66 +277,3 @@ def feasibility(prep, constraints: Constraints, padded_inputs):
 def solvable(bits0, start_ok, flag0) -> bool:
     """Some start state allowed at frame 0 (``start_ok``) with its flags ``flag0`` is completable."""
     return bool(np.any(start_ok & (((np.asarray(bits0) >> flag0) & 1) == 1)))
-
-
-def reference_feasibility(graph, constraints: Constraints, max_degree: int) -> np.ndarray:
-    """Slow, obvious version of :func:`feasibility`: (T, S) uint8, one state, flag and edge at a time,
-    with the reference beam's own rule (:func:`convsynth_jax.search.reference._paper_channel`)."""
-    from .reference import _paper_channel, _requirement_ok
-
-    c = constraints
-    S, T = graph.num_states, c.num_frames
-    paper = c.paper is not None
-    F = num_flags(c)
-    edges = []
-    for s in range(S):
-        t_, c_, y_ = graph.out_edges(s)
-        o = sorted(range(len(t_)), key=lambda k: (float(c_[k]), k))
-        edges.append([(int(t_[k]), bool(y_[k])) for k in o])
-    D = max(1, min(max(len(e) for e in edges), max_degree))
-    edges = [e[:D] for e in edges]
-    own_l, par_l = np.asarray(graph.own_label), np.asarray(graph.partner_label)
-    peak = is_peak_state(graph)
-    req_arrays = requirement_arrays(c)
-
-    def seg(s_, channel):
-        if channel == "own":
-            if not (own_l[s_] != 0 and graph.own_start[s_] >= 0):
-                return (int(own_l[s_]), -1, 0, -1)
-            a = int(graph.own_start[s_])
-            q = int(graph.own_peak[s_]) - a if graph.own_peak[s_] >= 0 else -1
-            return (int(own_l[s_]), int(graph.frame[s_]) - a, int(graph.own_end[s_]) - a, q)
-        if not (par_l[s_] != 0 and graph.partner_start[s_] >= 0):
-            return (int(par_l[s_]), -1, 0, -1)
-        a = int(graph.partner_start[s_])
-        return (int(par_l[s_]), int(graph.frame[s_]) - a, int(graph.partner_end[s_]) - a, -1)
-
-    def arrive(t, x, y, syn, f):
-        """(ok, new flag) of the edge x -> y arriving at frame t with flag f."""
-        if not _requirement_ok(own_l[y], par_l[y], tuple(int(a[t]) for a in req_arrays)):
-            return False, f
-        if not paper:
-            f2 = (False if c.peak_reset[t] else bool(f)) or bool(c.peak_window[t] and peak[y])
-            return (f2 or not c.peak_check[t]), int(f2)
-        ok_o, fo = _paper_channel(c, t, c.paper.own(), c.paper.own_codes, seg(x, "own"), seg(y, "own"), syn, False,
-                                  bool(f & 1))
-        ok_p, fp = _paper_channel(c, t, c.paper.partner(), c.paper.par_codes, seg(x, "par"), seg(y, "par"), syn,
-                                  False, bool(f & 2))
-        return ok_o and ok_p, int(fo) | (int(fp) << 1)
-
-    out = np.zeros((T, S), np.uint8)
-    good = {(s, f) for s in range(S) for f in range(F)}
-    out[T - 1] = (1 << F) - 1
-    for t in range(T - 1, 0, -1):
-        prev = set()
-        for x in range(S):
-            for f in range(F):
-                for y, syn in edges[x]:
-                    ok, f2 = arrive(t, x, y, syn, f)
-                    if ok and (y, f2) in good:
-                        prev.add((x, f))
-                        break
-        good = prev
-        for x, f in good:
-            out[t - 1, x] |= 1 << f
-    return out

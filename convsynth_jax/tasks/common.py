@@ -11,51 +11,10 @@ log = logging.getLogger(__name__)
 
 
 def enable_compilation_cache(cfg) -> Path | None:
-    """Turn on JAX's persistent compilation cache at ``cfg.jax_cache.dir`` (default
-    ``${cache_dir}/jax_cache``), so a second run of any task loads its compiled kernels from disk
-    instead of compiling them again. ``jax_cache.dir=null`` turns it off. The directory holds only
-    compiled executables and is safe to delete (the next run recompiles). Entries are written for
-    kernels that took at least ``jax_cache.min_compile_time_s`` to compile (default 0: every kernel,
-    since on CPU many small ones add up) and are at least ``jax_cache.min_entry_size_bytes`` large.
-    The search kernels' executables are also stored whole in ``jax_cache.kernel_dir`` (default
-    ``${cache_dir}/jax_kernels``; :mod:`convsynth_jax.kernel_cache`), so a second run skips their
-    tracing and lowering too; null turns that off, and so does ``jax_cache.dir=null``.
-    Returns the directory (or None when disabled)."""
-    import jax
-
+    """:func:`convsynth_jax.kernel_cache.enable_compilation_cache` with the config's ``jax_cache`` group."""
     from .. import kernel_cache
 
-    node = cfg.get("jax_cache") if hasattr(cfg, "get") else None
-    path = node.get("dir") if node is not None else None
-    if not path:
-        _set_cache_dir(jax, None)  # off, also when an earlier task of this process turned it on
-        kernel_cache.set_kernel_dir(None)
-        return None
-    path = Path(str(path)).expanduser().resolve()
-    try:
-        path.mkdir(parents=True, exist_ok=True)
-    except OSError as e:
-        raise ConfigError(f"jax_cache.dir={path}: cannot create the compilation cache directory ({e})") from None
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(node.get("min_compile_time_s", 0.0)))
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", int(node.get("min_entry_size_bytes", 0)))
-    _set_cache_dir(jax, str(path))
-    kdir = node.get("kernel_dir")
-    kernel_cache.set_kernel_dir(Path(str(kdir)).expanduser().resolve() if kdir else None)
-    log.debug("jax compilation cache: %s", path)
-    return path
-
-
-def _set_cache_dir(jax, path: str | None) -> None:
-    if jax.config.jax_compilation_cache_dir == path:
-        return
-    jax.config.update("jax_compilation_cache_dir", path)
-    try:  # a process that already compiled with another (or no) directory: re-read the setting
-        from jax._src import compilation_cache
-
-        if compilation_cache._cache_checked or compilation_cache._cache_initialized:
-            compilation_cache.reset_cache()
-    except (ImportError, AttributeError):  # pragma: no cover - private API moved
-        log.debug("jax compilation cache: reset_cache unavailable")
+    return kernel_cache.enable_compilation_cache(cfg.get("jax_cache") if hasattr(cfg, "get") else None)
 
 
 def params_of(cfg):

@@ -27,7 +27,7 @@ from _bench import RESULTS, SHARED, peak_rss_mb, timed, write
 from convsynth_jax.config import compose, to_params
 from convsynth_jax.graph import build_database, build_graph
 from convsynth_jax.graph.database import bvh_folder_clips
-from convsynth_jax.graph.reference import build_graph_reference
+from convsynth_jax.testing.graph_reference import build_graph_reference
 
 ROOT = SHARED / "bandai2" / "bvh"
 GOALS = {"construction_s": 3.0, "speedup": 15, "peak_mb": 2048}

@@ -1,4 +1,5 @@
-"""Slow, obvious NumPy reference of the JAX beam search (:mod:`convsynth_jax.search.beam`).
+"""Slow, obvious NumPy reference of the JAX beam search (:mod:`convsynth_jax.search.beam`) and of its look-ahead
+(:func:`convsynth_jax.search.feasible.feasibility`).
 
 One frame at a time, one path at a time, one edge at a time, with Python lists and a dict for the
 duplicate states. It draws the same noise as the kernel (:func:`convsynth_jax.search.beam.noise`) and
@@ -11,9 +12,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from .beam import FRAME_BUCKET, noise, padded_states, sizes
-from .constraints import NO_PEAK, Constraints, is_peak_state, median_synthetic_cost, requirement_arrays
-from .params import SearchParams
+from ..search.beam import FRAME_BUCKET, noise, padded_states, sizes
+from ..search.constraints import NO_PEAK, Constraints, is_peak_state, median_synthetic_cost, requirement_arrays
+from ..search.feasible import num_flags
+from ..search.params import SearchParams
 
 
 @dataclass
@@ -69,14 +71,12 @@ def reference_beam_search(graph, constraints: Constraints, params: SearchParams,
                           temperature: float | None = None) -> ReferenceBeamResult:
     """One attempt at ``temperature`` (default ``search.temperature``), as ``beam._beam_search_once``;
     with ``search.lookahead`` as ``beam.beam_search`` does it: candidates outside the look-ahead
-    (:func:`convsynth_jax.search.feasible.reference_feasibility`) are dropped, and an unsolvable
+    (:func:`reference_feasibility`) are dropped, and an unsolvable
     window gets one attempt without it."""
     if temperature is None:
         temperature = float(params.temperature)
     feas = None
     if params.lookahead:
-        from .feasible import reference_feasibility
-
         feas = reference_feasibility(graph, constraints, int(params.max_degree))
     return _reference_once(graph, constraints, params, seed, temperature, feas)
 
@@ -203,3 +203,64 @@ def _reference_once(graph, constraints, params, seed, temperature, feas) -> Refe
         path[t] = s
         b = parent
     return ReferenceBeamResult(True, path, final_cost, None, truncated)
+
+
+def reference_feasibility(graph, constraints: Constraints, max_degree: int) -> np.ndarray:
+    """Slow, obvious version of :func:`feasibility`: (T, S) uint8, one state, flag and edge at a time,
+    with the reference beam's own rule (:func:`_paper_channel`)."""
+    c = constraints
+    S, T = graph.num_states, c.num_frames
+    paper = c.paper is not None
+    F = num_flags(c)
+    edges = []
+    for s in range(S):
+        t_, c_, y_ = graph.out_edges(s)
+        o = sorted(range(len(t_)), key=lambda k: (float(c_[k]), k))
+        edges.append([(int(t_[k]), bool(y_[k])) for k in o])
+    D = max(1, min(max(len(e) for e in edges), max_degree))
+    edges = [e[:D] for e in edges]
+    own_l, par_l = np.asarray(graph.own_label), np.asarray(graph.partner_label)
+    peak = is_peak_state(graph)
+    req_arrays = requirement_arrays(c)
+
+    def seg(s_, channel):
+        if channel == "own":
+            if not (own_l[s_] != 0 and graph.own_start[s_] >= 0):
+                return (int(own_l[s_]), -1, 0, -1)
+            a = int(graph.own_start[s_])
+            q = int(graph.own_peak[s_]) - a if graph.own_peak[s_] >= 0 else -1
+            return (int(own_l[s_]), int(graph.frame[s_]) - a, int(graph.own_end[s_]) - a, q)
+        if not (par_l[s_] != 0 and graph.partner_start[s_] >= 0):
+            return (int(par_l[s_]), -1, 0, -1)
+        a = int(graph.partner_start[s_])
+        return (int(par_l[s_]), int(graph.frame[s_]) - a, int(graph.partner_end[s_]) - a, -1)
+
+    def arrive(t, x, y, syn, f):
+        """(ok, new flag) of the edge x -> y arriving at frame t with flag f."""
+        if not _requirement_ok(own_l[y], par_l[y], tuple(int(a[t]) for a in req_arrays)):
+            return False, f
+        if not paper:
+            f2 = (False if c.peak_reset[t] else bool(f)) or bool(c.peak_window[t] and peak[y])
+            return (f2 or not c.peak_check[t]), int(f2)
+        ok_o, fo = _paper_channel(c, t, c.paper.own(), c.paper.own_codes, seg(x, "own"), seg(y, "own"), syn, False,
+                                  bool(f & 1))
+        ok_p, fp = _paper_channel(c, t, c.paper.partner(), c.paper.par_codes, seg(x, "par"), seg(y, "par"), syn,
+                                  False, bool(f & 2))
+        return ok_o and ok_p, int(fo) | (int(fp) << 1)
+
+    out = np.zeros((T, S), np.uint8)
+    good = {(s, f) for s in range(S) for f in range(F)}
+    out[T - 1] = (1 << F) - 1
+    for t in range(T - 1, 0, -1):
+        prev = set()
+        for x in range(S):
+            for f in range(F):
+                for y, syn in edges[x]:
+                    ok, f2 = arrive(t, x, y, syn, f)
+                    if ok and (y, f2) in good:
+                        prev.add((x, f))
+                        break
+        good = prev
+        for x, f in good:
+            out[t - 1, x] |= 1 << f
+    return out

@@ -43,6 +43,6 @@ def reference_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap):
 def build_graph_reference(db, params):
     """The full construction with :func:`reference_edges` as the edge kernel (the other stages are
     shared with the fast builder, so thresholds and key states are identical)."""
-    from .build import build_graph
+    from ..graph.build import build_graph
 
     return build_graph(db, params, edge_fn=reference_edges)

@@ -227,11 +227,10 @@ def test_real_bandai_waves_move_the_waving_hand(bandai_dir):
 
 # ------------------------------------------------------------------- planted events (tiny corpus)
 @pytest.fixture(scope="module")
-def tiny(tiny_corpus_dir):
-    from convsynth_jax.annotate.pipeline import annotate_corpus
-    from convsynth_jax.io import load_corpus
+def tiny(tiny_corpus_dir, tiny_annotations):
+    import copy
 
-    ann = annotate_corpus(load_corpus(tiny_corpus_dir), AP, 30.0, progress=False)
+    ann = copy.deepcopy(tiny_annotations)   # the session's annotation with the default parameters (AP)
     return ann, pd.read_csv(tiny_corpus_dir / "events.csv")
 
 

@@ -9,21 +9,15 @@ from convsynth_jax.systems.base import SystemParams, WindowInput, make_system
 
 
 @pytest.fixture(scope="module")
-def annotated(tiny_corpus_dir):
-    import inspect
+def annotated(tiny_corpus_dir, tiny_annotations):
+    import copy
 
-    from convsynth_jax.annotate.pipeline import annotate_corpus
     from convsynth_jax.config import compose
     from convsynth_jax.io import load_corpus
 
     corpus = load_corpus(tiny_corpus_dir)
     cfg = compose(["corpus=synthetic_tiny"])
-    if "fps" in inspect.signature(annotate_corpus).parameters:   # typed-parameter annotation API
-        from convsynth_jax.annotate.params import AnnotateParams
-
-        ann = annotate_corpus(corpus, AnnotateParams(), 30.0, progress=False)
-    else:
-        ann = annotate_corpus(corpus, cfg, progress=False)
+    ann = copy.deepcopy(tiny_annotations)   # annotated once per session with AnnotateParams()
     paths = {(s.name, p.role): (p.audio_path, p.audio_channel) for s in corpus.sessions for p in s.participants}
     for sname, roles in ann.items():   # the evaluation wires these in (main's ParticipantAnnotation has them)
         for role, a in roles.items():

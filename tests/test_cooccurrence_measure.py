@@ -100,11 +100,10 @@ def test_cooccurrence_by_condition_has_intervals_and_the_paired_test():
 
 # ------------------------------------------------------------------------------ chance baseline
 @pytest.fixture(scope="module")
-def annotations(tiny_corpus_dir):
-    from convsynth_jax.annotate.pipeline import annotate_corpus
-    from convsynth_jax.io import load_corpus
+def annotations(tiny_annotations):
+    import copy
 
-    return annotate_corpus(load_corpus(tiny_corpus_dir), AP, 30.0, progress=False)
+    return copy.deepcopy(tiny_annotations)   # annotated once per session with the default parameters (AP)
 
 
 def _continuous_speech(annotations):

@@ -25,20 +25,19 @@ ROLES = {"female": "main-agent", "male": "interloctr"}
 
 
 @pytest.fixture(scope="module")
-def task_out(tiny_corpus_dir, tmp_path_factory):
+def task_out(tiny_corpus_dir, tiny_cache_dir, tmp_path_factory):
     out = tmp_path_factory.mktemp("cooccurrence")
     cfg = compose(["task=cooccurrence", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
-                   f"cache_dir={out / 'cache'}", "progress=false"])
+                   f"cache_dir={tiny_cache_dir()}", "progress=false"])
     summary = run_task(cfg, out)
     return out, summary
 
 
 @pytest.fixture(scope="module")
-def annotations(tiny_corpus_dir):
-    from convsynth_jax.annotate.pipeline import annotate_corpus
-    from convsynth_jax.io import load_corpus
+def annotations(tiny_annotations):
+    import copy
 
-    return annotate_corpus(load_corpus(tiny_corpus_dir), AnnotateParams(), 30.0, progress=False)
+    return copy.deepcopy(tiny_annotations)   # annotated once per session with AnnotateParams()
 
 
 def planted_rates(events: pd.DataFrame) -> dict:

@@ -91,10 +91,10 @@ def test_seed_derivation_is_stable_and_sensitive_to_every_field():
 
 # ------------------------------------------------------------------------------ systems in a fold
 @pytest.fixture(scope="module")
-def tiny(tiny_corpus_dir, tmp_path_factory):
+def tiny(tiny_corpus_dir, tiny_cache_dir):
     from convsynth_jax.tasks.common import annotated_corpus
 
-    cache = tmp_path_factory.mktemp("fw_cache")
+    cache = tiny_cache_dir("fw_cache")
     p = default_params(["corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}", f"cache_dir={cache}",
                         "progress=false", "loo.max_windows=2"])
     return p, annotated_corpus(p)[1], cache

@@ -6,17 +6,7 @@ import pytest
 from scipy import stats
 
 from convsynth_jax import paper_values as P
-from convsynth_jax.config import compose, run_task
 from convsynth_jax.evaluation import paper_report as R
-
-
-@pytest.fixture(scope="module")
-def main_run(tiny_corpus_dir, tmp_path_factory):
-    out = tmp_path_factory.mktemp("main_report")
-    s = run_task(compose(["corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
-                          f"cache_dir={tmp_path_factory.mktemp('cache')}", "progress=false", "loo.max_windows=1",
-                          "task.paper_ks=[2,3]"]), out)
-    return out, s
 
 
 def test_report_has_every_paper_artifact_with_the_papers_values(main_run):

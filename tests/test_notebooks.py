@@ -5,17 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from convsynth_jax.config import compose, run_task
 
 NOTEBOOKS = sorted((Path(__file__).resolve().parent.parent / "notebooks").glob("[!_]*.py"))
-
-
-@pytest.fixture(scope="module")
-def main_run(tiny_corpus_dir, tmp_path_factory):
-    out = tmp_path_factory.mktemp("main")
-    s = run_task(compose(["corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
-                          f"cache_dir={tmp_path_factory.mktemp('cache')}", "progress=false", "loo.max_windows=2"]), out)
-    return out, s
 
 
 def test_main_job_outputs(main_run):

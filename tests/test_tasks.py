@@ -14,8 +14,8 @@ REPO = Path(__file__).resolve().parent.parent
 
 
 @pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("cache")
+def cache(tiny_cache_dir):
+    return tiny_cache_dir()
 
 
 def cfg_for(task, tiny_corpus_dir, cache, *extra):

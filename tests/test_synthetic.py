@@ -402,6 +402,14 @@ def test_unknown_calibration_measure_rejected():
         resolve_config({"calibrate_against": "detectr"})
 
 
+def test_every_accepted_calibration_measure_exists():
+    """The names the configuration accepts (config.CALIBRATION_MEASURES) are the measures the
+    calibration has (calibration.CALIBRATION_MEASURES), so no accepted name fails later."""
+    from convsynth_jax.data.synthetic import calibration, config
+
+    assert tuple(calibration.CALIBRATION_MEASURES) == config.CALIBRATION_MEASURES
+
+
 def test_motion_does_not_depend_on_audio_rendering(tmp_path):
     """The calibration renders motion without audio and must get the motion that is written with
     audio: each participant's motion draws from a stream of its own (before, the audio of the first

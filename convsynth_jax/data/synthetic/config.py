@@ -27,18 +27,32 @@ DEFAULTS: dict = {
     "sample_rate": 16000,
     "write_audio": True,
     "characters": {
-        "main-agent": {"name": "female", "words_mean": 4.29, "words_sd": 2.16, "f0": 210.0, "scale": 0.94,
+        "main-agent": {"name": "female", "words_mean": 5.71, "words_sd": 2.48, "f0": 210.0, "scale": 0.94,
                        "p_pc_lh": 0.62, "p_pc_rh": 0.65, "p_pc_either": 0.75, "p_lr_nod": 0.58, "p_ph_nod": 0.30},
-        "interloctr": {"name": "male", "words_mean": 3.86, "words_sd": 1.36, "f0": 118.0, "scale": 1.0,
+        "interloctr": {"name": "male", "words_mean": 5.13, "words_sd": 1.56, "f0": 118.0, "scale": 1.0,
                        "p_pc_lh": 0.51, "p_pc_rh": 0.50, "p_pc_either": 0.62, "p_lr_nod": 0.53, "p_ph_nod": 0.35},
     },
     "clauses_per_turn": 3.0,      # mean (1 + Poisson(mean - 1))
-    "p_hesitation": 0.3,          # chance of a hesitation before each clause after the first in a turn
+    "p_hesitation": 0.6,          # chance of a hesitation before each clause after the first in a turn
     "p_listener_response": 0.45,  # chance the listener responds after a clause end
     "spontaneous_per_minute": 2.0,  # gestures/nods per minute of time away from the own candidate windows
-    "word_seconds": [0.20, 0.34],
+    # --- speech timing, calibrated against real speech as the annotation pipeline measures it
+    # (experiments/bench/speech_timing.py, docs/synthetic_corpus.md; ours). The timing of generator
+    # version 4 (uniform words of 0.20-0.34 s, clauses of 4.29 +- 2.16 / 3.86 +- 1.36 words, the paper's
+    # counts, clause pauses of 0.45-0.8 s, p_hesitation 0.3) is conf/corpus/synthetic_v4_timing.yaml.
+    # words_mean / words_sd are the paper's per-character counts times 1.33 / 1.15.
+    "word_seconds": [0.06, 1.0],  # range of word durations (before the emotion's speech rate)
+    "word_seconds_median": 0.235,  # log-normal word durations with this median and log-sd, clipped to word_seconds;
+    "word_seconds_sigma": 0.45,   # sigma 0: uniform on word_seconds
     "word_gap": [0.03, 0.07],
-    "clause_pause": [0.45, 0.8],
+    "clause_tempo_sigma": 0.22,   # log-sd of a per-clause tempo factor on its word durations (0: none)
+    "p_word_pause": 0.08,         # chance that a word inside a clause is followed by a short pause (word_pause)
+    "word_pause": [0.15, 0.3],    # instead of a word_gap
+    "clause_pause": [0.15, 1.5],  # range of pauses after a paused clause and after a hesitation
+    "clause_pause_median": 0.45,  # log-normal pauses with this median and log-sd, clipped to clause_pause;
+    "clause_pause_sigma": 0.6,    # sigma 0: uniform on clause_pause
+    "min_clause_words": 2,        # words per clause: round(Normal(words_mean, words_sd)) clipped to
+    "max_clause_words": 12,       # min_clause_words..max_clause_words
     "turn_gap": [0.5, 1.0],
     "accent_rise": 0.28,          # relative F0 rise of the pitch accent
     "posture_sd": 1.5,            # degrees: per-session posture offset of spine, neck, head and arms
@@ -88,7 +102,7 @@ DEFAULTS: dict = {
                                   # so realized rates carry no sampling error (off: False)
 }
 # bumped whenever the generator's output changes for the same parameters (part of the parameter hash)
-GENERATOR_VERSION = 4
+GENERATOR_VERSION = 5
 
 
 def _merge(base: dict, over) -> dict:

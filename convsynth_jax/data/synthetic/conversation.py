@@ -29,6 +29,9 @@ def _conversation(rng: np.random.Generator, cfg: dict, duration: float, rate: fl
     (``p_turn_overlap``). One participant's own segments never overlap each other: a new segment of a
     participant starts at least ``SAME_SPEAKER_GAP`` after that participant's previous one."""
     u = lambda lo_hi: rng.uniform(*lo_hi)  # noqa: E731
+    word_seconds = lambda: _duration(rng, cfg["word_seconds"], cfg["word_seconds_median"], cfg["word_seconds_sigma"])  # noqa: E731
+    pause_after = lambda: _duration(rng, cfg["clause_pause"], cfg["clause_pause_median"],  # noqa: E731
+                                    cfg["clause_pause_sigma"])
     segs: list[Segment] = []
     busy = {r: -1.0 for r in ROLES}  # end of each participant's latest segment
     t = rng.uniform(0.5, 1.5)
@@ -49,18 +52,24 @@ def _conversation(rng: np.random.Generator, cfg: dict, duration: float, rate: fl
                     break
                 segs.append(Segment(role, "HP", t, t + d, t + d / 2, [(t, t + d, word, False)]))
                 busy[role] = t + d
-                t += d + u(cfg["clause_pause"]) / rate  # a filler is followed by a pause
-            n_words = int(np.clip(np.round(rng.normal(ch["words_mean"], ch["words_sd"])), 1, 10))
+                t += d + pause_after() / rate  # a filler is followed by a pause
+            n_words = int(np.clip(np.round(rng.normal(ch["words_mean"], ch["words_sd"])), cfg["min_clause_words"],
+                                  cfg["max_clause_words"]))
             last = c == n_clauses - 1
             fluent = not last and rng.random() >= cfg["p_clause_pause"]
             words = []
             w0 = t
+            # the clause's own tempo (people speed up and slow down from phrase to phrase)
+            tempo = np.exp(rng.normal(0.0, cfg["clause_tempo_sigma"])) if cfg["clause_tempo_sigma"] > 0 else 1.0
             for i in range(n_words):
-                d = u(cfg["word_seconds"]) / rate
+                d = word_seconds() * tempo / rate
                 if fluent and i == n_words - 1:
                     d *= lengthen
                 words.append([t, t + d, VOCAB[rng.integers(len(VOCAB))], False])
-                t += d + u(cfg["word_gap"])
+                if cfg["p_word_pause"] > 0 and i < n_words - 1 and rng.random() < cfg["p_word_pause"]:
+                    t += d + u(cfg["word_pause"])  # a short pause inside the clause
+                else:
+                    t += d + u(cfg["word_gap"])
             t -= words and (t - words[-1][1])  # no gap after the last word
             if t > end_limit:
                 stop = True
@@ -70,7 +79,7 @@ def _conversation(rng: np.random.Generator, cfg: dict, duration: float, rate: fl
             peak = 0.5 * (words[k][0] + words[k][1])
             segs.append(Segment(role, "PC", w0, t, peak, [tuple(w) for w in words]))
             busy[role] = t
-            pause = u(cfg["clause_pause"]) / rate if not fluent else u(cfg["word_gap"])
+            pause = pause_after() / rate if not fluent else u(cfg["word_gap"])
             if rng.random() < cfg["p_listener_response"]:
                 d = rng.uniform(0.3, 0.55)
                 if rng.random() < cfg["p_backchannel_overlap"]:  # over the end of the clause
@@ -94,6 +103,14 @@ def _conversation(rng: np.random.Generator, cfg: dict, duration: float, rate: fl
         t = max(t_next, busy[ROLES[speaker]] + SAME_SPEAKER_GAP)
     segs.sort(key=lambda s: (s.start, s.role))
     return segs
+
+
+def _duration(rng: np.random.Generator, bounds, median: float, sigma: float) -> float:
+    """A duration in seconds: uniform on ``bounds`` if ``sigma`` is 0, else log-normal with this
+    ``median`` and log-sd ``sigma``, clipped to ``bounds``; one draw from ``rng`` either way."""
+    if sigma <= 0:
+        return rng.uniform(*bounds)
+    return float(np.clip(np.exp(rng.normal(np.log(median), sigma)), *bounds))
 
 
 SAME_SPEAKER_GAP = 0.35  # seconds between consecutive segments of one participant (at least)

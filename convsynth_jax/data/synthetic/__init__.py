@@ -10,7 +10,9 @@ Writes the same files a real corpus has (GENEA 2023 dyadic layout) plus the plan
 * ``corpus.json`` with the generator parameters, their hash, the characters and the calibration report.
 
 The process: turn-taking between two seated people; a turn is a run of phonemic clauses (words per
-clause drawn around each character's mean and spread), mostly joined without a pause (fluent
+clause drawn around each character's mean and spread; word durations, per-clause tempo and pauses
+calibrated so that the annotation pipeline measures the clause durations of real speech, see
+docs/synthetic_corpus.md), mostly joined without a pause (fluent
 stretches whose clause boundaries show only as an F0 reset and pre-boundary lengthening), with
 hesitations inside turns; the listener gives listener responses near clause ends, often over the end
 of the clause, and turns may overlap. Audio is a harmonic voice through two formant resonators with an

@@ -27,7 +27,10 @@ def _conversation(rng: np.random.Generator, cfg: dict, duration: float, rate: fl
     pre-boundary lengthening). Listener responses may start inside the speaker's clause
     (``p_backchannel_overlap``) and the next turn may start before the previous one has ended
     (``p_turn_overlap``). One participant's own segments never overlap each other: a new segment of a
-    participant starts at least ``SAME_SPEAKER_GAP`` after that participant's previous one."""
+    participant starts at least ``SAME_SPEAKER_GAP`` after that participant's previous one.
+    Speech timing (ours, calibrated against real speech): word durations and pauses log-normal
+    (``_duration``), a per-clause tempo factor, short pauses inside clauses; each draws nothing
+    when off (sigma or probability 0), which gives the timing of generator version 4."""
     u = lambda lo_hi: rng.uniform(*lo_hi)  # noqa: E731
     word_seconds = lambda: _duration(rng, cfg["word_seconds"], cfg["word_seconds_median"], cfg["word_seconds_sigma"])  # noqa: E731
     pause_after = lambda: _duration(rng, cfg["clause_pause"], cfg["clause_pause_median"],  # noqa: E731

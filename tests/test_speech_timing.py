@@ -5,6 +5,7 @@ import logging
 import numpy as np
 import pandas as pd
 import pytest
+from conftest import shared_path
 from scipy import stats
 
 from convsynth_jax.data import make_synthetic_corpus, resolve_config
@@ -86,7 +87,8 @@ def test_planted_clause_sizes_respect_the_limits():
 def default_speech(tmp_path_factory):
     """The default corpus's conversations and voices (planting calibration off: it changes neither),
     written as files and measured with the annotation pipeline, as experiments/bench/speech_timing.py
-    does."""
+    does. Skips (before generating) without the real recordings to compare with."""
+    shared_path("speech")
     root = make_synthetic_corpus(tmp_path_factory.mktemp("speech") / "c", {"calibrate_rates": False})
     logging.getLogger("convsynth_jax.annotate.audio").setLevel(logging.ERROR)
     return corpus_timing(load_corpus(root))

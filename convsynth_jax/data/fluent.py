@@ -3,7 +3,7 @@ segmentation (issue #14) where pauses say nothing.
 
 One speaker's clauses of given sizes, every word followed by an ordinary word gap (30-70 ms, also
 between clauses), the last word of each clause lengthened, rendered with the synthetic corpus's voice
-(``data/synthetic.py``: declination across each clause, so F0 resets at every clause boundary, and a
+(``data/synthetic/voice.py``: declination across each clause, so F0 resets at every clause boundary, and a
 pitch accent on one random word, the planted stressed word and F0 peak).
 """
 from __future__ import annotations

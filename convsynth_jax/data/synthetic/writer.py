@@ -1,0 +1,110 @@
+"""Writing the corpus: every session's BVH, WAV and transcript files, ``events.csv``,
+``glitches.csv`` and ``corpus.json`` (atomically), and the cache lookup ``ensure_synthetic_corpus``."""
+from __future__ import annotations
+
+import json
+import logging
+import os
+import shutil
+import tempfile
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ...io.audio import save_wav
+from ...io.bvh import save_bvh
+from ...io.transcripts import save_transcript_tsv
+from ...utils import _umask
+from .calibration import planting_probabilities
+from .config import GENERATOR_VERSION, ROLES, config_hash, resolve_config
+from .plan import _plan, _quota_offsets, _render_motion, _render_rng
+from .voice import _render_voice
+
+log = logging.getLogger(__name__)
+
+
+def _session(idx: int, cfg: dict, probs: dict, offsets: list[dict], out: Path) -> tuple[list[dict], list[dict], dict]:
+    plan = _plan(idx, cfg, probs, offsets)
+    name, duration, segs = plan["name"], plan["duration"], plan["segs"]
+    sr = int(cfg["sample_rate"])
+    rows, glitch_rows = [], []
+    for role in ROLES:
+        ch = cfg["characters"][role]
+        own = [s for s in segs if s.role == role]
+        events = plan["events"][role]
+        motion, gl = _render_motion(plan, role, cfg)
+        glitch_rows += [{"session": name, "participant": role, **g} for g in gl]
+        save_bvh(motion, out / f"{name}_{role}.bvh", precision=4)
+        words = [(w[0], w[1], w[2]) for s in own for w in s.words]
+        save_transcript_tsv(pd.DataFrame(words, columns=["start", "end", "word"]), out / f"{name}_{role}.tsv")
+        if cfg["write_audio"]:
+            sig, _ = _render_voice(own, ch["f0"], duration, sr, _render_rng(cfg, idx, role, "audio"),
+                                   cfg["accent_rise"])
+            save_wav(out / f"{name}_{role}.wav", sig, sr)
+        for s in own:
+            rows.append({"session": name, "participant": role, "kind": s.kind, "start": s.start, "peak": s.peak,
+                         "end": s.end, "text": " ".join(w[2] for w in s.words), "source": "", "cause_start": np.nan})
+        for e in events:
+            rows.append({"session": name, "participant": role, "kind": e["kind"], "start": e["start"],
+                         "peak": e["peak"], "end": e["end"], "text": "", "source": e["source"],
+                         "cause_start": e.get("cause_start", np.nan)})
+    return rows, glitch_rows, {"name": name, "emotion": plan["emotion"], "duration": duration,
+                               "spontaneous_free_seconds": {r: round(v, 4) for r, v in plan["free_seconds"].items()}}
+
+
+GLITCH_COLUMNS = ["session", "participant", "kind", "joint", "channel", "degrees", "start_frame", "end_frame"]
+
+
+def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
+    """Write the synthetic corpus into ``out_dir`` (replaced atomically). Same seed, same bytes."""
+    cfg = resolve_config(config)
+    out_dir = Path(out_dir)
+    out_dir.parent.mkdir(parents=True, exist_ok=True)
+    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    try:
+        probs, calibration = planting_probabilities(cfg)
+        offsets = _quota_offsets(cfg)
+        rows, glitches, sessions = [], [], []
+        for i in range(int(cfg["num_sessions"])):
+            r, g, meta = _session(i, cfg, probs, offsets, tmp)
+            rows += r
+            glitches += g
+            sessions.append(meta)
+        ev = pd.DataFrame(rows).round({"start": 4, "peak": 4, "end": 4, "cause_start": 4})
+        ev.to_csv(tmp / "events.csv", index=False, float_format="%.4f")
+        gl = pd.DataFrame(glitches, columns=GLITCH_COLUMNS)
+        gl.to_csv(tmp / "glitches.csv", index=False, float_format="%.4f")
+        meta = {"generator": "convsynth_jax.data.synthetic", "generator_version": GENERATOR_VERSION,
+                "seed": int(cfg["seed"]), "config": cfg, "config_hash": config_hash(cfg),
+                "characters": {r: cfg["characters"][r]["name"] for r in ROLES}, "sessions": sessions,
+                "calibration": calibration}
+        (tmp / "corpus.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
+        os.chmod(tmp, 0o777 & ~_umask())
+        if out_dir.exists():
+            shutil.rmtree(out_dir)
+        os.replace(tmp, out_dir)
+    except BaseException:
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise
+    log.info("wrote synthetic corpus %s (%d sessions)", out_dir, len(sessions))
+    return out_dir
+
+
+def ensure_synthetic_corpus(corpus_cfg, cache_dir) -> Path:
+    """The synthetic corpus of ``corpus_cfg``: reuse it if present with the same parameters, else
+    generate it. Location: ``corpus_cfg.root`` or ``<cache_dir>/<corpus_cfg.name>``."""
+    root = corpus_cfg.get("root") if hasattr(corpus_cfg, "get") else None
+    root = Path(root) if root else Path(cache_dir) / str(corpus_cfg.get("name", "synthetic_default"))
+    cfg = resolve_config(corpus_cfg.get("generator"))
+    meta = root / "corpus.json"
+    if meta.is_file():
+        try:
+            if json.loads(meta.read_text()).get("config_hash") == config_hash(cfg):
+                return root
+        except json.JSONDecodeError:
+            pass
+        log.info("synthetic corpus at %s has other parameters: regenerating", root)
+    else:
+        log.info("generating synthetic corpus into %s", root)
+    return make_synthetic_corpus(root, cfg)

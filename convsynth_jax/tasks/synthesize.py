@@ -131,7 +131,7 @@ def run(cfg, out_dir: Path) -> dict:
             summary["source_frames"][char] = [[c, int(f)] for c, f in zip(res.source_clip, res.source_frame)]
             chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, win.own_segments,
                              win.partner_segments, fps, params.search.tolerance, params.search.use_lr,
-                             params.search.use_hp, matching=params.search.matching)
+                             params.search.use_hp, matching=params.search.matching, warp=res.diagnostics.get("warp"))
             summary["constraints_total"][char] = chk["total"]
             summary["constraints_met"][char] = chk["met"]
             sc, sf = res.source_clip, res.source_frame

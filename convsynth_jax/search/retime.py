@@ -1,0 +1,83 @@
+"""Retiming (``search.retime_factor``, ours; the paper's future work): where the matched source
+segments of a path lie, and the warp that moves them onto the input's times.
+
+With retiming a source clause (or listener response) may match an input segment whose end and F0
+peak lie further off than the tolerance (``constraints``: the end within tol + floor(r (e - s)),
+the peak within tol + floor(r (p - s)), the start within tol). :func:`retime_knots` finds, for each
+own-channel constraint of the window, the whole source instance the path placed for it (its start
+st, peak pk and end en on the path's timeline) and returns a piecewise-linear warp with the knots
+(s <- st, p <- pk, e <- en) plus the window's first and last frames: output frame t shows the
+path at time ``np.interp(t, out_knots, path_knots)`` (``synth/retime.warp_motion``). Every matched
+segment is moved exactly onto the input's times, so the frames between two segments stretch or
+shrink to fill the gap. Knots outside the window's inner frames or out of order are dropped.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from ..annotate.types import LR, PC
+from .constraints import Constraints, segment_info
+
+CODES = {"PC": PC, "LR": LR}
+
+
+def path_instances(graph, path) -> list[tuple]:
+    """(label, start, peak or None, end) on the path's timeline of each own source segment the path
+    plays (a run of consecutive frames of one source segment; its start may be < 0, its end > T)."""
+    info = segment_info(graph)
+    out = []
+    prev = None
+    for t, y in enumerate(np.asarray(path, np.int64)):
+        o, L, q = (int(v) for v in info[y, :3])
+        if o < 0:
+            prev = None
+            continue
+        cont = (prev is not None and graph.clip[prev] == graph.clip[y] and graph.frame[y] == graph.frame[prev] + 1
+                and o > 0)
+        if not cont:
+            st = t - o
+            out.append((int(graph.own_label[y]), st, st + q if q >= 0 else None, st + L))
+        prev = y
+    return out
+
+
+def retime_knots(graph, c: Constraints, path, retime_factor: float):
+    """(out_knots, path_knots) float64 arrays (increasing, from 0 to T - 1) of the warp onto the input's
+    times, or None when nothing moves (module docstring)."""
+    T = len(path)
+    tol = c.tol
+    inst = path_instances(graph, path)
+    used: set = set()
+    pairs = []
+    for seg in sorted(c.segments, key=lambda x: x["start"]):
+        code = CODES.get(seg["kind"])
+        if code is None or seg["channel"] != "own":
+            continue
+        s, e, p = int(seg["start"]), int(seg["end"]), seg["peak"]
+        p = None if p is None or code != PC else int(p)
+        etol = tol + int(np.floor(retime_factor * (e - s)))
+        ptol = tol + (int(np.floor(retime_factor * (p - s))) if p is not None else 0)
+        best = None
+        for i, (lab, st, pk, en) in enumerate(inst):
+            if i in used or lab != code or abs(st - s) > tol or abs(en - e) > etol:
+                continue
+            if p is not None and (pk is None or abs(pk - p) > ptol):
+                continue
+            if best is None or abs(st - s) < abs(inst[best][1] - s):
+                best = i
+        if best is None:
+            continue
+        used.add(best)
+        _, st, pk, en = inst[best]
+        pairs += [(s, st), (e, en)] + ([(p, pk)] if p is not None and pk is not None else [])
+    pairs = sorted((o, q) for o, q in pairs if 0 < o < T - 1 and 0 < q < T - 1)
+    knots = [(0, 0)]
+    for o, q in pairs:
+        if o > knots[-1][0] and q > knots[-1][1]:
+            knots.append((o, q))
+    if T - 1 > knots[-1][0] and T - 1 > knots[-1][1]:
+        knots.append((T - 1, T - 1))
+    k = np.asarray(knots, np.float64)
+    if np.array_equal(k[:, 0], k[:, 1]):
+        return None
+    return k[:, 0], k[:, 1]

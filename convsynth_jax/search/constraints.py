@@ -257,18 +257,21 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
                            np.full(T, FREE, np.int32), pa)
     own_codes = (1 << PC) | ((1 << LR) if use_lr else 0)
     par_codes = (1 << HP) if use_hp else 0
+    own_plain = own.copy()    # the own requirement without the retiming slack (idle runs are named by it)
     counted = {"own": [], "partner": []}   # (code, s, e, peak, kind name) of the constraints
     free_ranges = {"own": [], "partner": []}
     own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end"])
     for r in own_segments.itertuples(index=False):
         s, e, p = _seg_frames(r, fps)
         code = {"PC": PC, "LR": LR}.get(r.kind)
-        # retiming (ours): the end may lie up to ``slack`` frames further off, the core and idle rule shrink
-        slack = int(np.floor(retime * (e - s))) if code is not None else 0
+        # retiming (ours): the end may lie up to ``slack`` frames further off, the core and idle rule shrink;
+        # not for an end the warp cannot move (at or past the window's last frame)
+        slack = int(np.floor(retime * (e - s))) if code is not None and e < T - 1 else 0
         lo, hi = max(0, s - tol), min(T, e + tol + slack)
         if hi <= 0 or lo >= T:
             continue
         own[lo:hi] = FREE
+        own_plain[lo:min(T, e + tol)] = FREE
         if code is None or not (own_codes >> code) & 1 or (r.kind, s, e) in relaxed:
             free_ranges["own"].append((lo, hi))
             continue
@@ -276,7 +279,7 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
         a, b = max(0, s + tol), min(T, e - tol - slack)
         if 0 <= c < T or (c < 0 and min(T, e - tol) > a):
             pk = p if code == PC else None
-            pslack = int(np.floor(retime * (p - s))) if pk is not None else 0
+            pslack = int(np.floor(retime * (p - s))) if pk is not None and p < T - 1 else 0
             counted["own"].append((code, s, e, pk, r.kind, slack, pslack))
         else:
             free_ranges["own"].append((lo, hi))
@@ -327,17 +330,22 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
             arr["free"][max(0, s - tol):max(0, min(T, e + tol + slack))] = False
             segs.append({"kind": kind, "channel": name, "start": s, "end": e, "peak": p})
         arr["free"] &= arr["kind"] < 0
-    for a, b in _runs(own == IDLE):
+    own_not = np.full(T, FREE, np.int32)
+    # retiming: the slack after a clause's end (idle without retiming) may hold the clause's own end, but
+    # no own hesitation entered there (the warp would move it into the input's idle run)
+    own_not[(own_plain == IDLE) & (own == FREE)] = HP
+    for a, b in _runs(own_plain == IDLE):
         if ("idle", a, b) in relaxed:   # best effort: the run is free, entries of any kind allowed
-            own[a:b] = FREE
+            own[a:b] = np.where(own[a:b] == IDLE, FREE, own[a:b])
+            own_not[a:b] = FREE
             ch["own"]["free"][a:b] = ch["own"]["kind"][a:b] < 0
         else:
             segs.append({"kind": "idle", "channel": "own", "start": int(a), "end": int(b), "peak": None})
     pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak", "free", "reset", "check", "etol", "ptol")),
                      *(ch["partner"][k] for k in ("kind", "start", "end", "free", "reset", "check")),
                      own_codes, par_codes, tol)
-    return Constraints(T, fps, tol, own, par, zeros.copy(), zeros.copy(), zeros.copy(), segs,
-                       np.full(T, FREE, np.int32), np.full(T, FREE, np.int32), pa)
+    return Constraints(T, fps, tol, own, par, zeros.copy(), zeros.copy(), zeros.copy(), segs, own_not,
+                       np.full(T, FREE, np.int32), pa)
 
 
 def segment_info(graph) -> np.ndarray:

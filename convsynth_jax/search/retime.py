@@ -73,7 +73,13 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
     pairs = sorted((o, q) for o, q in pairs if 0 < o < T - 1 and 0 < q < T - 1)
     knots = [(0, 0)]
     for o, q in pairs:
-        if o > knots[-1][0] and q > knots[-1][1]:
+        if q <= knots[-1][1]:
+            continue
+        if o <= knots[-1][0]:
+            # two knots on one output frame (a clause ends where the next begins, the path has frames
+            # between them): the later one moves one frame on, within the tolerance
+            o = knots[-1][0] + 1
+        if o < T - 1:
             knots.append((o, q))
     if T - 1 > knots[-1][0] and T - 1 > knots[-1][1]:
         knots.append((T - 1, T - 1))

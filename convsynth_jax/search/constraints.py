@@ -225,6 +225,15 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
     return Constraints(T, fps, tol, own, par, pw, reset, check, segs, own_not, par_not)
 
 
+def _slack(retime: float, s: int, x: int, tol: int, T: int) -> int:
+    """Retiming slack (frames) of an end or peak x of a segment starting at s: floor(retime (x - s)),
+    bounded so that every source placement it admits lies inside the window's inner frames 1..T - 2,
+    where the warp can move it (0 without retiming)."""
+    if retime <= 0:
+        return 0
+    return max(0, min(int(np.floor(retime * (x - s))), T - 2 - x - tol, x - tol - 1))
+
+
 def _seg_frames(r, fps):
     pk = getattr(r, "peak", np.nan)
     pk = int(round(pk * fps)) if pk is not None and np.isfinite(pk) else None
@@ -258,6 +267,8 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
     own_codes = (1 << PC) | ((1 << LR) if use_lr else 0)
     par_codes = (1 << HP) if use_hp else 0
     own_plain = own.copy()    # the own requirement without the retiming slack (idle runs are named by it)
+    end_zone = np.zeros(T, bool)       # retiming: frames around a constrained clause's end (+- tol + slack)
+    unconstrained = np.zeros(T, bool)  # the ranges of input segments of unconstrained kinds (own HP, ...)
     counted = {"own": [], "partner": []}   # (code, s, e, peak, kind name) of the constraints
     free_ranges = {"own": [], "partner": []}
     own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end"])
@@ -265,8 +276,8 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
         s, e, p = _seg_frames(r, fps)
         code = {"PC": PC, "LR": LR}.get(r.kind)
         # retiming (ours): the end may lie up to ``slack`` frames further off, the core and idle rule shrink;
-        # not for an end the warp cannot move (at or past the window's last frame)
-        slack = int(np.floor(retime * (e - s))) if code is not None and e < T - 1 else 0
+        # only as far as the warp can move it (inside the window)
+        slack = _slack(retime, s, e, tol, T) if code is not None else 0
         lo, hi = max(0, s - tol), min(T, e + tol + slack)
         if hi <= 0 or lo >= T:
             continue
@@ -274,12 +285,16 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
         own_plain[lo:min(T, e + tol)] = FREE
         if code is None or not (own_codes >> code) & 1 or (r.kind, s, e) in relaxed:
             free_ranges["own"].append((lo, hi))
+            if code is None or not (own_codes >> code) & 1:
+                unconstrained[lo:hi] = True
             continue
+        if retime > 0:
+            end_zone[max(0, e - tol - slack):hi] = True
         c = s + tol
         a, b = max(0, s + tol), min(T, e - tol - slack)
         if 0 <= c < T or (c < 0 and min(T, e - tol) > a):
             pk = p if code == PC else None
-            pslack = int(np.floor(retime * (p - s))) if pk is not None and p < T - 1 else 0
+            pslack = _slack(retime, s, p, tol, T) if pk is not None else 0
             counted["own"].append((code, s, e, pk, r.kind, slack, pslack))
         else:
             free_ranges["own"].append((lo, hi))
@@ -331,9 +346,10 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
             segs.append({"kind": kind, "channel": name, "start": s, "end": e, "peak": p})
         arr["free"] &= arr["kind"] < 0
     own_not = np.full(T, FREE, np.int32)
-    # retiming: the slack after a clause's end (idle without retiming) may hold the clause's own end, but
-    # no own hesitation entered there (the warp would move it into the input's idle run)
-    own_not[(own_plain == IDLE) & (own == FREE)] = HP
+    # retiming: the frames around a clause's end may hold the clause's own end, but no own hesitation
+    # (the warp moves the path's frames after a source clause's end to the input's end, so one entered
+    # there would land in the input's idle run), unless the input has an own segment of its own there
+    own_not[end_zone & ~unconstrained & (own == FREE)] = HP
     for a, b in _runs(own_plain == IDLE):
         if ("idle", a, b) in relaxed:   # best effort: the run is free, entries of any kind allowed
             own[a:b] = np.where(own[a:b] == IDLE, FREE, own[a:b])

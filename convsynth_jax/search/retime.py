@@ -8,14 +8,16 @@ own-channel constraint of the window, the whole source instance the path placed 
 st, peak pk and end en on the path's timeline) and returns a piecewise-linear warp with the knots
 (s <- st, p <- pk, e <- en) plus the window's first and last frames: output frame t shows the
 path at time ``np.interp(t, out_knots, path_knots)`` (``synth/retime.warp_motion``). Every matched
-segment is moved exactly onto the input's times, so the frames between two segments stretch or
-shrink to fill the gap. Knots outside the window's inner frames or out of order are dropped.
+segment is moved exactly onto the input's times; in the idle runs either side the warp returns to
+the identity (a knot a <- a about twice the shift away from the segment, inside the run), so only
+idle frames next to a retimed segment stretch or shrink and the rest of the window keeps its
+time. Knots outside the window's inner frames or out of order are dropped.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from ..annotate.types import LR, PC
+from ..annotate.types import IDLE, LR, PC
 from .constraints import Constraints, segment_info
 
 CODES = {"PC": PC, "LR": LR}
@@ -41,6 +43,11 @@ def path_instances(graph, path) -> list[tuple]:
     return out
 
 
+def _idle_runs(mask) -> list[tuple[int, int]]:
+    d = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    return list(zip(np.flatnonzero(d == 1).tolist(), np.flatnonzero(d == -1).tolist()))
+
+
 def retime_knots(graph, c: Constraints, path, retime_factor: float):
     """(out_knots, path_knots) float64 arrays (increasing, from 0 to T - 1) of the warp onto the input's
     times, or None when nothing moves (module docstring)."""
@@ -49,6 +56,7 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
     inst = path_instances(graph, path)
     used: set = set()
     pairs = []
+    idle = _idle_runs(np.asarray(c.own_req) == IDLE)
     for seg in sorted(c.segments, key=lambda x: x["start"]):
         code = CODES.get(seg["kind"])
         if code is None or seg["channel"] != "own":
@@ -70,6 +78,16 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
         used.add(best)
         _, st, pk, en = inst[best]
         pairs += [(s, st), (e, en)] + ([(p, pk)] if p is not None and pk is not None else [])
+        # back to the identity inside the idle runs either side (over twice the shift), so that what the
+        # path plays between two input segments (e.g. an entry where the input has an own hesitation)
+        # keeps its time
+        lo, hi = min(s, st), max(e, en)
+        before = [r for r in idle if r[1] <= lo]
+        if before:
+            pairs.append((max(lo - 2 * abs(s - st) - 1, before[-1][0]),) * 2)
+        after = [r for r in idle if r[0] >= hi - tol]
+        if after and after[0][1] - 1 > hi:
+            pairs.append((min(hi + 2 * abs(e - en) + 1, after[0][1] - 1),) * 2)
     pairs = sorted((o, q) for o, q in pairs if 0 < o < T - 1 and 0 < q < T - 1)
     knots = [(0, 0)]
     for o, q in pairs:

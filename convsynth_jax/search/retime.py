@@ -55,7 +55,7 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
     tol = c.tol
     inst = path_instances(graph, path)
     used: set = set()
-    pairs = []
+    pairs, ident = [], []
     idle = _idle_runs(np.asarray(c.own_req) == IDLE)
     for seg in sorted(c.segments, key=lambda x: x["start"]):
         code = CODES.get(seg["kind"])
@@ -83,11 +83,11 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
         # keeps its time
         lo, hi = min(s, st), max(e, en)
         before = [r for r in idle if r[1] <= lo]
-        if before:
-            pairs.append((max(lo - 2 * abs(s - st) - 1, before[-1][0]),) * 2)
+        if before and s != st and before[-1][1] - 1 > before[-1][0]:
+            ident.append(max(lo - 2 * abs(s - st) - 1, before[-1][0] + 1))
         after = [r for r in idle if r[0] >= hi - tol]
-        if after and after[0][1] - 1 > hi:
-            pairs.append((min(hi + 2 * abs(e - en) + 1, after[0][1] - 1),) * 2)
+        if after and after[0][1] - 1 > hi and e != en:
+            ident.append(min(hi + 2 * abs(e - en) + 1, after[0][1] - 1))
     pairs = sorted((o, q) for o, q in pairs if 0 < o < T - 1 and 0 < q < T - 1)
     knots = [(0, 0)]
     for o, q in pairs:
@@ -101,6 +101,10 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
             knots.append((o, q))
     if T - 1 > knots[-1][0] and T - 1 > knots[-1][1]:
         knots.append((T - 1, T - 1))
+    for a in sorted(x for x in set(ident) if 0 < x < T - 1):   # only where they fit between the segments' knots
+        i = next(k for k, (o, _) in enumerate(knots) if o >= a)
+        if knots[i - 1][0] < a < knots[i][0] and knots[i - 1][1] < a < knots[i][1]:
+            knots.insert(i, (a, a))
     k = np.asarray(knots, np.float64)
     if np.array_equal(k[:, 0], k[:, 1]):
         return None

@@ -135,6 +135,23 @@ def test_synthesize_task_outputs_are_valid(tiny_corpus_dir, cache, tmp_path):
     assert any(p.name.endswith("_input.wav") for p in tmp_path.iterdir())
 
 
+def test_synthesize_task_best_effort_and_retiming(tiny_corpus_dir, cache, tmp_path):
+    """With best effort and retiming every character gets motion; the summary's constraint counts are
+    the independent checker's through the warp, and the report keeps the warp and the checker's details."""
+    s = run_task(cfg_for("synthesize", tiny_corpus_dir, cache, "task.start=14", "task.duration=10",
+                         "search.on_failure=best_effort", "search.retime_factor=0.2"), tmp_path)
+    report = json.loads((tmp_path / "report.json").read_text())
+    for ch, r in report["characters"].items():
+        assert r["success"], r
+        det = r["checker"]["details"]
+        assert s["constraints_met"][ch] == sum(d["met"] for d in det) and s["constraints_total"][ch] == len(det)
+        if not r["best_effort"]:
+            assert s["constraints_met"][ch] == s["constraints_total"][ch]
+        if "warp" in r:
+            k = r["warp"]
+            assert k["output_frames"][0] == 0 and k["output_frames"][-1] == 299 and k["path_frames"][-1] == 299
+
+
 def test_loo_sweep_collect_records_failures_and_figure_scripts(tiny_corpus_dir, cache, tmp_path):
     sweep = tmp_path / "multirun"
     for fold, cond in ((0, "all"), (0, "no_lr"), (0, "none"), (7, "all")):  # fold 7 does not exist: a failing job

@@ -227,7 +227,8 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
     if res.success and res.source_clip is not None and all(c in clip_audio for c in res.source_clip):
         # every audio constraint of the window (whatever the condition), by the independent checker
         chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, own, partner, fps,
-                         float(params.search.tolerance), matching=params.search.matching)
+                         float(params.search.tolerance), matching=params.search.matching,
+                         warp=res.diagnostics.get("warp"))
         row.update({"all_constraints_total": chk["total"], "all_constraints_met": chk["met"],
                     "checker_matching": params.search.matching})
         for kind in ("PC", "LR", "PH", "idle"):

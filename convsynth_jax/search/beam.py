@@ -227,7 +227,7 @@ def _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs,
     Edges are flat (``_Prepared``): state s's kept edges, cheapest first, are entries first_edge[s] ..
     first_edge[s] + deg[s] - 1 of flat_packed / flat_cost; D is the largest kept degree.
     ``paper``: paper_dev = (synthetic (E,), segment info (S, 5)), paper_arrs = (own per-frame arrays
-    (7 x (Tp,)), partner per-frame arrays, (own codes, partner codes), tol); else both unused.
+    (9 x (Tp,)), partner per-frame arrays, (own codes, partner codes), tol); else both unused.
     ``prune``: feas (Tp, S) uint8 is the look-ahead (feasible.py): a candidate (state, flags) at frame
     t is kept only if bit ``flags`` of feas[t, state] is set; else feas is unused."""
     B = beam
@@ -327,8 +327,9 @@ def padded_inputs(c: Constraints):
     if c.paper is not None:
         pa = c.paper
         # padding frames: no window, free entries, no flag check
-        own_a = tuple(padb(a, v) for a, v in zip(pa.own(), (-1, 0, 0, 0, True, False, False)))
-        par_a = tuple(padb(a, v) for a, v in zip(pa.partner(), (-1, 0, 0, 0, True, False, False)))
+        pad = (-1, 0, 0, 0, True, False, False, 0, 0)   # ... end and peak tolerances (retiming)
+        own_a = tuple(padb(a, v) for a, v in zip(pa.own(), pad, strict=True))
+        par_a = tuple(padb(a, v) for a, v in zip(pa.partner(), pad, strict=True))
         paper_arrs = (own_a, par_a, (np.int32(pa.own_codes), np.int32(pa.par_codes)), np.int32(c.tol))
     return reqs, padb(c.peak_window, False), padb(c.peak_reset, False), padb(c.peak_check, False), paper_arrs
 

@@ -9,13 +9,21 @@ is whole when it starts at its segment's first frame (or at output frame 0) and 
 (or at the window's end), and it places its segment on the output timeline (start, end and F0
 peak); each input segment must be matched, one to one, by a whole instance of its kind placed
 within the tolerance.
+
+Idle runs are the frames outside every own input segment widened by the tolerance on both sides,
+[s - tol, e + tol) with tol in whole frames, as the searches build them.
+
+Retiming (ours): ``warp`` = (output knots, path knots) of ``search/retime.py``. Output frame t then
+shows the path at time np.interp(t, out_knots, path_knots); instances are placed by mapping their
+start, end and peak from the path's timeline to the output's (the inverse map), and the idle rule
+reads the label of the path frame nearest to each output frame's path time.
 """
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 
-from ..annotate.types import HP, IDLE, LR, PC
+from ..annotate.types import HP, IDLE, LR, PC, FrameAudio
 from ..errors import ConfigError
 
 
@@ -50,11 +58,31 @@ def _instances(source_clip, source_frame, fa_of, code) -> list[dict]:
     return out
 
 
+def _idle_range(s, e, tolerance, fps, T):
+    """The output frames [lo, hi) an own input segment [s, e) (frames) frees from the idle rule."""
+    k = int(round(tolerance * fps))
+    return max(0, s - k), max(0, min(T, e + k))
+
+
+def _to_output(warp, T):
+    """Map from the path's timeline to the output's (identity without a warp or outside [0, T - 1])."""
+    if warp is None:
+        return lambda x: x
+    out_k, path_k = (np.asarray(k, np.float64) for k in warp)
+
+    def f(x):
+        if x is None or x <= 0 or x >= T - 1:
+            return x
+        return float(np.interp(x, path_k, out_k))
+    return f
+
+
 def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_segments, fps, tolerance,
-                 use_lr, use_hp) -> dict:
+                 use_lr, use_hp, warp=None) -> dict:
     T = len(source_frame)
     tol = tolerance * fps + 1e-9
     details = []
+    to_out = _to_output(warp, T)
 
     def fr(x):
         return int(round(x * fps))
@@ -65,6 +93,8 @@ def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_se
     def match(kind, code, channel, segs):
         inst = [x for x in _instances(source_clip, source_frame, lambda c: clip_audio[c][channel], code)
                 if x["whole"]]
+        for x in inst:
+            x["start"], x["end"], x["peak"] = to_out(x["start"]), to_out(x["end"]), to_out(x["peak"])
         used = set()
         for s, e, p in sorted(segs):
             if not counted(s, e):
@@ -84,7 +114,8 @@ def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_se
     pcs, lrs, hps = [], [], []
     for r in own_segments.itertuples(index=False):
         s, e = fr(r.start), fr(r.end)
-        own_mask[max(0, int(s - tol)):max(0, min(T, int(np.ceil(e + tol))))] = True
+        lo, hi = _idle_range(s, e, tolerance, fps, T)
+        own_mask[lo:hi] = True
         if r.kind == "PC":
             pcs.append((s, e, fr(r.peak) if np.isfinite(r.peak) else None))
         elif r.kind == "LR" and use_lr:
@@ -95,6 +126,9 @@ def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_se
         hps = [(fr(r.start), fr(r.end), None) for r in partner_segments.itertuples(index=False) if r.kind == "HP"]
         match("PH", HP, 1, hps)
     own = np.array([clip_audio[c][0].label[f] for c, f in zip(source_clip, source_frame)], np.int32)
+    if warp is not None:   # the label shown at each output frame: the nearest path frame's
+        tau = np.interp(np.arange(T), *(np.asarray(k, np.float64) for k in warp))
+        own = own[np.clip(np.rint(tau).astype(np.int64), 0, T - 1)]
     d = np.diff(np.concatenate([[0], (~own_mask).astype(np.int8), [0]]))
     for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
         details.append({"kind": "idle", "start": int(a), "end": int(b), "peak": None,
@@ -104,18 +138,22 @@ def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_se
 
 def check_path(source_clip, source_frame, clip_audio: dict, own_segments: pd.DataFrame,
                partner_segments: pd.DataFrame, fps: float, tolerance: float = 0.1, use_lr: bool = True,
-               use_hp: bool = True, matching: str = "paper") -> dict:
+               use_hp: bool = True, matching: str = "paper", warp=None) -> dict:
     """source_clip: (T,) clip names; source_frame: (T,) frames; clip_audio: name -> (own FrameAudio,
     partner FrameAudio) of the database clips. Returns {"total", "met", "details": [...]}: for every
     input PC (and LR, partner HP when enabled) whether a run of that label in the path's associated
     audio starts and ends within ``tolerance`` of it (PC: and has its source F0-peak frame within
     tolerance of the input peak), and whether the own label is idle wherever the input is idle
-    (``matching="labels"``); ``matching="paper"``: see the module docstring."""
+    (``matching="labels"``); ``matching="paper"``: see the module docstring. ``warp``: the retiming
+    warp (``paper`` only; module docstring)."""
+    own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end", "peak"])
     if matching == "paper":
         return _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_segments, fps, tolerance,
-                            use_lr, use_hp)
+                            use_lr, use_hp, warp)
     if matching != "labels":
         raise ConfigError(f"matching must be 'paper' or 'labels', got {matching!r}")
+    if warp is not None:
+        raise ConfigError("a retiming warp can only be checked with matching='paper'")
     T = len(source_frame)
     tol = tolerance * fps + 1e-9
     own = np.array([clip_audio[c][0].label[f] for c, f in zip(source_clip, source_frame)], np.int32)
@@ -146,7 +184,8 @@ def check_path(source_clip, source_frame, clip_audio: dict, own_segments: pd.Dat
     own_mask = np.zeros(T, bool)
     for r in own_segments.itertuples(index=False):
         s, e = fr(r.start), fr(r.end)
-        own_mask[max(0, int(s - tol)):max(0, min(T, int(np.ceil(e + tol))))] = True
+        lo, hi = _idle_range(s, e, tolerance, fps, T)
+        own_mask[lo:hi] = True
         if r.kind == "PC":
             seg_check("PC", PC, own, s, e, fr(r.peak) if np.isfinite(r.peak) else None)
         elif r.kind == "LR" and use_lr:
@@ -162,3 +201,24 @@ def check_path(source_clip, source_frame, clip_audio: dict, own_segments: pd.Dat
                         "met": bool(np.all(own[a:b] == IDLE))})
     met = sum(d["met"] for d in details)
     return {"total": len(details), "met": int(met), "details": details}
+
+
+def clip_audio_of_graph(graph) -> dict:
+    """clip name -> (own FrameAudio, partner FrameAudio) of the source frames a graph stores (frames
+    without a state: idle), for :func:`check_path` where the database annotation is not at hand."""
+    out = {}
+    for c, name in enumerate(graph.clip_names):
+        idx = np.flatnonzero(graph.clip == c)
+        n = int(graph.frame[idx].max()) + 1 if idx.size else 0
+        f = graph.frame[idx]
+
+        def fa(label, start, end, peak):
+            arrs = [np.zeros(n, np.int8)] + [np.full(n, -1, np.int32) for _ in range(3)]
+            for a, v in zip(arrs, (label, start, end, peak)):
+                a[f] = v[idx]
+            return FrameAudio(*arrs)
+
+        none = np.full(graph.num_states, -1, np.int32)
+        out[name] = (fa(graph.own_label, graph.own_start, graph.own_end, graph.own_peak),
+                     fa(graph.partner_label, graph.partner_start, graph.partner_end, none))
+    return out

@@ -45,6 +45,17 @@ constrained kind (own PC, own LR when use_lr, partner HP when use_hp):
 * the label masks of ``labels`` stay (core frames need the kind, idle frames need idle), the
   "forbidden just outside" labels do not (the placement check replaces them).
 
+Best effort (``search.on_failure=best_effort``, ours): ``relaxed`` names constraints by their
+:func:`constraint_key` (kind, start frame, end frame); a relaxed segment is built like a segment of
+an unconstrained kind (its range is free), a relaxed idle run frees its frames
+(:mod:`convsynth_jax.search.relax` picks them).
+
+Retiming (``search.retime_factor`` r > 0, ours, ``paper`` only): the end of an own clause or response
+[s, e) may lie within tol + floor(r (e - s)) frames of the input's and its F0 peak within
+tol + floor(r (p - s)) (the start keeps tol); the label core and the idle rule shrink by the same end
+slack. Realization then warps the matched segment onto the input's times (:func:`retime_knots`,
+``synth/retime.py``).
+
 Segments crossing the window start are matched by the frame-0 state's placement (its offset may be
 > 0); a segment counts as a constraint when its entry window closes inside the window, or it began
 before the window and its core reaches into it. :mod:`convsynth_jax.search.check` re-verifies the
@@ -83,6 +94,8 @@ class PaperArrays:
     own_free: np.ndarray
     own_reset: np.ndarray
     own_check: np.ndarray
+    own_end_tol: np.ndarray     # (T,) int32: the window's end tolerance (tol, + the retiming slack)
+    own_peak_tol: np.ndarray    # (T,) int32: the window's peak tolerance
     par_kind: np.ndarray
     par_start: np.ndarray
     par_end: np.ndarray
@@ -92,13 +105,18 @@ class PaperArrays:
     own_codes: int
     par_codes: int
 
+    par_tol: int = 0           # the partner windows' end tolerance (tol)
+
     def own(self):
+        """(kind, start, end, peak, free, reset, check, end tolerance, peak tolerance), each (T,)."""
         return (self.own_kind, self.own_start, self.own_end, self.own_peak, self.own_free, self.own_reset,
-                self.own_check)
+                self.own_check, self.own_end_tol, self.own_peak_tol)
 
     def partner(self):
         nopk = np.full_like(self.par_start, NO_PEAK)
-        return (self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset, self.par_check)
+        tol = np.full_like(self.par_start, self.par_tol)
+        return (self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset, self.par_check,
+                tol, tol)
 
 
 @dataclass
@@ -125,12 +143,26 @@ class Constraints:
         return len(self.segments)
 
 
+def constraint_key(seg: dict) -> tuple:
+    """(kind, start frame, end frame): names one constraint of a window (``Constraints.segments`` and
+    the checker's details alike); kinds PC, LR, PH (partner hesitation) and idle."""
+    return (str(seg["kind"]), int(seg["start"]), int(seg["end"]))
+
+
 def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame, num_frames: int, fps: float,
-                      params: SearchParams) -> Constraints:
+                      params: SearchParams, relaxed=frozenset()) -> Constraints:
+    """The window's constraints; ``relaxed``: keys (:func:`constraint_key`) of constraints to leave out
+    (best effort, ours)."""
     if params.matching not in MATCHING_MODES:
         raise ConfigError(f"search.matching must be one of {list(MATCHING_MODES)}, got {params.matching!r}")
+    if not 0.0 <= float(params.retime_factor) < 1.0:
+        raise ConfigError(f"search.retime_factor must lie in [0, 1), got {params.retime_factor}")
+    relaxed = frozenset(relaxed)
     if params.matching == "paper":
-        return _build_paper(own_segments, partner_segments, num_frames, fps, params)
+        return _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxed)
+    if float(params.retime_factor) > 0:
+        raise ConfigError("search.retime_factor > 0 needs search.matching=paper: labels matching may stitch an "
+                          "input clause from several source clauses, so there is no one source clause to warp")
     T = int(num_frames)
     tol = int(round(float(params.tolerance) * fps))
     use_c, use_lr, use_hp = bool(params.use_constraints), bool(params.use_lr), bool(params.use_hp)
@@ -159,7 +191,7 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
             continue
         own[lo:hi] = FREE  # margins and unconstrained kinds
         code = {"PC": PC, "LR": LR}.get(r.kind)
-        if code is None or (code == LR and not use_lr):
+        if code is None or (code == LR and not use_lr) or (r.kind, s, e) in relaxed:
             continue
         a, b = max(0, s + tol), min(T, e - tol)
         if b <= a:  # its core lies outside the window: nothing to constrain here
@@ -177,16 +209,29 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
                 continue
             s, e, _ = _seg_frames(r, fps)
             a, b = max(0, s + tol), min(T, e - tol)
-            if b <= a:
+            if b <= a or ("PH", s, e) in relaxed:
                 continue
             par[a:b] = HP
             segs.append({"kind": "PH", "channel": "partner", "start": s, "end": e, "peak": None})
             forbid_outside(par_not, HP, s, e)
+    idle_runs = _runs(own == IDLE)
+    for a, b in idle_runs:
+        if ("idle", a, b) in relaxed:
+            own[a:b] = FREE
+        else:
+            segs.append({"kind": "idle", "channel": "own", "start": int(a), "end": int(b), "peak": None})
     own_not[own != FREE] = FREE  # a hard requirement on a frame wins over a forbidden label
     par_not[par != FREE] = FREE
-    idle_runs = _runs(own == IDLE)
-    segs += [{"kind": "idle", "channel": "own", "start": a, "end": b, "peak": None} for a, b in idle_runs]
     return Constraints(T, fps, tol, own, par, pw, reset, check, segs, own_not, par_not)
+
+
+def _slack(retime: float, s: int, x: int, tol: int, T: int) -> int:
+    """Retiming slack (frames) of an end or peak x of a segment starting at s: floor(retime (x - s)),
+    bounded so that every source placement it admits lies inside the window's inner frames 1..T - 2,
+    where the warp can move it (0 without retiming)."""
+    if retime <= 0:
+        return 0
+    return max(0, min(int(np.floor(retime * (x - s))), T - 2 - x - tol, x - tol - 1))
 
 
 def _seg_frames(r, fps):
@@ -195,11 +240,12 @@ def _seg_frames(r, fps):
     return int(round(r.start * fps)), int(round(r.end * fps)), pk
 
 
-def _build_paper(own_segments, partner_segments, num_frames, fps, params) -> Constraints:
+def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxed=frozenset()) -> Constraints:
     """``search.matching=paper``: label masks plus entry windows (module docstring)."""
     T = int(num_frames)
     tol = int(round(float(params.tolerance) * fps))
     use_c, use_lr, use_hp = bool(params.use_constraints), bool(params.use_lr), bool(params.use_hp)
+    retime = float(params.retime_factor)
     own = np.full(T, IDLE if use_c else FREE, np.int32)
     par = np.full(T, FREE, np.int32)
     zeros = np.zeros(T, bool)
@@ -208,33 +254,48 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params) -> Con
     def channel():
         return dict(kind=np.full(T, FREE, np.int32), start=np.zeros(T, np.int32), end=np.zeros(T, np.int32),
                     peak=np.full(T, NO_PEAK, np.int32), free=np.zeros(T, bool), reset=np.zeros(T, bool),
-                    check=np.zeros(T, bool))
+                    check=np.zeros(T, bool), etol=np.full(T, tol, np.int32), ptol=np.full(T, tol, np.int32))
 
     ch = {"own": channel(), "partner": channel()}
     if not use_c:
         pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak")), np.ones(T, bool), zeros, zeros,
-                         *(ch["partner"][k] for k in ("kind", "start", "end")), np.ones(T, bool), zeros, zeros, 0, 0)
+                         ch["own"]["etol"], ch["own"]["ptol"],
+                         *(ch["partner"][k] for k in ("kind", "start", "end")), np.ones(T, bool), zeros, zeros, 0, 0,
+                         tol)
         return Constraints(T, fps, tol, own, par, zeros, zeros, zeros, segs, np.full(T, FREE, np.int32),
                            np.full(T, FREE, np.int32), pa)
     own_codes = (1 << PC) | ((1 << LR) if use_lr else 0)
     par_codes = (1 << HP) if use_hp else 0
+    own_plain = own.copy()    # the own requirement without the retiming slack (idle runs are named by it)
+    end_zone = np.zeros(T, bool)       # retiming: frames around a constrained clause's end (+- tol + slack)
+    unconstrained = np.zeros(T, bool)  # the ranges of input segments of unconstrained kinds (own HP, ...)
     counted = {"own": [], "partner": []}   # (code, s, e, peak, kind name) of the constraints
     free_ranges = {"own": [], "partner": []}
     own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end"])
     for r in own_segments.itertuples(index=False):
         s, e, p = _seg_frames(r, fps)
-        lo, hi = max(0, s - tol), min(T, e + tol)
+        code = {"PC": PC, "LR": LR}.get(r.kind)
+        # retiming (ours): the end may lie up to ``slack`` frames further off, the core and idle rule shrink;
+        # only as far as the warp can move it (inside the window)
+        slack = _slack(retime, s, e, tol, T) if code is not None else 0
+        lo, hi = max(0, s - tol), min(T, e + tol + slack)
         if hi <= 0 or lo >= T:
             continue
         own[lo:hi] = FREE
-        code = {"PC": PC, "LR": LR}.get(r.kind)
-        if code is None or not (own_codes >> code) & 1:
+        own_plain[lo:min(T, e + tol)] = FREE
+        if code is None or not (own_codes >> code) & 1 or (r.kind, s, e) in relaxed:
             free_ranges["own"].append((lo, hi))
+            if code is None or not (own_codes >> code) & 1:
+                unconstrained[lo:hi] = True
             continue
+        if retime > 0:
+            end_zone[max(0, e - tol - slack):hi] = True
         c = s + tol
-        a, b = max(0, s + tol), min(T, e - tol)
-        if 0 <= c < T or (c < 0 and b > a):
-            counted["own"].append((code, s, e, p if code == PC else None, r.kind))
+        a, b = max(0, s + tol), min(T, e - tol - slack)
+        if 0 <= c < T or (c < 0 and min(T, e - tol) > a):
+            pk = p if code == PC else None
+            pslack = _slack(retime, s, p, tol, T) if pk is not None else 0
+            counted["own"].append((code, s, e, pk, r.kind, slack, pslack))
         else:
             free_ranges["own"].append((lo, hi))
         if b > a:
@@ -246,12 +307,15 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params) -> Con
             s, e, _ = _seg_frames(r, fps)
             c = s + tol
             a, b = max(0, s + tol), min(T, e - tol)
-            if 0 <= c < T or (c < 0 and b > a):
-                counted["partner"].append((HP, s, e, None, "PH"))
-            elif max(0, s - tol) < min(T, e + tol):
+            if ("PH", s, e) in relaxed:
+                pass    # no label core; the range stays free (below)
+            elif 0 <= c < T or (c < 0 and b > a):
+                counted["partner"].append((HP, s, e, None, "PH", 0, 0))
+                if b > a:
+                    par[a:b] = HP
+                continue
+            if max(0, s - tol) < min(T, e + tol):
                 free_ranges["partner"].append((max(0, s - tol), min(T, e + tol)))
-            if b > a:
-                par[a:b] = HP
     # the partner channel has no idle rule: a partner HP may be entered anywhere outside the range
     # [s - tol, e + tol) of an input HP; the own channel's free frames are those of input segments
     # that are no constraint (outside them own_req already asks for idle or the core's kind)
@@ -261,7 +325,7 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params) -> Con
         for lo, hi in free_ranges[name]:
             arr["free"][lo:hi] = True
         items = sorted(counted[name], key=lambda x: x[1])
-        for i, (code, s, e, p, kind) in enumerate(items):
+        for i, (code, s, e, p, kind, slack, pslack) in enumerate(items):
             lo, hi = s - tol, s + tol                      # entry window [lo, hi]
             if i > 0 and items[i - 1][1] + tol >= lo:      # overlaps the previous window: split (ours)
                 lo = (items[i - 1][1] + s) // 2 + 1
@@ -274,19 +338,30 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params) -> Con
                 arr["kind"][lo:hi_c + 1] = code
                 arr["start"][lo:hi_c + 1], arr["end"][lo:hi_c + 1] = s, e
                 arr["peak"][lo:hi_c + 1] = NO_PEAK if p is None else p
+                arr["etol"][lo:hi_c + 1], arr["ptol"][lo:hi_c + 1] = tol + slack, tol + pslack
                 arr["reset"][lo] = True
                 if s + tol >= 0 and hi_c == hi:
                     arr["check"][hi] = True
-            arr["free"][max(0, s - tol):max(0, min(T, e + tol))] = False
+            arr["free"][max(0, s - tol):max(0, min(T, e + tol + slack))] = False
             segs.append({"kind": kind, "channel": name, "start": s, "end": e, "peak": p})
         arr["free"] &= arr["kind"] < 0
-    idle_runs = _runs(own == IDLE)
-    segs += [{"kind": "idle", "channel": "own", "start": a, "end": b, "peak": None} for a, b in idle_runs]
-    pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak", "free", "reset", "check")),
+    own_not = np.full(T, FREE, np.int32)
+    # retiming: the frames around a clause's end may hold the clause's own end, but no own hesitation
+    # (the warp moves the path's frames after a source clause's end to the input's end, so one entered
+    # there would land in the input's idle run), unless the input has an own segment of its own there
+    own_not[end_zone & ~unconstrained & (own == FREE)] = HP
+    for a, b in _runs(own_plain == IDLE):
+        if ("idle", a, b) in relaxed:   # best effort: the run is free, entries of any kind allowed
+            own[a:b] = np.where(own[a:b] == IDLE, FREE, own[a:b])
+            own_not[a:b] = FREE
+            ch["own"]["free"][a:b] = ch["own"]["kind"][a:b] < 0
+        else:
+            segs.append({"kind": "idle", "channel": "own", "start": int(a), "end": int(b), "peak": None})
+    pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak", "free", "reset", "check", "etol", "ptol")),
                      *(ch["partner"][k] for k in ("kind", "start", "end", "free", "reset", "check")),
-                     own_codes, par_codes)
-    return Constraints(T, fps, tol, own, par, zeros.copy(), zeros.copy(), zeros.copy(), segs,
-                       np.full(T, FREE, np.int32), np.full(T, FREE, np.int32), pa)
+                     own_codes, par_codes, tol)
+    return Constraints(T, fps, tol, own, par, zeros.copy(), zeros.copy(), zeros.copy(), segs, own_not,
+                       np.full(T, FREE, np.int32), pa)
 
 
 def segment_info(graph) -> np.ndarray:
@@ -304,21 +379,24 @@ def segment_info(graph) -> np.ndarray:
 
 def placement_ok(label, offset, length, peak_off, t, win, tol):
     """Does a source segment instance (label, offset of the state, length, peak offset) at output frame
-    t match the entry window ``win`` = (kind, start, end, peak) of that frame? Operators only, so it
-    works on NumPy and JAX arrays alike."""
-    kind, s, e, p = win
+    t match the entry window ``win`` = (kind, start, end, peak[, end tolerance, peak tolerance]) of that
+    frame? The start within ``tol``, the end and peak within their tolerances (default ``tol``; larger
+    with retiming). Operators only, so it works on NumPy and JAX arrays alike."""
+    kind, s, e, p = win[:4]
+    etol, ptol = (win[4], win[5]) if len(win) > 4 else (tol, tol)
     st = t - offset
-    ok = (label == kind) & (st - s <= tol) & (s - st <= tol) & (st + length - e <= tol) & (e - st - length <= tol)
+    ok = (label == kind) & (st - s <= tol) & (s - st <= tol) & (st + length - e <= etol) & (e - st - length <= etol)
     pk = st + peak_off - p
-    return ok & ((p == NO_PEAK) | ((peak_off >= 0) & (pk <= tol) & (-pk <= tol)))
+    return ok & ((p == NO_PEAK) | ((peak_off >= 0) & (pk <= ptol) & (-pk <= ptol)))
 
 
 def paper_channel_step(label_x, off_x, len_x, label_y, off_y, len_y, peak_y, synthetic, first, t, flag, arrs,
                        codes, tol):
     """One channel's ``paper`` rule for a transition x -> y arriving at output frame t (``first``: t is
     frame 0 and y the start state; x and synthetic are then ignored). arrs: that frame's
-    (kind, start, end, peak, free, reset, check). Returns (ok, new flag). Operators only (NumPy/JAX)."""
-    kind, s, e, p, free, reset, check = arrs
+    (kind, start, end, peak, free, reset, check, end tolerance, peak tolerance). Returns (ok, new flag).
+    Operators only (NumPy/JAX)."""
+    kind, s, e, p, free, reset, check, etol, ptol = arrs
     cons_x = ((codes >> label_x) & 1) == 1
     cons_y = ((codes >> label_y) & 1) == 1
     mid_x = cons_x & (off_x < len_x - 1)
@@ -326,7 +404,7 @@ def paper_channel_step(label_x, off_x, len_x, label_y, off_y, len_y, peak_y, syn
     contiguous = first | ~synthetic | ~(mid_x | mid_y)
     entry = cons_y & (first | (off_y == 0))
     f0 = flag & ~reset
-    matched = entry & placement_ok(label_y, off_y, len_y, peak_y, t, (kind, s, e, p), tol) & ~f0
+    matched = entry & placement_ok(label_y, off_y, len_y, peak_y, t, (kind, s, e, p, etol, ptol), tol) & ~f0
     ok = contiguous & (~entry | free | matched)
     f1 = f0 | matched
     return ok & (~check | f1), f1

@@ -36,3 +36,16 @@ class SearchParams:
     max_paths_per_start: int = 20  # DFS: our bound
     max_expansions: int = 200000  # DFS: our bound per segment, shared among start states
     time_budget: Optional[float] = None  # DFS: optional wall-clock bound in seconds (None: expansions only)
+    # when no path meets every constraint: "fail" (the paper) or "best_effort" (ours: the path meeting
+    # the most constraints, weighted by kind, found by greedy relaxation; search/relax.py, docs/search.md)
+    on_failure: str = "fail"
+    # best_effort: weight of each constraint kind (own clause PC, own listener response LR, partner
+    # hesitation PH, own idle run); heavier kinds are kept first
+    weight_pc: float = 4.0
+    weight_lr: float = 2.0
+    weight_hp: float = 2.0
+    weight_idle: float = 1.0
+    # ours (the paper's future work): a source clause may match an input clause (own PC or LR) whose
+    # duration differs by up to this fraction (0: off, the paper; 0.2: +-20%); realization then warps the
+    # matched segments' start, F0 peak and end onto the input's (synth/retime.py). matching=paper only
+    retime_factor: float = 0.0

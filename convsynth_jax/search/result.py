@@ -21,6 +21,12 @@ class SearchResult:
     transition_costs: list | None = None
     synthetic_at: list | None = None  # output frames t whose transition t-1 -> t is synthetic
     failure: str | None = None        # why no path was found (None on success)
+    # search.on_failure=best_effort (ours, search/relax.py): the path meets the constraints not relaxed
+    best_effort: bool = False
+    relaxed: list | None = None       # keys (constraints.constraint_key) of the constraints left out
+    claimed: dict | None = None       # key -> met, as the search sees it (relax.claims)
+    lookahead_calls: int = 0          # look-ahead calls of the greedy relaxation
+    warp: tuple | None = None         # retiming (ours): (output knots, path knots), search/retime.py
 
 
 def path_stats(graph, path):

@@ -73,7 +73,8 @@ class MotionGraphSystem(SynthesisSystem):
         res = synthesize_character(model.graph, model.motions, window.own_segments, window.partner_segments,
                                    window.num_frames, self.search_params(condition), self.params.synth,
                                    seed=window.seed, chair_index=window.chair_index)
-        diag = {"search_method": res.method, "cost": res.cost, "num_synthetic_transitions": res.num_synthetic_transitions}
+        diag = {"search_method": res.method, "cost": res.cost, "num_synthetic_transitions": res.num_synthetic_transitions,
+                "best_effort": bool(res.best_effort), "warp": res.warp, "unmet_constraints": res.unmet}
         if res.success:
             used = np.asarray(res.transition_costs or [], dtype=np.float64)
             diag["mean_transition_cost"] = float(used.mean()) if used.size else 0.0

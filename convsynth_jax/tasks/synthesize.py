@@ -10,7 +10,8 @@ index), so the same window gives the same motion in both tasks.
 
 Writes ``<character>.bvh``, ``<character>_blinks.csv`` (when the system makes blinks),
 ``<role>_input.wav`` (the input audio of the window), ``report.json`` (per character: success,
-constraints hit and missed by the independent checker where the system reports per-frame provenance,
+best_effort (``search.on_failure=best_effort``), the retiming warp where there is one, constraints hit
+and missed by the independent checker where the system reports per-frame provenance,
 transitions used with costs, timings) and a summary with success, search_seconds (per character,
 wall time), synthesis_cpu_seconds (per character: CPU time of the process, all threads, for search
 and realization; read beside the wall time on a loaded machine), num_synthetic_transitions,
@@ -131,7 +132,7 @@ def run(cfg, out_dir: Path) -> dict:
             summary["source_frames"][char] = [[c, int(f)] for c, f in zip(res.source_clip, res.source_frame)]
             chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, win.own_segments,
                              win.partner_segments, fps, params.search.tolerance, params.search.use_lr,
-                             params.search.use_hp, matching=params.search.matching)
+                             params.search.use_hp, matching=params.search.matching, warp=res.diagnostics.get("warp"))
             summary["constraints_total"][char] = chk["total"]
             summary["constraints_met"][char] = chk["met"]
             sc, sf = res.source_clip, res.source_frame
@@ -139,6 +140,9 @@ def run(cfg, out_dir: Path) -> dict:
                                     for t in (res.synthetic_at or [])]
             entry["transition_costs"] = res.diagnostics.get("transition_costs")
             entry["checker"] = chk
+            warp = res.diagnostics.get("warp")
+            if warp is not None:   # retiming (ours): output frame knots -> path frame knots
+                entry["warp"] = {"output_frames": [float(x) for x in warp[0]], "path_frames": [float(x) for x in warp[1]]}
         model = fitted[char]
         g = getattr(model, "graph", None)
         if g is not None:

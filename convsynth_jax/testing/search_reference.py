@@ -43,7 +43,7 @@ def _requirement_ok(own, par, req):
 def _paper_channel(c, t, frame_arrs, codes, x_seg, y_seg, synthetic, first, flag):
     """``search.matching=paper`` for one channel, written out: x_seg/y_seg = (label, offset, length,
     peak offset) of the previous and the new state. Returns (ok, new flag)."""
-    kind, s, e, p, free, reset, check = (a[t] for a in frame_arrs)
+    kind, s, e, p, free, reset, check, etol, ptol = (a[t] for a in frame_arrs)
     lx, ox, Lx, _ = x_seg
     ly, oy, Ly, qy = y_seg
     x_cons, y_cons = bool(codes >> int(lx) & 1), bool(codes >> int(ly) & 1)
@@ -56,8 +56,8 @@ def _paper_channel(c, t, frame_arrs, codes, x_seg, y_seg, synthetic, first, flag
         flag = False
     if y_cons and (first or oy == 0):   # a source segment is entered here: where does it lie?
         st = t - oy
-        placed = (int(ly) == int(kind) and abs(st - s) <= c.tol and abs(st + Ly - e) <= c.tol
-                  and (p == NO_PEAK or (qy >= 0 and abs(st + qy - p) <= c.tol)))
+        placed = (int(ly) == int(kind) and abs(st - s) <= c.tol and abs(st + Ly - e) <= etol
+                  and (p == NO_PEAK or (qy >= 0 and abs(st + qy - p) <= ptol)))
         if placed and not flag:
             flag = True
         elif not free:

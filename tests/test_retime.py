@@ -1,0 +1,197 @@
+"""Retiming (search.retime_factor, ours): the matching tolerance, the warp knots, the motion warp
+against a slow per-frame reference, and a retimed clause realized at the input's times."""
+import dataclasses
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from convsynth_jax.annotate.types import PC, FrameAudio
+from convsynth_jax.data.skeleton_seated import seated_skeleton
+from convsynth_jax.graph.types import MotionGraph
+from convsynth_jax.search.beam import beam_search
+from convsynth_jax.search.check import check_path
+from convsynth_jax.search.constraints import build_constraints
+from convsynth_jax.search.params import SearchParams
+from convsynth_jax.search.reference import reference_beam_search
+from convsynth_jax.skeleton import Motion
+from convsynth_jax.synth.params import SynthParams
+from convsynth_jax.synth.pipeline import synthesize_character
+from convsynth_jax.synth.retime import warp_motion
+
+FPS = 10.0
+
+
+def _slerp_reference(q0, q1, a):
+    """Slerp of two unit quaternions written out (one pair, Python floats)."""
+    d = float(np.dot(q0, q1))
+    if d < 0:
+        q1, d = -q1, -d
+    th = np.arccos(min(d, 1.0))
+    if th < 1e-9:
+        return q0
+    return (np.sin((1 - a) * th) * q0 + np.sin(a * th) * q1) / np.sin(th)
+
+
+def warp_reference(motion, out_knots, path_knots):
+    """Per output frame: find the knot interval by a linear scan, the path time by the two-point line
+    formula, then slerp each joint and lerp each translation between the two nearest frames."""
+    T, J = motion.rotations.shape[:2]
+    rot, tr = np.zeros((T, J, 4)), np.zeros((T, J, 3))
+    for t in range(T):
+        k = 0
+        while not (out_knots[k] <= t <= out_knots[k + 1]):
+            k += 1
+        x0, x1, y0, y1 = out_knots[k], out_knots[k + 1], path_knots[k], path_knots[k + 1]
+        tau = y0 + (t - x0) * (y1 - y0) / (x1 - x0)
+        i = min(int(np.floor(tau)), T - 1)
+        j = min(i + 1, T - 1)
+        a = tau - i
+        for jj in range(J):
+            rot[t, jj] = _slerp_reference(motion.rotations[i, jj], motion.rotations[j, jj], a)
+            tr[t, jj] = (1 - a) * motion.translations[i, jj] + a * motion.translations[j, jj]
+    return rot, tr
+
+
+def _random_motion(rng, T=60):
+    skel = seated_skeleton()
+    J = skel.num_joints
+    q = rng.normal(size=(T, J, 4))
+    q /= np.linalg.norm(q, axis=-1, keepdims=True)
+    tr = rng.normal(size=(T, J, 3))
+    return Motion(skel, q, tr, FPS, "random")
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_warp_equals_the_per_frame_reference(seed):
+    rng = np.random.default_rng(seed)
+    m = _random_motion(rng)
+    out_k = np.array([0.0, 12, 25, 45, 59])
+    path_k = np.array([0.0, 10, 20, 40, 59])
+    w = warp_motion(m, out_k, path_k)
+    rot, tr = warp_reference(m, out_k, path_k)
+    np.testing.assert_allclose(np.abs(np.sum(w.rotations * rot, -1)), 1.0, atol=1e-9)
+    np.testing.assert_allclose(w.translations, tr, atol=1e-9)
+    # the knots show the path frames exactly
+    for o, p in zip(out_k.astype(int), path_k.astype(int)):
+        np.testing.assert_allclose(np.abs(np.sum(w.rotations[o] * m.rotations[p], -1)), 1.0, atol=1e-9)
+
+
+def test_bad_warp_knots_are_config_errors():
+    from convsynth_jax.errors import ConfigError
+
+    m = _random_motion(np.random.default_rng(0), 20)
+    with pytest.raises(ConfigError, match="increasing knots"):
+        warp_motion(m, [0, 10, 5, 19], [0, 4, 8, 19])
+    with pytest.raises(ConfigError, match="increasing knots"):
+        warp_motion(m, [0, 10, 18], [0, 4, 18])
+
+
+def clause_graph(length=20, frames=60, n_clips=3):
+    """Clips with one PC [10, 10 + length) each (peak at its middle), chained, each clip's last frame
+    linked back to every clip's first (synthetic), so a path can wait in idle frames."""
+    own, clip, frame, st, en, pk = [], [], [], [], [], []
+    for c in range(n_clips):
+        lab = np.zeros(frames, np.int8)
+        lab[10:10 + length] = PC
+        on = lab > 0
+        own.append(lab); clip.append(np.full(frames, c)); frame.append(np.arange(frames))
+        st.append(np.where(on, 10, -1)); en.append(np.where(on, 10 + length, -1))
+        pk.append(np.where(on, 10 + length // 2, -1))
+    S = n_clips * frames
+    rows, cols, cost, syn = [], [], [], []
+    for c in range(n_clips):
+        for f in range(frames):
+            s = c * frames + f
+            if f + 1 < frames:
+                rows.append(s); cols.append(s + 1); cost.append(0.0); syn.append(False)
+            if f < 10 or f == frames - 1:   # idle frames: jump to any clip's idle frames
+                for c2 in range(n_clips):
+                    for g in (0, 3, 6):
+                        if c2 * frames + g != s + 1:
+                            rows.append(s); cols.append(c2 * frames + g); cost.append(1.0); syn.append(True)
+    rows, cols, cost, syn = map(np.asarray, (rows, cols, cost, syn))
+    o = np.lexsort((cols, rows))
+    rows, cols, cost, syn = rows[o], cols[o], cost[o], syn[o]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=S))])
+    cat = lambda x: np.concatenate(x).astype(np.int32)  # noqa: E731
+    z = np.zeros(S, np.int32)
+    g = MotionGraph(tuple(f"c{c}" for c in range(n_clips)), FPS, cat(clip), cat(frame), cat(own), cat(st), cat(en),
+                    cat(pk), z, z - 1, z - 1, np.ones(S, bool), indptr, cols, cost.astype(np.float32), syn, {})
+    audio = {f"c{c}": (FrameAudio(own[c], st[c].astype(np.int32), en[c].astype(np.int32), pk[c].astype(np.int32)),
+                       FrameAudio(np.zeros(frames, np.int8), *(np.full(frames, -1, np.int32),) * 3))
+             for c in range(n_clips)}
+    skel = seated_skeleton()
+    J = skel.num_joints
+    motions = {}
+    for c in range(n_clips):   # joint 1 turns about x by 0.02 rad per frame: every frame's pose differs
+        ang = 0.02 * np.arange(frames) + c
+        rot = np.zeros((frames, J, 4)); rot[..., 0] = 1
+        rot[:, 1, 0], rot[:, 1, 1] = np.cos(ang / 2), np.sin(ang / 2)
+        tr = np.broadcast_to(skel.offsets, (frames, J, 3)).copy()
+        motions[f"c{c}"] = Motion(skel, rot, tr, FPS, f"c{c}")
+    return g, audio, motions
+
+
+def test_retime_tolerance_admits_a_clause_up_to_the_factor_longer_or_shorter():
+    own = pd.DataFrame([("PC", 1.0, 2.2, 3.5)], columns=["kind", "start", "peak", "end"])   # 25 frames
+    c0 = build_constraints(own, None, 50, FPS, SearchParams())
+    c2 = build_constraints(own, None, 50, FPS, SearchParams(retime_factor=0.2))
+    w = c2.paper.own_kind >= 0
+    assert (c0.paper.own_end_tol[w] == 1).all() and (c2.paper.own_end_tol[w] == 1 + 5).all()   # floor(0.2 * 25)
+    assert (c2.paper.own_peak_tol[w] == 1 + 2).all()                                           # floor(0.2 * 12)
+    # the label core and the idle rule leave the end slack free; no own hesitation may enter it
+    assert (c2.own_req[11:34 - 5] == PC).all() and (c2.own_req[29:41] == -1).all() and c2.own_req[41] == 0
+    assert (c2.own_not[29:41] == 3).all() and c2.own_not[28] == -1 and (c0.own_not == -1).all()
+    assert [s for s in c2.segments if s["kind"] == "idle"] == [s for s in c0.segments if s["kind"] == "idle"]
+
+
+@pytest.mark.parametrize("input_frames", [24, 17])
+def test_a_retimed_clause_is_realized_at_the_input_times(input_frames):
+    """Source clauses last 20 frames; the input clause 24 (or 17). Paper matching (tolerance 1 frame)
+    finds no path; with retime_factor 0.2 the search matches a source clause, the realized motion shows
+    its start, peak and end frames at the input's start, peak and end, and the checker confirms the
+    clause through the warp (and refuses it without)."""
+    g, audio, motions = clause_graph()
+    s, e = 12, 12 + input_frames
+    p = s + input_frames // 2
+    own = pd.DataFrame([("PC", s / FPS, p / FPS, e / FPS)], columns=["kind", "start", "peak", "end"])
+    T = 50
+    base = SearchParams(tolerance=0.1, beam_size=64, max_degree=24)
+    assert not beam_search(g, build_constraints(own, None, T, FPS, base), base).success
+    cfg = dataclasses.replace(base, retime_factor=0.2)
+    res = synthesize_character(g, motions, own, None, T, cfg, SynthParams(blend_frames=0), seed=0)
+    assert res.success and not res.best_effort and res.warp is not None
+    out_k, path_k = res.warp
+    # the path plays one whole source clause [10, 30) of some clip starting within the tolerance of s
+    k = [i for i, f in enumerate(res.source_frame) if f == 10 and g.own_label[res.path[i]] == PC][0]
+    st, pk, en = k, k + 10, k + 20
+    assert abs(st - s) <= 1
+    plain = synthesize_character(g, motions, own, None, T, dataclasses.replace(cfg, retime_factor=0.0), SynthParams(
+        blend_frames=0), seed=0)
+    assert not plain.success
+    tau = np.interp(np.arange(T), out_k, path_k)
+    for o, q in ((s, st), (p, pk), (e, en)):
+        assert abs(tau[o] - q) < 1.0                                    # the input time shows the source's
+        ang = 2 * np.arctan2(res.motion.rotations[o, 1, 1], res.motion.rotations[o, 1, 0])
+        src = motions[res.source_clip[q]]
+        ang_src = 2 * np.arctan2(src.rotations[res.source_frame[q], 1, 1], src.rotations[res.source_frame[q], 1, 0])
+        assert abs(ang - ang_src) <= 0.02 + 1e-9                         # within a frame of the source's pose
+    chk = check_path(res.source_clip, res.source_frame, audio, own, None, FPS, 0.1, warp=res.warp)
+    assert all(d["met"] for d in chk["details"]), chk
+    assert res.constraints_met == res.constraints_total == chk["total"]
+    raw = check_path(res.source_clip, res.source_frame, audio, own, None, FPS, 0.1)
+    assert not all(d["met"] for d in raw["details"] if d["kind"] == "PC")
+
+
+def test_retimed_kernel_equals_the_reference():
+    """The beam kernel and its NumPy reference apply the same retimed placement rule."""
+    g, audio, _ = clause_graph()
+    own = pd.DataFrame([("PC", 1.2, 2.4, 3.6)], columns=["kind", "start", "peak", "end"])
+    cfg = SearchParams(tolerance=0.1, beam_size=32, max_degree=24, retime_factor=0.2, retry_temperatures=[],
+                       retry_beam_size=0, lookahead=False)
+    cons = build_constraints(own, None, 50, FPS, cfg)
+    ref = reference_beam_search(g, cons, cfg, seed=1, temperature=cfg.temperature)
+    res = beam_search(g, cons, cfg, seed=1)
+    assert res.success and ref.success
+    np.testing.assert_array_equal(res.path, ref.path)

@@ -101,10 +101,10 @@ def _near_transition(track: Track, f: int) -> bool:
 class _Scene:
     """The figure: one axis per panel above a timeline axis; ``draw(f)`` poses every body at frame f."""
 
-    def __init__(self, panels, timelines, fps: float, width: float = 4.0, dpi: int = 80):
+    def __init__(self, panels, timelines, fps: float, width: float = 4.0, dpi: int = 80, clock: bool = True):
         if not panels or not all(p.tracks for p in panels):
             raise ConvSynthError("nothing to render: every panel needs at least one body")
-        self.panels, self.fps = list(panels), float(fps)
+        self.panels, self.fps, self.clock = list(panels), float(fps), clock
         self.n = _num_frames(self.panels)
         self.h = _axes_of(self.panels)
         xlim, ylim = _limits(self.panels, self.h)
@@ -158,6 +158,8 @@ class _Scene:
             lc.set_segments(_segments(t, f, self.h))
             lc.set_color(TRANSITION_COLOR if _near_transition(t, f) else color)
         self.cursor.set_xdata([f / self.fps, f / self.fps])
+        if not self.clock:   # text is the costliest artist to draw; the cursor shows the time
+            return [lc for _, lc, _ in self.lines] + [self.cursor]
         self.time_text.set_text(f"frame {f}  t = {f / self.fps:.2f} s")
         return [lc for _, lc, _ in self.lines] + [self.cursor, self.time_text]
 
@@ -219,6 +221,77 @@ def render_animation(panels, timelines, fps: float, path: str | Path, render_fps
         images[0].save(tmp, format="GIF", save_all=True, append_images=images[1:], loop=0,
                        duration=int(round(1000 / out_fps)))
     return path
+
+
+def _rgb_frames(scene: "_Scene", frames):
+    """RGB arrays (H, W, 3) of ``frames``, blitted like :func:`_gif_frames` (no palette), with even
+    height and width (H.264's 4:2:0 needs them; the last row / column is repeated)."""
+    from matplotlib.backends.backend_agg import FigureCanvasAgg
+
+    canvas = FigureCanvasAgg(scene.fig)
+    for a in scene.draw(frames[0]):
+        a.set_animated(True)
+    canvas.draw()
+    background = canvas.copy_from_bbox(scene.fig.bbox)
+    for f in frames:
+        canvas.restore_region(background)
+        for a in scene.draw(f):
+            a.axes.draw_artist(a) if a.axes is not None else scene.fig.draw_artist(a)
+        rgb = np.asarray(canvas.buffer_rgba())[..., :3]
+        h, w = rgb.shape[0] + rgb.shape[0] % 2, rgb.shape[1] + rgb.shape[1] % 2
+        yield np.ascontiguousarray(np.pad(rgb, ((0, h - rgb.shape[0]), (0, w - rgb.shape[1]), (0, 0)), mode="edge"))
+
+
+def ffmpeg_exe() -> str:
+    """The ffmpeg binary that the ``imageio-ffmpeg`` package ships (a project dependency)."""
+    try:
+        import imageio_ffmpeg
+    except ImportError as e:  # pragma: no cover - a dependency of the package
+        raise ConvSynthError("video output needs the imageio-ffmpeg package (pip install imageio-ffmpeg)") from e
+    return imageio_ffmpeg.get_ffmpeg_exe()
+
+
+def render_video(panels, timelines, fps: float, path: str | Path, audio: str | Path | None = None,
+                 render_fps: float = 10.0, dpi: int = 80, width: float = 3.2, clock: bool = False) -> Path:
+    """An H.264 MP4 of ``panels`` (every ``round(fps / render_fps)``-th frame, blitted on an Agg canvas
+    and piped to the ffmpeg binary of ``imageio-ffmpeg``, so no system ffmpeg is needed), with the WAV
+    ``audio`` (if given) muxed in as an AAC track starting at frame 0. ``clock``: draw the frame number
+    and time above the panels (off by default: about 4 ms a frame; the timeline's cursor shows the time)."""
+    import imageio_ffmpeg
+
+    path = Path(path)
+    scene = _Scene(panels, timelines, fps, width=width, dpi=dpi, clock=clock)
+    step = max(1, int(round(fps / render_fps)))
+    frames = list(range(0, scene.n, step))
+    gen = _rgb_frames(scene, frames)
+    first = next(gen)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    with atomic_path(path, suffix=".mp4") as tmp:
+        w = imageio_ffmpeg.write_frames(str(tmp), (first.shape[1], first.shape[0]), fps=fps / step, macro_block_size=1,
+                                        audio_path=None if audio is None else str(audio),
+                                        audio_codec=None if audio is None else "aac", ffmpeg_log_level="error")
+        w.send(None)
+        w.send(first)
+        for img in gen:
+            w.send(img)
+        w.close()
+    return path
+
+
+def probe_streams(path: str | Path) -> dict:
+    """{"video": n, "audio": n, "duration": seconds or None}: the streams ffmpeg finds in a media file
+    (read from ``ffmpeg -i``'s report, with the ffmpeg binary of ``imageio-ffmpeg``)."""
+    import re
+    import subprocess
+
+    p = Path(path)
+    if not p.is_file():
+        raise MissingFileError("no such media file", p)
+    err = subprocess.run([ffmpeg_exe(), "-hide_banner", "-i", str(p)], capture_output=True, text=True).stderr
+    d = re.search(r"Duration: (\d+):(\d+):([\d.]+)", err)
+    dur = None if d is None else 3600 * int(d.group(1)) + 60 * int(d.group(2)) + float(d.group(3))
+    return {"video": len(re.findall(r"Stream #\S+.*: Video:", err)), "audio": len(re.findall(r"Stream #\S+.*: Audio:", err)),
+            "duration": dur}
 
 
 def contact_sheet(panels, timelines, fps: float, path: str | Path, num: int = 6, dpi: int = 90,

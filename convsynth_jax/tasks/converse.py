@@ -416,4 +416,4 @@ def render_conversation(results, seg, chars, plan, fps, path: Path, wav: Path, p
     timelines = [Timeline(f"A ({chars[0]})", seg["A"]), Timeline(f"B ({chars[1]})", seg["B"]),
                  Timeline("windows (A)", windows)]
     return render_video([Panel("conversation", tracks)], timelines, fps, path, audio=wav, render_fps=p.video_fps,
-                        dpi=p.video_dpi)
+                        dpi=p.video_dpi, width=5.0)

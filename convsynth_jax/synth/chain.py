@@ -32,7 +32,6 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from ..errors import ConfigError
-from ..evaluation.windows import Window, window_segments
 from ..search.constraints import build_constraints
 from ..search.result import path_stats
 from .blinks import blink_curve, blink_times
@@ -120,14 +119,33 @@ class ChainResult:
     cuts: list = field(default_factory=list)   # output frames where a window after the first begins
 
 
+def span_segments(segments, start: float, end: float):
+    """Audio segments overlapping [start, end) seconds, times relative to ``start``; segments crossing
+    an edge keep their true times (as ``evaluation.windows.window_segments``, which this layer may not import)."""
+    import pandas as pd
+
+    if segments is None or len(segments) == 0:
+        return pd.DataFrame(columns=["kind", "start", "peak", "end", "text"])
+    seg = segments[(segments["end"] > start) & (segments["start"] < end)].copy()
+    for col in ("start", "peak", "end"):
+        if col in seg:
+            seg[col] = seg[col] - start
+    return seg.reset_index(drop=True)
+
+
 def _search(graph, own, partner, w0: int, w1: int, fps: float, search, seed: int, start_states):
+    from ..errors import SearchFailure
+    from ..search.result import SearchResult
     from .pipeline import SEARCHES
 
-    win = Window(0, w0 / fps, w1 / fps)
-    cons = build_constraints(window_segments(own, win), window_segments(partner, win), w1 - w0, fps, search)
+    a, b = w0 / fps, w1 / fps
+    cons = build_constraints(span_segments(own, a, b), span_segments(partner, a, b), w1 - w0, fps, search)
     if search.method not in SEARCHES:
         raise ConfigError(f"search.method must be one of {sorted(SEARCHES)}, got {search.method!r}")
-    return SEARCHES[search.method](graph, cons, search, seed=seed, start_states=start_states), cons
+    try:
+        return SEARCHES[search.method](graph, cons, search, seed=seed, start_states=start_states), cons
+    except SearchFailure as e:   # a search asked to raise (search.on_failure=fail, where it exists)
+        return SearchResult(False, None, float("inf"), 0, cons.total, 0, failure=str(e)), cons
 
 
 def chain_search(graph, own_segments, partner_segments, plan: list[PlannedWindow], fps: float, search,

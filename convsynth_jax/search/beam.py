@@ -221,15 +221,17 @@ def sizes(num_states: int, beam: int, max_degree: int, max_candidates: int, keys
 
 @partial(jax.jit, static_argnames=("beam", "M", "N", "H", "D", "paper", "prune"))
 def _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset,
-                 check, temp, num_frames, num_states, paper_dev, paper_arrs, feas, beam: int, M: int, N: int, H: int,
-                 D: int, paper: bool = False, prune: bool = False):
+                 check, temp, num_frames, num_states, paper_dev, paper_arrs, feas, start, beam: int, M: int, N: int,
+                 H: int, D: int, paper: bool = False, prune: bool = False):
     """Returns (path (Tp,), edge rank used into each frame (Tp,), any path alive per frame (Tp,)).
     Edges are flat (``_Prepared``): state s's kept edges, cheapest first, are entries first_edge[s] ..
     first_edge[s] + deg[s] - 1 of flat_packed / flat_cost; D is the largest kept degree.
     ``paper``: paper_dev = (synthetic (E,), segment info (S, 5)), paper_arrs = (own per-frame arrays
     (9 x (Tp,)), partner per-frame arrays, (own codes, partner codes), tol); else both unused.
     ``prune``: feas (Tp, S) uint8 is the look-ahead (feasible.py): a candidate (state, flags) at frame
-    t is kept only if bit ``flags`` of feas[t, state] is set; else feas is unused."""
+    t is kept only if bit ``flags`` of feas[t, state] is set; else feas is unused. ``start`` (S_pad,) bool:
+    the states a path may start from (all True: any state; a chained window: the previous window's
+    last state's successors)."""
     B = beam
     # the noise of :func:`noise` (the same jitted draws, inlined: one compilation less per graph)
     init_noise, pool, offsets = _noise(key, state_code.shape[0], N, M, pw.shape[0])
@@ -238,6 +240,7 @@ def _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs,
         own_a, par_a, codes, tol = paper_arrs
     valid0, flag0 = start_rule(state_code, paper_dev[1] if paper else None, reqs, pw, check, paper_arrs, num_states,
                                paper)
+    valid0 &= start
     if prune:
         valid0 &= ((feas[0] >> flag0.astype(jnp.uint8)) & 1) == 1
     top0, states0 = jax.lax.top_k(jnp.where(valid0, init_noise, -jnp.inf), B)
@@ -343,7 +346,8 @@ def lookahead(graph, constraints: Constraints, max_degree: int):
     return feas, bool(ok)
 
 
-def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
+def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0,
+                start_states=None) -> SearchResult:
     """Beam search at ``search.temperature``; if no path survives, retry at each of
     ``search.retry_temperatures`` (hotter sampling: more diverse, at the price of more synthetic
     transitions), then at every temperature again with ``search.retry_beam_size`` paths and
@@ -354,9 +358,13 @@ def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int
     (:func:`lookahead`), so the first attempt succeeds whenever the window is solvable (unless the
     candidate budget drops every completable edge); an unsolvable window is reported at once, after
     one attempt without the look-ahead that names where its paths die (no retries: they cannot
-    succeed)."""
+    succeed).
+
+    ``start_states``: graph states the path may start from (None: any), e.g. the successors of the
+    previous window's last state when windows are chained (tasks/converse.py)."""
     t0 = time.perf_counter()
     _check_sizes(params)
+    kw = {"start_states": start_states}
     temps = [float(params.temperature)] + [float(t) for t in (params.retry_temperatures or [])]
     attempts = [(params, t) for t in temps]
     if int(params.retry_beam_size) > 0:
@@ -366,9 +374,9 @@ def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int
     feas, first = None, 0
     if params.lookahead and constrained(constraints):
         # the look-ahead and the first attempt in one kernel call (one program to load per graph)
-        res, feas, ok = _beam_search_once(graph, constraints, params, seed, temps[0], lookahead=True)
+        res, feas, ok = _beam_search_once(graph, constraints, params, seed, temps[0], lookahead=True, **kw)
         if not ok:
-            res = _beam_search_once(graph, constraints, params, seed, temps[0], None)
+            res = _beam_search_once(graph, constraints, params, seed, temps[0], None, **kw)
             if not res.success:
                 res.failure = (f"{res.failure}; look-ahead: no path of the graph (each state's "
                                f"{int(params.max_degree)} cheapest edges) meets every constraint of the window")
@@ -377,7 +385,7 @@ def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int
         first = 1
     if first == 0 or not res.success:
         for k, (p, temp) in enumerate(attempts[first:], start=first):
-            res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp, feas)
+            res = _beam_search_once(graph, constraints, p, seed + 1000 * k, temp, feas, **kw)
             if res.success:
                 break
     res.seconds = time.perf_counter() - t0
@@ -393,10 +401,10 @@ def _check_sizes(params: SearchParams):
 
 
 def _beam_search_once(graph, constraints: Constraints, params: SearchParams, seed: int,
-                      temperature: float, feas=None, lookahead: bool = False):
+                      temperature: float, feas=None, lookahead: bool = False, start_states=None):
     """One beam search; ``feas``: a look-ahead to prune with (None: none). ``lookahead``: compute the
     look-ahead in the same kernel call and prune with it (:func:`_lookahead_beam_kernel`); then returns
-    (result, feas, solvable)."""
+    (result, feas, solvable). ``start_states``: the allowed frame-0 states (None: any)."""
     t0 = time.perf_counter()
     max_deg, beam, budget = _check_sizes(params)
     prep = _prepare(graph, max_deg)
@@ -409,18 +417,31 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     reqs, pw, reset, check, paper_arrs = padded_inputs(c)
     paper_dev = prep.paper_device if paper else None
     prune = feas is not None
+    start = start_mask(graph, prep.device[4].shape[0], start_states)
     static = {"beam": B, "M": M, "N": N, "H": H, "D": prep.kernel_degree, "paper": paper}
     args = (prng_key(seed), *dev, reqs, pw, reset, check, np.float32(temp), np.int32(T), np.int32(graph.num_states),
             paper_dev, paper_arrs)
     if lookahead:
         edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
         feas, ok, out = kernel_cache.call(_lookahead_beam_kernel, "lookahead_beam",
-                                          (edges, prep.paper_device[1], *args), {**static, "F": num_flags(c)})
+                                          (edges, prep.paper_device[1], *args, start), {**static, "F": num_flags(c)})
         res = _result(prep, c, out, t0)
         return res, feas, bool(ok)
-    out = kernel_cache.call(_beam_kernel, "beam", (*args, feas if prune else np.zeros((1, 1), np.uint8)),
+    out = kernel_cache.call(_beam_kernel, "beam", (*args, feas if prune else np.zeros((1, 1), np.uint8), start),
                             {**static, "prune": prune})
     return _result(prep, c, out, t0)
+
+
+def start_mask(graph, padded: int, start_states=None) -> np.ndarray:
+    """(padded,) bool: the states a path may start from (``start_states``; None: every state)."""
+    if start_states is None:
+        return np.ones(padded, bool)
+    s = np.asarray(start_states, np.int64).ravel()
+    if s.size and (s.min() < 0 or s.max() >= graph.num_states):
+        raise ConfigError(f"start state out of range: {s.min()}..{s.max()} (the graph has {graph.num_states} states)")
+    m = np.zeros(padded, bool)
+    m[s] = True
+    return m
 
 
 def _result(prep, c: Constraints, out, t0) -> SearchResult:
@@ -442,18 +463,19 @@ def _result(prep, c: Constraints, out, t0) -> SearchResult:
 
 @partial(jax.jit, static_argnames=("beam", "M", "N", "H", "D", "paper", "F"))
 def _lookahead_beam_kernel(edges, info, key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset,
-                           check, temp, num_frames, num_states, paper_dev, paper_arrs, beam: int, M: int, N: int,
-                           H: int, D: int, paper: bool, F: int):
+                           check, temp, num_frames, num_states, paper_dev, paper_arrs, start, beam: int, M: int,
+                           N: int, H: int, D: int, paper: bool, F: int):
     """The look-ahead (``feasible._feasible_kernel``: ``edges`` its :class:`~.feasible.LookaheadEdges`,
     ``info`` the segment info (S, 5)) and the beam pruned by it (:func:`_beam_kernel`) in one program:
     returns (feas, solvable, (path, ranks, alive)). The same computations as the two kernels called
-    one after the other (a fresh process loads one compiled program instead of two)."""
+    one after the other (a fresh process loads one compiled program instead of two). ``start``: the
+    allowed start states (:func:`_beam_kernel`); solvable then asks for a completable one among them."""
     feas, ok = _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states,
                                 F=F, paper=paper)
     out = _beam_kernel(key, first_edge, flat_packed, flat_cost, deg, state_code, reqs, pw, reset, check, temp,
-                       num_frames, num_states, paper_dev, paper_arrs, feas, beam=beam, M=M, N=N, H=H, D=D,
+                       num_frames, num_states, paper_dev, paper_arrs, feas, start, beam=beam, M=M, N=N, H=H, D=D,
                        paper=paper, prune=True)
-    return feas, ok, out
+    return feas, ok & out[2][0], out   # out[2][0]: some allowed start state is completable
 
 
 @partial(jax.jit, static_argnames=("S", "N", "M", "Tp"))

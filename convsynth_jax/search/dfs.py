@@ -58,7 +58,10 @@ def _paper_rule(graph, c: Constraints):
     return step
 
 
-def stochastic_greedy_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0) -> SearchResult:
+def stochastic_greedy_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0,
+                             start_states=None) -> SearchResult:
+    """``start_states``: graph states the path may start from (None: any), e.g. the successors of the
+    previous window's last state when windows are chained (tasks/converse.py)."""
     t_begin = time.perf_counter()
     rng = np.random.default_rng(seed)
     n_start, n_save = int(params.n_start), int(params.n_save)
@@ -95,7 +98,7 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
 
         f_dev, solvable = lookahead(graph, c, max_deg)
         if not solvable:   # the search without it names the constraint where its paths die
-            res = stochastic_greedy_search(graph, c, dataclasses.replace(params, lookahead=False), seed)
+            res = stochastic_greedy_search(graph, c, dataclasses.replace(params, lookahead=False), seed, start_states)
             if not res.success:
                 res.failure += ("; look-ahead: no path of the graph (each state's "
                                 f"{max_deg} cheapest edges) meets every constraint of the window")
@@ -115,6 +118,8 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
     else:
         first = np.array([s for s in np.flatnonzero(ok[0])
                           if completable(0, s, bool(c.peak_window[0] and peak[s]))], np.int64)
+    if start_states is not None:
+        first = first[np.isin(first, np.asarray(start_states, np.int64))]
     if first.size == 0:
         return fail(0)
     starts = rng.choice(first, size=min(n_start, first.size), replace=False)

@@ -1,0 +1,419 @@
+"""Task ``converse``: a whole conversation of new speech in, both characters' body motion out.
+
+Input: character A's and B's speech as two WAV files (``task.audio_a``, ``task.audio_b``) or one
+stereo WAV (``task.stereo``: channel 0 is A, 1 is B), each with a word-level transcript
+(``task.transcript_a``, ``task.transcript_b``: Praat TextGrid, TSV/CSV or IBM JSON), of any length.
+The audio is annotated as the corpus is (phonemic clauses with F0 peaks, listener responses,
+hesitations), cut into windows that are searched one after the other, each continuing the previous
+one's path through the character's motion graph, and the whole path is realized at once
+(:mod:`convsynth_jax.synth.chain`: no seam at window boundaries).
+
+Models: each character's motion graph fitted on every session of the configured corpus (cached on
+disk under ``${cache_dir}/loo_cache``, keyed by the clips and the graph, feature and annotation
+parameters), or graph files of ``task=build_graph`` (``task.graphs=DIR`` holding
+``graph_<character>.npz``, or ``task.graphs.<character>=FILE``).
+
+Writes ``A.bvh`` and ``B.bvh`` (the whole input duration at the graph's frame rate),
+``A_blinks.csv``/``B_blinks.csv``, ``conversation.wav`` (A left, B right), ``conversation.mp4``
+(stick figures with the label timeline, the audio muxed in; ``task.video=false`` skips it),
+``report.json`` and ``report.md``: the windows (frames, seconds, status, search time), the
+constraints per window and in total, by kind, as the independent checker
+(:mod:`convsynth_jax.search.check`) confirms them from the path's source frames, and timings. A
+window without a path (after moving its start back by ``task.backoff_s``) fails the task with an
+error naming the window and its time span, after the report is written, unless
+``search.on_failure=best_effort`` (where the search parameters have it) keeps the search's best path.
+"""
+from __future__ import annotations
+
+import logging
+import time
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any, List, Optional
+
+import numpy as np
+import pandas as pd
+
+from ..errors import AudioFormatError, ConfigError, ConvSynthError, MissingFileError, SearchFailure, TranscriptFormatError
+from ..utils import atomic_path, write_json_atomic
+
+log = logging.getLogger(__name__)
+
+KINDS = ("PC", "LR", "PH", "idle")
+
+
+@dataclass(frozen=True)
+class ConverseParams:
+    """``conf/task/converse.yaml`` (validated when the task starts)."""
+
+    name: str = "converse"
+    audio_a: Optional[str] = None        # WAV of character A (mono, or channel 0 is used)
+    audio_b: Optional[str] = None        # WAV of character B
+    stereo: Optional[str] = None         # instead of audio_a/audio_b: one WAV, channel 0 = A, 1 = B
+    transcript_a: Optional[str] = None   # word-level transcript of A (TextGrid, tsv, csv, json)
+    transcript_b: Optional[str] = None   # of B
+    tier: str = "words"                  # TextGrid tier holding the words
+    # corpus characters playing A and B (null: the roles of the corpus's first session, in order)
+    characters: Optional[List[str]] = None
+    condition: str = "all"               # one of the system's conditions (conf/system/<name>.yaml)
+    graphs: Any = None                   # null: fit on the whole corpus (cached); DIR of task=build_graph; or {character: FILE}
+    window_s: float = 15.0               # searched per window (the search's usual window)
+    hop_s: float = 12.0                  # kept per window; the rest of the window is a look-ahead horizon
+    snap_s: float = 1.5                  # a cut may move back this far to a frame where nobody speaks
+    min_last_s: float = 5.0              # the last window takes the rest when it is at most window_s + this
+    backoff_s: List[float] = field(default_factory=lambda: [2.0, 5.0])   # a failed window starts this much earlier
+    chaining: str = "graph"              # graph (continuous) | independent (the control: a seam at every cut)
+    video: bool = True                   # write conversation.mp4
+    video_fps: float = 10.0              # frames per second drawn in the video
+    video_dpi: int = 80
+
+
+def converse_params(task) -> ConverseParams:
+    from omegaconf import OmegaConf
+
+    from ..config import schema_node
+
+    try:
+        data = OmegaConf.to_container(task, resolve=True)
+        return OmegaConf.to_object(OmegaConf.merge(schema_node(ConverseParams), data))
+    except Exception as e:  # omegaconf names the key
+        raise ConfigError(f"invalid task=converse config: {e}") from None
+
+
+# ----------------------------------------------------------------------------------------------- inputs
+@dataclass
+class Speaker:
+    name: str              # "A" or "B"
+    audio: Any             # io.audio.Audio (mono)
+    words: pd.DataFrame
+    audio_file: str
+    transcript_file: str
+
+
+def _require(value, key: str) -> str:
+    if not value:
+        raise ConfigError(f"task=converse needs task.{key}=FILE (or task.stereo=FILE for both channels)"
+                          if key.startswith("audio") else f"task=converse needs task.{key}=FILE")
+    return str(value)
+
+
+def load_inputs(p: ConverseParams) -> tuple[Speaker, Speaker, float]:
+    """(A, B, duration in seconds): both channels' audio and words, checked against each other."""
+    from ..io import load_audio, load_transcript
+
+    if p.stereo:
+        if p.audio_a or p.audio_b:
+            raise ConfigError("give either task.stereo or task.audio_a/task.audio_b, not both")
+        st = load_audio(p.stereo)
+        if st.num_channels < 2:
+            raise AudioFormatError(f"task.stereo needs two channels (0 = A, 1 = B), the file has {st.num_channels}",
+                                   p.stereo)
+        auds, files = [st.channel(0), st.channel(1)], [str(p.stereo)] * 2
+    else:
+        files = [_require(p.audio_a, "audio_a"), _require(p.audio_b, "audio_b")]
+        auds = []
+        for f in files:
+            a = load_audio(f)
+            auds.append(a.channel(0) if a.num_channels > 1 else a)
+    trs = [_require(p.transcript_a, "transcript_a"), _require(p.transcript_b, "transcript_b")]
+    out = []
+    for name, a, f, tf in zip("AB", auds, files, trs):
+        words = load_transcript(tf, tier=p.tier)
+        words.attrs["path"] = tf
+        late = words.index[words["end"] > a.duration + 0.05]
+        if len(late):
+            i = int(late[0])
+            raise TranscriptFormatError(f"word {words['word'].iat[i]!r} ends at {words['end'].iat[i]:.3f} s, after the "
+                                        f"end of its audio {f} ({a.duration:.3f} s)", tf, f"word {i}")
+        out.append(Speaker(name, a, words, f, tf))
+    duration = max(a.duration for a in auds)
+    if abs(auds[0].duration - auds[1].duration) > 0.1:
+        log.warning("A's audio lasts %.2f s, B's %.2f s: the conversation lasts %.2f s (the shorter is silent after "
+                    "its end)", auds[0].duration, auds[1].duration, duration)
+    return out[0], out[1], duration
+
+
+def annotate(sp: Speaker, params) -> pd.DataFrame:
+    """Audio segments of one speaker (the corpus's annotation); errors name the speaker's files."""
+    from ..annotate.audio import annotate_audio
+
+    try:
+        return annotate_audio(sp.words, sp.audio, params.annotate)
+    except ConvSynthError:
+        raise
+    except Exception as e:  # e.g. the F0 tracker on unusable samples
+        raise AudioFormatError(f"cannot annotate speaker {sp.name} ({type(e).__name__}: {e}; transcript "
+                               f"{sp.transcript_file})", sp.audio_file) from e
+
+
+# ----------------------------------------------------------------------------------------------- models
+def _graph_files(given) -> dict:
+    """character -> graph file from ``task.graphs`` (a folder of task=build_graph, or a mapping)."""
+    if isinstance(given, (str, Path)):
+        d = Path(given)
+        if not d.is_dir():
+            raise MissingFileError("task.graphs: no such folder (expected the output of task=build_graph)", d)
+        files = {f.stem[len("graph_"):]: f for f in sorted(d.glob("graph_*.npz"))}
+        if not files:
+            raise MissingFileError("task.graphs: the folder holds no graph_<character>.npz", d)
+        return files
+    files = {str(k): Path(str(v)) for k, v in dict(given).items()}
+    for f in files.values():
+        if not f.is_file():
+            raise MissingFileError("graph file not found", f)
+    return files
+
+
+def fit_models(p: ConverseParams, params, system, ann, chars) -> dict:
+    from ..evaluation.loo import fit_fold
+    from .common import cache_dir
+    from .synthesize import _given_graphs
+
+    if p.graphs:
+        files = _graph_files(p.graphs)
+        missing = [c for c in chars if c not in files]
+        if missing:
+            raise ConfigError(f"task.graphs has no graph of {missing} (has {sorted(files)})")
+        return _given_graphs({c: files[c] for c in chars}, ann, system)
+    # held_out None: every session of the corpus trains the models
+    return fit_fold(system, ann, None, p.condition, cache_dir(params))
+
+
+# ----------------------------------------------------------------------------------------------- checks
+def kind_counts(details) -> dict:
+    out = {k: {"met": 0, "total": 0} for k in KINDS}
+    for d in details:
+        k = out.setdefault(d["kind"], {"met": 0, "total": 0})
+        k["total"] += 1
+        k["met"] += int(bool(d["met"]))
+    return out
+
+
+def check_character(res, own, partner, rows, clip_audio, fps: float, search) -> dict:
+    """The independent checker over each window's kept frames and over the whole conversation."""
+    from ..evaluation.windows import Window, window_segments
+    from ..search.check import check_path
+
+    def chk(a, b):
+        w = Window(0, a / fps, b / fps)
+        return check_path(res.source_clip[a:b], res.source_frame[a:b], clip_audio, window_segments(own, w),
+                          window_segments(partner, w), fps, search.tolerance, search.use_lr, search.use_hp,
+                          matching=search.matching)
+
+    per = []
+    for r in rows:
+        c = chk(r["start"], r["end"])
+        per.append({"index": r["index"], "met": c["met"], "total": c["total"], "by_kind": kind_counts(c["details"])})
+    whole = chk(0, len(res.source_frame))
+    return {"windows": per, "total": {"met": whole["met"], "total": whole["total"], "by_kind": kind_counts(whole["details"]),
+                                      "missed": [d for d in whole["details"] if not d["met"]]}}
+
+
+def continuity(res, motions: dict) -> dict:
+    """Seams: the excess acceleration (:func:`~convsynth_jax.synth.chain.excess_acceleration`) at the
+    steps across cuts between windows, beside its largest value at the synthetic transitions inside
+    windows and its median and 99th percentile over all frames. A seam shows as a cut far above the
+    transitions; a cut played as the clip's continuation shows 0."""
+    from ..synth.chain import at_steps, excess_acceleration
+
+    prof = excess_acceleration(res.motion, motions, res.source_clip, res.source_frame)
+    cuts = set(res.cuts)
+    inner = at_steps(prof, [t for t in res.synthetic_at if t not in cuts])
+    return {"at_cuts": {str(t): v for t, v in at_steps(prof, res.cuts).items()},
+            "cut_is_synthetic": {str(t): t in set(res.synthetic_at) for t in res.cuts},
+            "at_synthetic_transitions_max": max(inner.values()) if inner else None,
+            "median_all": float(np.median(prof)), "p99_all": float(np.percentile(prof, 99))}
+
+
+# ----------------------------------------------------------------------------------------------- report
+def write_report_md(path: Path, report: dict) -> None:
+    lines = ["# Conversation synthesis", ""]
+    inp = report["inputs"]
+    lines += [f"Input: {inp['duration_s']:.2f} s ({inp['num_frames']} frames at {inp['fps']:g} fps); "
+              f"A = {inp['A']['character']} ({inp['A']['audio']}, {inp['A']['transcript']}), "
+              f"B = {inp['B']['character']} ({inp['B']['audio']}, {inp['B']['transcript']}).", "",
+              f"Windows: {report['plan']['window_s']:g} s searched, {report['plan']['hop_s']:g} s kept, "
+              f"chaining `{report['plan']['chaining']}`; success: **{report['success']}**.", ""]
+    if report.get("failure"):
+        lines += [f"**Failed:** {report['failure']}", ""]
+    lines += ["| character | window | kept (s) | status | search (s) | constraints met (checker) | PC | LR | PH | idle |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for who in ("A", "B"):
+        ch = report["characters"][who]
+        checks = {w["index"]: w for w in ch.get("checker", {}).get("windows", [])}
+        for w in ch["windows"]:
+            c = checks.get(w["index"])
+            kinds = ["" if c is None else f"{c['by_kind'][k]['met']}/{c['by_kind'][k]['total']}" for k in KINDS]
+            met = "" if c is None else f"{c['met']}/{c['total']}"
+            lines.append(f"| {who} ({ch['character']}) | {w['index']} | {w['start_s']:.2f}-{w['end_s']:.2f} | "
+                         f"{w['status']} | {w['seconds']:.2f} | {met} | " + " | ".join(kinds) + " |")
+    lines += ["", "Whole conversation (the checker over the whole path, cuts included):", "",
+              "| character | constraints met | PC | LR | PH | idle | synthetic transitions | excess acc. at cuts (max) "
+              "| at transitions (max) | all frames (median / p99) |",
+              "|---|---|---|---|---|---|---|---|---|---|"]
+    for who in ("A", "B"):
+        ch = report["characters"][who]
+        tot = ch.get("checker", {}).get("total")
+        if tot is None:
+            lines.append(f"| {who} | failed: {ch.get('failure', '')} | | | | | | | | |")
+            continue
+        kinds = [f"{tot['by_kind'][k]['met']}/{tot['by_kind'][k]['total']}" for k in KINDS]
+        cont = ch["continuity"]
+        cut = max(cont["at_cuts"].values()) if cont["at_cuts"] else float("nan")
+        inner = cont["at_synthetic_transitions_max"]
+        lines.append(f"| {who} | {tot['met']}/{tot['total']} | " + " | ".join(kinds) +
+                     f" | {ch['num_synthetic_transitions']} | {cut:.3f} | {float('nan') if inner is None else inner:.3f} | "
+                     f"{cont['median_all']:.3f} / {cont['p99_all']:.3f} |")
+    t = report["timings"]
+    lines += ["", "Excess acceleration: the realized joint acceleration minus the source clip's own, largest joint "
+              "(units per frame^2); 0 where a clip plays on, a seam would show far above the transitions.", "",
+              "Timings (s): " + ", ".join(f"{k} {v:.2f}" for k, v in t.items()), ""]
+    with atomic_path(path) as tmp:
+        tmp.write_text("\n".join(lines))
+
+
+# ----------------------------------------------------------------------------------------------- task
+def run(cfg, out_dir: Path) -> dict:
+    from ..io import save_bvh
+    from ..seeding import derive_seed
+    from ..synth.chain import plan_windows, quiet_mask, synthesize_conversation
+    from ..systems.motion_graph import MotionGraphSystem, clip_name
+    from .common import annotated_corpus, make_configured_system, params_of
+
+    t_start = time.perf_counter()
+    timings = {}
+    p = converse_params(cfg.task)
+    params = params_of(cfg)
+    system = make_configured_system(params)
+    if not isinstance(system, MotionGraphSystem):
+        raise ConfigError(f"task=converse chains motion-graph paths: it needs system=motion_graph (got {system.name!r})")
+    system.condition_options(p.condition)
+    search = system.search_params(p.condition)
+    fps = params.fps
+
+    t0 = time.perf_counter()
+    A, B, duration = load_inputs(p)
+    seg = {"A": annotate(A, params), "B": annotate(B, params)}
+    timings["inputs_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    corpus, ann = annotated_corpus(params)
+    first = ann[next(iter(ann))]
+    chars = list(p.characters) if p.characters else [a.character for a in first.values()][:2]
+    known = sorted({a.character for d in ann.values() for a in d.values()})
+    if len(chars) != 2 or any(c not in known for c in chars):
+        raise ConfigError(f"task.characters must name two of the corpus's characters {known}, got {chars}")
+    timings["corpus_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    models = fit_models(p, params, system, ann, chars)
+    timings["models_s"] = time.perf_counter() - t0
+
+    T = int(round(duration * fps))
+    tol = int(round(float(search.tolerance) * fps))
+    plan = plan_windows(T, fps, p.window_s, p.hop_s, p.snap_s, p.min_last_s,
+                        quiet_mask([seg["A"], seg["B"]], T, fps, tol))
+    clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in ann.items() for r, a in d.items()}
+    report = {"inputs": {"duration_s": duration, "num_frames": T, "fps": fps,
+                         "A": {"character": chars[0], "audio": A.audio_file, "transcript": A.transcript_file},
+                         "B": {"character": chars[1], "audio": B.audio_file, "transcript": B.transcript_file}},
+              "plan": {"window_s": p.window_s, "hop_s": p.hop_s, "snap_s": p.snap_s, "chaining": p.chaining,
+                       "windows": [asdict(w) for w in plan]},
+              "search": {"method": search.method, "matching": search.matching, "tolerance": search.tolerance,
+                         "on_failure": getattr(search, "on_failure", None)},
+              "condition": p.condition, "characters": {}, "success": True}
+    results, failure = {}, None
+    t0 = time.perf_counter()
+    for k, who in enumerate("AB"):
+        other = "BA"[k]
+        char = chars[k]
+        model = models[char]
+
+        def seed_of(frame, k=k):
+            return derive_seed(params.seed, fold=0, condition=p.condition, session="converse", window_frame=frame,
+                               role_index=k)
+
+        res = synthesize_conversation(model.graph, model.motions, seg[who], seg[other], T, fps, plan, search,
+                                      params.synth, seed_of, chair_index=k, backoff_s=p.backoff_s, chaining=p.chaining)
+        results[who] = res
+        entry = {"character": char, "success": res.success,
+                 "windows": [{**w, "start_s": w["start"] / fps, "end_s": w["end"] / fps} for w in res.windows],
+                 "search_seconds": float(sum(w["seconds"] for w in res.windows))}
+        if res.success:
+            entry["checker"] = check_character(res, seg[who], seg[other], res.windows, clip_audio, fps, search)
+            entry["continuity"] = continuity(res, model.motions)
+            entry["num_synthetic_transitions"] = len(res.synthetic_at)
+            entry["cuts"] = res.cuts
+            entry["cost"] = res.cost
+            entry["graph"] = {"num_states": model.graph.num_states, "num_edges": model.graph.num_edges}
+        else:
+            entry["failure"] = res.failure
+            report["success"] = False
+            failure = failure or f"character {who} ({char}): {res.failure}"
+            log.error("character %s (%s): %s", who, char, res.failure)
+        report["characters"][who] = entry
+    timings["synthesis_s"] = time.perf_counter() - t0
+
+    t0 = time.perf_counter()
+    for who in "AB":
+        res = results[who]
+        if res.success:
+            save_bvh(res.motion, out_dir / f"{who}.bvh")
+            with atomic_path(out_dir / f"{who}_blinks.csv") as tmp:
+                pd.DataFrame({"frame": np.arange(T), "time": np.arange(T) / fps, "blink": res.blinks}).to_csv(tmp, index=False)
+    wav = out_dir / "conversation.wav"
+    write_stereo(wav, A.audio, B.audio, duration)
+    timings["write_s"] = time.perf_counter() - t0
+    video = None
+    if p.video and all(r.success for r in results.values()):
+        t0 = time.perf_counter()
+        video = render_conversation(results, seg, chars, plan, fps, out_dir / "conversation.mp4", wav, p)
+        timings["video_s"] = time.perf_counter() - t0
+    timings["total_s"] = time.perf_counter() - t_start
+    report["timings"] = timings
+    report["failure"] = failure
+    report["outputs"] = {"bvh": [f"{w}.bvh" for w in "AB" if results[w].success], "audio": wav.name,
+                         "video": None if video is None else video.name}
+    write_json_atomic(out_dir / "report.json", report)
+    write_report_md(out_dir / "report.md", report)
+    if failure:
+        raise SearchFailure(f"{failure} (report: {out_dir / 'report.md'})")
+    summary = {"success": True, "duration_s": duration, "num_frames": T, "windows": len(plan),
+               "characters": {w: chars[k] for k, w in enumerate("AB")},
+               "constraints_met": {w: report["characters"][w]["checker"]["total"]["met"] for w in "AB"},
+               "constraints_total": {w: report["characters"][w]["checker"]["total"]["total"] for w in "AB"},
+               "search_seconds": {w: report["characters"][w]["search_seconds"] for w in "AB"},
+               "timings": timings}
+    return summary
+
+
+def write_stereo(path: Path, a, b, duration: float) -> Path:
+    """A and B as the left and right channels of one WAV (B resampled to A's rate if they differ)."""
+    from ..io import save_wav
+
+    rate = int(a.sample_rate)
+    n = int(round(duration * rate))
+
+    def at_rate(x):
+        s = np.asarray(x.samples, np.float64)
+        if int(x.sample_rate) != rate:
+            t = np.arange(int(round(len(s) * rate / x.sample_rate))) / rate
+            s = np.interp(t, np.arange(len(s)) / x.sample_rate, s)
+        out = np.zeros(n)
+        out[:min(n, len(s))] = s[:n]
+        return out
+
+    return save_wav(path, np.stack([at_rate(a), at_rate(b)], axis=1), rate)
+
+
+def render_conversation(results, seg, chars, plan, fps, path: Path, wav: Path, p: ConverseParams) -> Path:
+    from ..render import Panel, Timeline, render_video, track_from_motion
+
+    tracks = tuple(track_from_motion(results[w].motion, f"{w} ({chars[k]})", results[w].synthetic_at)
+                   for k, w in enumerate("AB"))
+    windows = pd.DataFrame({"kind": [f"W{i}" for i in range(len(plan))],
+                            "start": [r["start"] / fps for r in results["A"].windows],
+                            "end": [r["end"] / fps for r in results["A"].windows]})
+    timelines = [Timeline(f"A ({chars[0]})", seg["A"]), Timeline(f"B ({chars[1]})", seg["B"]),
+                 Timeline("windows (A)", windows)]
+    return render_video([Panel("conversation", tracks)], timelines, fps, path, audio=wav, render_fps=p.video_fps,
+                        dpi=p.video_dpi, width=5.0)

@@ -1,0 +1,309 @@
+"""task=converse: a whole conversation of new speech -> both characters' motion, windows chained
+without seams (convsynth_jax/synth/chain.py, convsynth_jax/tasks/converse.py), and the searches'
+start-state argument it relies on."""
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from convsynth_jax.config import compose, run_task
+from convsynth_jax.errors import AudioFormatError, ConfigError, MissingFileError, SearchFailure, TranscriptFormatError
+from convsynth_jax.search.beam import beam_search
+from convsynth_jax.search.check import check_path
+from convsynth_jax.search.constraints import build_constraints
+from convsynth_jax.search.dfs import stochastic_greedy_search
+from convsynth_jax.search.params import SearchParams
+from convsynth_jax.synth.chain import at_steps, excess_acceleration, plan_windows, quiet_mask, successors
+
+from test_search_beam_kernel import FPS, hub_graph, input_from_clip
+
+SECONDS = 30.0
+FAST = ["task.window_s=10", "task.hop_s=8", "task.snap_s=1", "task.min_last_s=5", "task.video_fps=5"]
+
+
+# ---------------------------------------------------------------------------------------------- the searches
+@pytest.mark.parametrize("search", ["beam", "dfs"])
+@pytest.mark.parametrize("seed", range(3))
+def test_start_states_restrict_the_first_state(search, seed):
+    rng = np.random.default_rng(seed)
+    g, audio = hub_graph(rng)
+    own, par = input_from_clip(audio, f"c{seed}", 40)
+    cfg = SearchParams(beam_size=32, max_candidates=512, max_degree=24, retry_temperatures=[], retry_beam_size=0,
+                       method=search)
+    cons = build_constraints(own, par, 40, FPS, cfg)
+    fn = beam_search if search == "beam" else stochastic_greedy_search
+    free = fn(g, cons, cfg, seed=seed)
+    assert free.success
+    # every state allowed: the same search as without the argument
+    np.testing.assert_array_equal(fn(g, cons, cfg, seed=seed, start_states=np.arange(g.num_states)).path, free.path)
+    # one allowed state that can complete the window: the path starts there
+    s0 = int(free.path[0])
+    other = fn(g, cons, cfg, seed=seed + 1, start_states=[s0])
+    assert other.success and int(other.path[0]) == s0
+    # the successors of a state (how a chained window starts): the path starts among them, constraints met
+    succ = successors(g, int(free.path[5]), cfg.max_degree)
+    res = fn(g, cons, cfg, seed=seed, start_states=succ)
+    if res.success:
+        assert int(res.path[0]) in set(succ.tolist())
+        rep = check_path([g.clip_names[g.clip[s]] for s in res.path], [int(g.frame[s]) for s in res.path], audio,
+                         own, par, FPS, cfg.tolerance)
+        assert rep["met"] == rep["total"]
+    # no allowed state: fails at frame 0
+    none = fn(g, cons, cfg, seed=seed, start_states=np.zeros(0, np.int64))
+    assert not none.success and none.failed_frame == 0
+
+
+def test_successors_are_the_cheapest_out_edges():
+    g, _ = hub_graph(np.random.default_rng(3))
+    for s in range(0, g.num_states, 17):
+        tg, cost, _ = g.out_edges(s)
+        got = successors(g, s, 3)
+        assert len(got) == min(3, len(tg))
+        assert np.all(np.sort(cost[np.isin(tg, got)])[:len(got)] <= np.sort(cost)[len(got) - 1] + 1e-9)
+
+
+# ---------------------------------------------------------------------------------------------- windows
+def test_plan_covers_the_input_and_moves_cuts_to_pauses():
+    fps = 30.0
+    seg = pd.DataFrame({"kind": ["PC", "PC"], "start": [11.5, 30.0], "end": [12.6, 31.0]})  # speech over the 12 s cut
+    T = int(47.3 * fps)
+    quiet = quiet_mask([seg], T, fps, 3)
+    plan = plan_windows(T, fps, 15.0, 12.0, 1.5, 5.0, quiet)
+    assert plan[0].start == 0 and plan[-1].end == T
+    assert all(a.end == b.start for a, b in zip(plan[:-1], plan[1:]))           # contiguous, no gap or overlap
+    assert all(w.start < w.end <= w.search_end <= w.start + int(15 * fps) or w is plan[-1] for w in plan)
+    assert quiet[plan[0].end] and plan[0].end < int(11.5 * fps)               # moved back before the clause
+    assert plan[-1].end - plan[-1].start <= int((15 + 5) * fps)
+    # without pauses nearby the cut stays at the hop
+    assert plan_windows(T, fps, 15.0, 12.0, 1.5, 5.0, np.zeros(T, bool))[0].end == int(12 * fps)
+    # short inputs: one window
+    assert len(plan_windows(300, fps, 15.0, 12.0)) == 1
+    with pytest.raises(ConfigError, match="hop"):
+        plan_windows(T, fps, 10.0, 12.0)
+
+
+# ---------------------------------------------------------------------------------------------- the task
+@pytest.fixture(scope="module")
+def cache(tmp_path_factory):
+    return tmp_path_factory.mktemp("converse_cache")
+
+
+@pytest.fixture(scope="module")
+def inputs(tiny_corpus_dir, tmp_path_factory):
+    """The first SECONDS of session01's two participants (the tiny corpus's own audio and words)."""
+    from convsynth_jax.io import load_audio, load_transcript, save_wav
+    from convsynth_jax.io.transcripts import save_transcript_tsv
+
+    d = tmp_path_factory.mktemp("converse_in")
+    out = {}
+    for role, x in (("main-agent", "a"), ("interloctr", "b")):
+        a = load_audio(tiny_corpus_dir / f"session01_{role}.wav")
+        n = int(SECONDS * a.sample_rate)
+        save_wav(d / f"{x}.wav", a.samples[:n], a.sample_rate)
+        w = load_transcript(tiny_corpus_dir / f"session01_{role}.tsv")
+        save_transcript_tsv(w[w["end"] <= SECONDS].reset_index(drop=True), d / f"{x}.tsv")
+        out[f"audio_{x}"], out[f"transcript_{x}"] = d / f"{x}.wav", d / f"{x}.tsv"
+    return out
+
+
+def converse_cfg(tiny_corpus_dir, cache, inputs, *extra):
+    return compose(["task=converse", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}", f"cache_dir={cache}",
+                    "progress=false", *[f"task.{k}={v}" for k, v in inputs.items()], *FAST, *extra])
+
+
+@pytest.fixture(scope="module")
+def chained(tiny_corpus_dir, cache, inputs, tmp_path_factory):
+    out = tmp_path_factory.mktemp("converse_out")
+    return out, run_task(converse_cfg(tiny_corpus_dir, cache, inputs), out)
+
+
+@pytest.fixture(scope="module")
+def independent(tiny_corpus_dir, cache, inputs, chained, tmp_path_factory):
+    out = tmp_path_factory.mktemp("converse_seams")
+    return out, run_task(converse_cfg(tiny_corpus_dir, cache, inputs, "task.chaining=independent", "task.video=false"), out)
+
+
+def test_outputs_cover_the_audio(chained, inputs):
+    from convsynth_jax.io import load_audio, load_bvh
+    from convsynth_jax.render import probe_streams
+
+    out, s = chained
+    dur = load_audio(inputs["audio_a"]).duration
+    assert s["success"] and s["windows"] >= 3
+    for who in "AB":
+        m = load_bvh(out / f"{who}.bvh")
+        assert abs(m.num_frames - dur * m.fps) <= 1.0
+        assert len(pd.read_csv(out / f"{who}_blinks.csv")) == m.num_frames
+    rep = json.loads((out / "report.json").read_text())
+    assert "| character | window |" in (out / "report.md").read_text()
+    for who, ch in rep["characters"].items():
+        # every window reported, checked by the independent checker; the whole path re-checked too
+        assert [w["index"] for w in ch["windows"]] == [w["index"] for w in ch["checker"]["windows"]]
+        assert ch["windows"][0]["start"] == 0 and ch["windows"][-1]["end"] == rep["inputs"]["num_frames"]
+        tot = ch["checker"]["total"]
+        assert tot["total"] > 0 and sum(k["total"] for k in tot["by_kind"].values()) == tot["total"]
+        assert s["constraints_met"][who] == tot["met"]
+    v = probe_streams(out / "conversation.mp4")
+    assert v["video"] == 1 and v["audio"] == 1 and abs(v["duration"] - dur) < 0.5
+
+
+def test_windows_chain_without_seams_and_the_control_shows_them(chained, independent, tiny_corpus_dir, cache):
+    """The step across each cut is an edge of the graph and shows no more excess acceleration (realized
+    minus the source clip's own) than the synthetic transitions inside windows; realizing each window
+    on its own (the control) puts a seam at the cuts, which the same metric shows."""
+    out, _ = chained
+    rep = json.loads((out / "report.json").read_text())
+    ctl = json.loads((independent[0] / "report.json").read_text())
+    inner = [c["continuity"]["at_synthetic_transitions_max"] for c in rep["characters"].values()]
+    inner = max([x for x in inner if x is not None] + [0.0])
+    chained_cuts, control_cuts = [], []
+    for who in "AB":
+        cont = rep["characters"][who]["continuity"]
+        assert len(cont["at_cuts"]) == len(rep["characters"][who]["windows"]) - 1 >= 2
+        chained_cuts += list(cont["at_cuts"].values())
+        control_cuts += list(ctl["characters"][who]["continuity"]["at_cuts"].values())
+    assert max(chained_cuts) <= inner + 1e-3, (chained_cuts, inner)
+    assert max(control_cuts) > 3 * max(inner, 0.1), (control_cuts, inner)
+    # the same metric recomputed from the written BVH: the root trajectory has no jump at a cut
+    from convsynth_jax.io import load_bvh
+
+    for who in "AB":
+        root = load_bvh(out / f"{who}.bvh").root_positions
+        step = np.linalg.norm(np.diff(root, axis=0), axis=-1)
+        cuts = [int(t) for t in rep["characters"][who]["cuts"]]
+        others = np.delete(step, [t - 1 for t in cuts])
+        assert max(step[t - 1] for t in cuts) <= others.max() + 1e-6
+        croot = load_bvh(independent[0] / f"{who}.bvh").root_positions
+        cstep = np.linalg.norm(np.diff(croot, axis=0), axis=-1)
+        assert max(cstep[t - 1] for t in cuts) > 2 * max(step[t - 1] for t in cuts) + 1e-3
+
+
+def test_excess_acceleration_is_zero_along_a_clip_and_shows_a_jump(tiny_corpus_dir):
+    from convsynth_jax.io import load_bvh
+
+    n = int(SECONDS * 30)   # the conversation's length: forward kinematics compiled once for both
+    full = load_bvh(tiny_corpus_dir / "session01_main-agent.bvh")
+    m = full.slice(0, n)
+    clips, frames = ["c"] * n, list(range(n))
+    prof = excess_acceleration(m, {"c": full}, clips, frames)
+    assert prof.max() < 1e-3
+    jumped = list(range(n // 2)) + list(range(n // 2 + 30, n + 30))   # the same clip played with a 30-frame jump
+    realized = type(m)(m.skeleton, full.rotations[jumped], full.translations[jumped], m.fps)
+    prof = excess_acceleration(realized, {"c": full}, clips, jumped)
+    assert at_steps(prof, [n // 2])[n // 2] > 10 * max(prof[:n // 2 - 5].max(), 1e-3)
+
+
+def test_raster_frames_draw_the_bodies_where_matplotlib_does(chained):
+    """render._raster_frames (the video's NumPy rasterizer) against matplotlib's drawing of the same scene."""
+    from convsynth_jax.io import load_bvh
+    from convsynth_jax.render import Panel, Timeline, _raster_frames, _rgb_frames, _Scene, track_from_motion
+
+    out, _ = chained
+    tracks = tuple(track_from_motion(load_bvh(out / f"{w}.bvh"), w, (40,)) for w in "AB")
+    frames = [0, 39, 200]
+
+    def scene():
+        return _Scene([Panel("p", tracks)], [Timeline("A")], 30.0, width=4.0, dpi=80, clock=False)
+
+    ref, ras = list(_rgb_frames(scene(), frames)), list(_raster_frames(scene(), frames))
+    from scipy.ndimage import binary_dilation
+
+    for f, a, b in zip(frames, ref, ras):
+        assert a.shape == b.shape
+        body = lambda img: (np.abs(img.astype(int) - [255, 255, 255]).sum(-1) > 150) & (img.astype(int).std(-1) > 20)
+        ma, mb = body(a), body(b)   # coloured (body) pixels; the axes and text are grey or black
+        assert mb.sum() > 100
+        assert (mb & binary_dilation(ma, iterations=2)).sum() >= 0.95 * mb.sum()   # drawn where matplotlib draws
+        assert (ma & binary_dilation(mb, iterations=2)).sum() >= 0.95 * ma.sum()   # and nothing of it missing
+        x0, y0, x1, y1 = scene().axes[0].bbox.extents                              # the bodies' panel
+        panel = b[int(b.shape[0] - y1):int(b.shape[0] - y0), int(x0):int(x1)]
+        red = (panel[..., 0] > 200) & (panel[..., 1] < 90)
+        assert red.any() == (f == 39)                                              # near the transition at 40
+
+
+def test_missing_or_malformed_input_names_the_file(tiny_corpus_dir, cache, inputs, tmp_path):
+    def run(**over):
+        return run_task(converse_cfg(tiny_corpus_dir, cache, {**inputs, **over}), tmp_path / "o")
+
+    with pytest.raises(MissingFileError, match="nope.wav"):
+        run(audio_b=tmp_path / "nope.wav")
+    bad = tmp_path / "bad.tsv"
+    bad.write_text("0.1\t0.5\thello\n0.6\tx\tworld\n")
+    with pytest.raises(TranscriptFormatError, match="bad.tsv.*line 2"):
+        run(transcript_a=bad)
+    late = tmp_path / "late.tsv"
+    late.write_text(f"0.1\t0.5\thello\n{SECONDS + 3}\t{SECONDS + 4}\tworld\n")
+    with pytest.raises(TranscriptFormatError, match="late.tsv.*after the end of its audio"):
+        run(transcript_b=late)
+    with pytest.raises(AudioFormatError, match="a.wav.*two channels"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, {"stereo": inputs["audio_a"], "transcript_a": inputs["transcript_a"],
+                                                       "transcript_b": inputs["transcript_b"]}), tmp_path / "o")
+    with pytest.raises(ConfigError, match="task.audio_b"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, {k: v for k, v in inputs.items() if k != "audio_b"}), tmp_path / "o")
+    with pytest.raises(ConfigError, match="window_s"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, inputs, "task.window_s=long"), tmp_path / "o")
+
+
+def test_stereo_input_gives_the_same_conversation(chained, tiny_corpus_dir, cache, inputs, tmp_path):
+    from convsynth_jax.io import load_audio, save_wav
+
+    a, b = load_audio(inputs["audio_a"]), load_audio(inputs["audio_b"])
+    save_wav(tmp_path / "ab.wav", np.stack([a.samples, b.samples], axis=1), a.sample_rate)
+    s = run_task(converse_cfg(tiny_corpus_dir, cache, {"stereo": tmp_path / "ab.wav", "transcript_a": inputs["transcript_a"],
+                                                       "transcript_b": inputs["transcript_b"]}, "task.video=false"),
+                 tmp_path / "o")
+    assert s["constraints_met"] == chained[1]["constraints_met"]
+    assert (tmp_path / "o" / "A.bvh").read_text() == (chained[0] / "A.bvh").read_text()
+
+
+def test_a_window_without_a_path_fails_naming_it_after_writing_the_report(chained, tiny_corpus_dir, cache, inputs,
+                                                                          tmp_path, monkeypatch):
+    import convsynth_jax.synth.pipeline as pipeline
+    from convsynth_jax.search.result import SearchResult
+
+    real = pipeline.SEARCHES["beam"]
+    calls = []
+
+    def failing_second_window(graph, cons, params, seed=0, start_states=None):
+        calls.append(start_states is None)
+        if start_states is not None:   # every window after the first: no path
+            return SearchResult(False, None, float("inf"), 0, cons.total, 0, 0, None, 0.0, "beam", failure="stub: no path")
+        return real(graph, cons, params, seed=seed, start_states=start_states)
+
+    monkeypatch.setitem(pipeline.SEARCHES, "beam", failing_second_window)
+    if hasattr(SearchParams(), "on_failure"):
+        extra = ["search.on_failure=fail"]
+    else:
+        extra = []
+    with pytest.raises(SearchFailure, match=r"window 1 \(\d+\.\d\d-\d+\.\d\d s"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, inputs, "task.video=false", *extra), tmp_path)
+    rep = json.loads((tmp_path / "report.json").read_text())
+    a = rep["characters"]["A"]
+    assert not rep["success"] and [w["status"] for w in a["windows"]][:2] == ["ok", "failed"]
+    assert all(w["status"] == "not_searched" for w in a["windows"][2:])
+    assert a["windows"][1]["attempts"] == 3           # from the previous path's end, then 2 s and 5 s earlier
+    assert "window 1" in (tmp_path / "report.md").read_text()
+    assert not (tmp_path / "A.bvh").exists()
+    # each character: the first window starts anywhere, the next from successors (3 tries); then the task stops
+    assert calls == [True, False, False, False] * 2
+
+
+def test_given_graph_folder(chained, tiny_corpus_dir, cache, inputs, tmp_path):
+    import shutil
+
+    (tmp_path / "g").mkdir()
+    for ch in ("female", "male"):   # the graphs fitted on the whole corpus, as task=build_graph names them
+        shutil.copy(next((cache / "loo_cache").glob(f"graph_{ch}_*.npz")), tmp_path / "g" / f"graph_{ch}.npz")
+    s = run_task(converse_cfg(tiny_corpus_dir, cache, inputs, f"task.graphs={tmp_path / 'g'}", "task.video=false"),
+                 tmp_path / "o")
+    assert s["success"] and s["constraints_met"] == chained[1]["constraints_met"]
+    assert (tmp_path / "o" / "B.bvh").read_text() == (chained[0] / "B.bvh").read_text()
+    with pytest.raises(MissingFileError, match="nowhere"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, inputs, f"task.graphs={tmp_path / 'nowhere'}"), tmp_path / "o2")
+
+
+def test_only_motion_graph_systems(tiny_corpus_dir, cache, inputs, tmp_path):
+    with pytest.raises(ConfigError, match="system=motion_graph"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, inputs, "system=random_playback"), tmp_path)
+

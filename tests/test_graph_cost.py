@@ -1,4 +1,4 @@
-"""Transition-cost kernels (graph/cost.py) against the slow NumPy reference (graph/reference.py).
+"""Transition-cost kernels (graph/cost.py) against the slow NumPy reference (convsynth_jax/testing/graph_reference.py).
 
 Edge sets are compared exactly, except for pairs whose reference cost lies within a relative
 THRESHOLD_TIE of the threshold (float32 vs float64 rounding may put them on either side).

@@ -13,7 +13,7 @@ from convsynth_jax.search.beam import beam_search
 from convsynth_jax.search.check import check_path
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.params import SearchParams
-from convsynth_jax.search.reference import reference_beam_search
+from convsynth_jax.testing.search_reference import reference_beam_search
 from convsynth_jax.skeleton import Motion
 from convsynth_jax.synth.params import SynthParams
 from convsynth_jax.synth.pipeline import synthesize_character

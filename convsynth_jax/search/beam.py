@@ -27,7 +27,7 @@ The next beam is the top B of the M scores (``lax.top_k``, in descending order, 
 order of the next frame). The frame count is padded to a multiple of 16 and the state count to a
 multiple of 4096, so one compile serves all windows of one length on every LOO fold's graph. The path
 is traced back inside the kernel; only the path and the edge ranks it used come back to the host.
-:func:`convsynth_jax.search.reference.reference_beam_search` does the same search with plain NumPy
+:func:`convsynth_jax.testing.search_reference.reference_beam_search` does the same search with plain NumPy
 loops and the same noise; tests require identical paths.
 """
 from __future__ import annotations

@@ -11,6 +11,9 @@ REPO = Path(__file__).resolve().parent.parent
 TEST_DATA = Path(__file__).resolve().parent / "data"
 SHARED = Path(os.environ.get("CONVSYNTH_SHARED", REPO.parent / "shared")).resolve()
 SHARED_DATA = SHARED / "data"
+# pytest-xdist already keeps every core busy: per-session work runs in the test's own process unless a
+# test asks for worker processes (tests/test_parallel.py).
+os.environ.setdefault("CONVSYNTH_WORKERS", "1")
 
 
 def shared_path(*parts: str) -> Path:

@@ -1,7 +1,7 @@
 """Task ``walktalk_eval``: every single-peak gesture clip x ``loops_per_gait`` loops per gait x the
 methods (naive, stylized, stylized+synced). Writes ``walktalk_eval.csv`` (one row per splice),
 ``walktalk_eval_summary.csv`` (per gait and method) and the figures ``walktalk_peak_phase.png``,
-``walktalk_elbow.png``, ``walktalk_contact_sheet.png``."""
+``walktalk_elbow.png``, ``walktalk_contact_sheet.png``, ``walktalk_gait_phases.png``."""
 from __future__ import annotations
 
 import time
@@ -75,14 +75,28 @@ def run(cfg, out_dir: Path) -> dict:
             "torso_radius_source": ("task.torso_radius_cm" if ep.torso_radius_cm is not None else
                                     f"calibrated: quantile {ep.torso_radius_quantile} of the recorded hands' distance "
                                     f"to the hips-neck segment over {len(lib.source_torso)} clips"),
+            # share of loop frames in contact (locomotion.contact_phases), per gait: the primary and
+            # the second reading, mean over the loops and the range
             "loop_contact_frac": {g: float(np.mean([lc.loop.contact.mean() for lc in v])) for g, v in lib.loops.items() if v},
+            "loop_contact": {g: _contact_fracs(v) for g, v in lib.loops.items() if v},
             "load_seconds": t1 - t0, "eval_seconds": t2 - t1, "figures": figures}
+
+
+def _contact_fracs(lcs) -> dict:
+    prim = np.array([lc.loop.contact.mean() for lc in lcs])
+    alt = np.array([lc.loop.contact_alt.mean() for lc in lcs])
+    agree = np.array([(lc.loop.contact == lc.loop.contact_alt).mean() for lc in lcs])
+    return {"loops": len(lcs), "contact_frac_mean": float(prim.mean()), "contact_frac_min": float(prim.min()),
+            "contact_frac_max": float(prim.max()), "contact_alt_frac_mean": float(alt.mean()),
+            "readings_agree_frac_mean": float(agree.mean()), "readings_agree_frac_min": float(agree.min())}
 
 
 def _figures(df, lib, p, out_dir: Path) -> list[str]:
     from ..walktalk.figures import (
         contact_sheet,
         elbow_scatter,
+        gait_phase_panel,
+        gait_phases,
         peak_phase_histogram,
         save_figure,
     )
@@ -106,4 +120,8 @@ def _figures(df, lib, p, out_dir: Path) -> list[str]:
     fig = contact_sheet({m: r.motion for m, r in res.items()}, frames,
                         f"{Path(gc.gesture.name).stem} on {Path(lc.loop.source).stem}")
     save_figure(fig, out_dir / "walktalk_contact_sheet.png")
-    return ["walktalk_peak_phase.png", "walktalk_elbow.png", "walktalk_contact_sheet.png"]
+    # contact/flight phases of the first walk and the first jog loop (locomotion.contact_phases)
+    panels = {f"{Path(v[0].loop.source).stem}[{v[0].loop.start}:{v[0].loop.start + v[0].loop.num_frames}]":
+              gait_phase_panel(v[0].loop, lib.body) for v in lib.loops.values() if v}
+    save_figure(gait_phases(panels, p.gait), out_dir / "walktalk_gait_phases.png")
+    return ["walktalk_peak_phase.png", "walktalk_elbow.png", "walktalk_contact_sheet.png", "walktalk_gait_phases.png"]

@@ -368,15 +368,19 @@ def limit_cells(m, pos, ph, joints, sides, body: Body, limits: JointLimits, tors
 
 
 def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits, ep: EvalParams,
-                   c: float, src_jerk: float, loco=None, loop_cache: dict | None = None) -> dict:
+                   c: float, src_jerk: float, loco=None, loop_cache: dict | None = None,
+                   contact_alt: np.ndarray | None = None) -> dict:
     """One row of the evaluation; ``loco``: the tiled loop alone (built here when absent) for the
-    loop-alone violation baseline, ``loop_cache`` its values by (t_Pb, t_Re), shared across methods."""
+    loop-alone violation baseline, ``loop_cache`` its values by (t_Pb, t_Re), shared across methods;
+    ``contact_alt``: the timeline's second reading of the contact phases (built here when absent)."""
     body, g, ph = lc.body, gc.gesture, res.phases
     m = res.motion
     fps = m.fps
     pos = joint_positions(m)
     if loco is None:
         loco = tile_loop(lc.loop, m.num_frames)
+    if contact_alt is None:
+        contact_alt = tile_contact(lc.loop, m.num_frames, second=True)
     jerk = wrist_jerk(pos, body, g.sides, fps)
     near = []
     for b in (ph.pb, ph.pe + 1, ph.rb, ph.re + 1):
@@ -411,6 +415,9 @@ def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits
         "shift_s": res.shift_s,
         "peak_in_contact": bool(res.contact[res.peak]),
         "nominal_in_contact": bool(res.contact[res.nominal_peak]),
+        # the second reading of the phases (locomotion.contact_phases)
+        "peak_in_contact_alt": bool(contact_alt[res.peak]),
+        "nominal_in_contact_alt": bool(contact_alt[res.nominal_peak]),
         "gait_phase": (res.peak % lc.loop.num_frames) / lc.loop.num_frames,
         "max_jerk_ratio": float(max(near) / src_jerk) if near else 0.0,
         "joint_limit_violation_frac": float(np.mean(dof_bad | torso_bad)),
@@ -484,13 +491,15 @@ def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bo
                     src_cache[key] = loop_source_jerk(lc, g.sides)
                 src = max(src_cache[key], gjerk)
                 loco, contact = tile_loop(lc.loop, T), tile_contact(lc.loop, T)
+                contact_alt = tile_contact(lc.loop, T, second=True)
                 loop_cache: dict = {}
                 for name in ep.methods:
                     res = splice_gesture(lc, gc, u, T, p.splice, METHODS[name], loco=loco, contact=contact,
                                          limits=rom)
                     row = {"gesture": Path(g.name).stem, "loop": f"{Path(lc.loop.source).stem}[{lc.loop.start}]",
                            "gait": gait, "method": name, "utterance_peak_s": u, "handedness": g.handedness}
-                    row.update(splice_metrics(res, lc, gc, limits, ep, p.splice.c, src, loco, loop_cache))
+                    row.update(splice_metrics(res, lc, gc, limits, ep, p.splice.c, src, loco, loop_cache,
+                                              contact_alt))
                     rows.append(row)
     cols = ["gesture", "loop", "gait", "method", "stroke_peak_s", "utterance_peak_s", "shift_s", "peak_in_contact",
             "max_jerk_ratio", "joint_limit_violation_frac", "foot_slide_cm", "elbow_bend_deg"]
@@ -584,6 +593,8 @@ def summarize(df: pd.DataFrame) -> list[dict]:
         out.append({
             "gait": gait, "method": method, "splices": len(d),
             "peak_in_contact_rate": float(d["peak_in_contact"].mean()),
+            "peak_in_contact_alt_rate": float(d["peak_in_contact_alt"].mean()),
+            "peak_in_contact_both_rate": float((d["peak_in_contact"] & d["peak_in_contact_alt"]).mean()),
             "shift_min_s": float(d["shift_s"].min()), "shift_max_s": float(d["shift_s"].max()),
             "all_peaks_before_utterance": bool((d["stroke_peak_s"] <= d["utterance_peak_s"] + 1e-9).all()),
             "violation_frac_mean": float(d["joint_limit_violation_frac"].mean()),

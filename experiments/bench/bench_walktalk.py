@@ -27,6 +27,7 @@ Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results
     python experiments/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
     python experiments/bench_walktalk.py --combined          # every goal for the candidate settings at once
     python experiments/bench_walktalk.py --loop-seams        # what the loops' seam correction does to the arms
+    python experiments/bench/bench_walktalk.py --contact-phases  # contact fractions of every loop, both readings
 """
 from __future__ import annotations
 
@@ -575,6 +576,53 @@ def loop_seams(data_dir: Path) -> dict:
     return {"torso_radius_cm": radius, "per_gait": per_gait, "loops": rows}
 
 
+def contact_phases(data_dir: Path) -> dict:
+    """The contact/flight phases (locomotion.contact_phases) of every walk and run clip's loop:
+    per loop the share of frames in contact by each reading and their agreement, and the
+    synchronization rule (sync.align_peak, 0.6 s) applied with the stroke peak's nominal frame at
+    every frame of the loop in turn: the share of synchronized peaks in contact by each reading,
+    beside the share of nominal (unsynchronized) frames in contact."""
+    import numpy as np
+
+    from convsynth_jax.errors import WalkTalkError
+    from convsynth_jax.io.bvh import load_bvh
+    from convsynth_jax.walktalk.body import find_body
+    from convsynth_jax.walktalk.locomotion import extract_loop, tile_contact
+    from convsynth_jax.walktalk.params import WalkTalkParams
+    from convsynth_jax.walktalk.sync import align_peak, shift_frames
+
+    p = WalkTalkParams()
+    s_frames = shift_frames(p.splice.max_shift_s, p.fps)
+    rows, skipped = [], []
+    for pattern in (p.walk_glob, p.jog_glob):
+        for f in sorted(data_dir.glob(pattern)):
+            m = load_bvh(f, fps=p.fps)
+            try:
+                lp = extract_loop(m, p.gait, find_body(m.skeleton, str(f)))
+            except WalkTalkError as e:
+                skipped.append(str(e))
+                continue
+            n = lp.num_frames
+            c, alt = tile_contact(lp, 3 * n), tile_contact(lp, 3 * n, second=True)
+            peaks = [k + align_peak(k, c, s_frames, False) for k in range(n + s_frames, 2 * n + s_frames)]
+            rows.append({"loop": f"{f.stem}[{lp.start}:{lp.start + n}]", "gait": lp.gait, "frames": n,
+                         "contact_frac": float(lp.contact.mean()), "contact_alt_frac": float(lp.contact_alt.mean()),
+                         "agree_frac": float((lp.contact == lp.contact_alt).mean()),
+                         "synced_in_contact": float(np.mean(c[peaks])),
+                         "synced_in_contact_alt": float(np.mean(alt[peaks]))})
+    per_gait = []
+    for gait in ("walk", "jog"):
+        d = [r for r in rows if r["gait"] == gait]
+        if not d:
+            continue
+        rec = {"gait": gait, "loops": len(d)}
+        for k in ("contact_frac", "contact_alt_frac", "agree_frac", "synced_in_contact", "synced_in_contact_alt"):
+            x = np.array([r[k] for r in d])
+            rec.update({f"{k}_mean": float(x.mean()), f"{k}_min": float(x.min()), f"{k}_max": float(x.max())})
+        per_gait.append(rec)
+    return {"per_gait": per_gait, "loops": rows, "skipped": skipped}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
@@ -593,6 +641,8 @@ def main():
                     "(writes experiments/results/bench_walktalk_combined.json)")
     ap.add_argument("--loop-seams", action="store_true", help="only what the loops' seam correction does to the "
                     "recordings (writes experiments/results/bench_walktalk_loop_seams.json)")
+    ap.add_argument("--contact-phases", action="store_true", help="only the contact fractions of every loop in "
+                    "both readings (writes experiments/results/bench_walktalk_contact_phases.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -613,6 +663,12 @@ def main():
             print({k: (round(v, digits) if isinstance(v, float) else v) for k, v in r.items()})
         print(*(result[k] for k in tail))
 
+    if a.contact_phases:
+        from _bench import write
+
+        res = contact_phases(data_dir)
+        res["load_average"] = list(os.getloadavg())
+        return write("bench_walktalk_contact_phases", {"data_dir": str(data_dir), **res})
     if a.limits_breakdown:
         return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_loop", 4,
                           ["limit_clips", "load_average"])

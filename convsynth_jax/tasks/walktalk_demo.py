@@ -15,7 +15,7 @@ from ..errors import MissingFileError, WalkTalkError
 from ..io.bvh import save_bvh
 from ..utils import atomic_path
 from ..walktalk.demo import DemoParams, Speaker, run_demo
-from ..walktalk.evaluate import dof_limits, load_library, resolve_data_dir
+from ..walktalk.library import dof_limits, load_library, resolve_data_dir
 from ..walktalk.gaze import AAREvent
 from ..walktalk.params import params_from_dict
 

@@ -12,18 +12,9 @@ import pandas as pd
 from omegaconf import OmegaConf
 
 from ..utils import atomic_path
-from ..walktalk.evaluate import (
-    EvalParams,
-    dof_limits,
-    in_sample_violations,
-    limit_readings,
-    load_library,
-    resolve_data_dir,
-    run_evaluation,
-    source_readings,
-    summarize,
-    torso_radius,
-)
+from ..walktalk.evaluate import EvalParams, run_evaluation, summarize, torso_radius
+from ..walktalk.library import dof_limits, load_library, resolve_data_dir
+from ..walktalk.limit_metrics import in_sample_violations, limit_readings, source_readings
 from ..walktalk.params import params_from_dict
 
 REPO = Path(__file__).resolve().parents[2]
@@ -62,13 +53,13 @@ def run(cfg, out_dir: Path) -> dict:
             "loops": {g: [f"{Path(lc.loop.source).name}[{lc.loop.start}:{lc.loop.start + lc.loop.num_frames}]"
                           for lc in v] for g, v in lib.loops.items()},
             "skipped_clips": lib.skipped, "splices": len(df), "per_gait_method": summary,
-            # the joint-limit acceptance in both readings (evaluate.limit_readings), with the limit
+            # the joint-limit acceptance in both readings (limit_metrics.limit_readings), with the limit
             # table's clips per kind (walks, runs, gestures, limits-only walk-turns)
             "joint_limit_readings": limit_readings(summary),
             "limit_table_clips": {k: lib.source_kind.count(k) for k in dict.fromkeys(lib.source_kind)},
             # the recorded clips themselves under both parts of the metric (DOFs, hands in the torso)
             "limits_in_sample_violation": in_sample_violations(lib, scored, radius),
-            # both readings on the evaluation's own loops and gestures, unmodified (evaluate.source_readings)
+            # both readings on the evaluation's own loops and gestures, unmodified (limit_metrics.source_readings)
             "limits_sources": source_readings(lib, scored, radius),
             # the torso check's radius (evaluate.torso_radius): fixed, or calibrated from the recordings
             "torso_radius_cm": radius,

@@ -12,12 +12,12 @@ Reported (goals from issue #12, never asserted):
   * the elbow-tracking study: every walk and run clip as a loop (24 + 52), every 6th single-peak
     gesture, naive / stylized / stylized+synced: per gait, the correlation over loops of the
     stroke's elbow bend with the loop's, per gesture, plain and partial given the loop's spread
-    (evaluate.elbow_partial_corr says why), for the default, the old bounce order, the paper's band
+    (elbow.elbow_partial_corr says why), for the default, the old bounce order, the paper's band
     alone and our within-gait option (splice.band_std=gait_min + splice.joint_limit_mode=soft);
   * optionally (--synthesized-dir, the output folder of task=synthesize) the demo with its
     gestures cut from that synthesized conversation.
-Joint-limit violations are printed in both readings (evaluate.limit_violations: frames with any
-DOF out or any hand in the torso; evaluate.limit_cells: DOF x frame cells of the spliced arm over
+Joint-limit violations are printed in both readings (limit_metrics.limit_violations: frames with any
+DOF out or any hand in the torso; limit_metrics.limit_cells: DOF x frame cells of the spliced arm over
 the blended frames, gesturing hand in the torso), each beside the loop alone over the same frames.
 Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results/bench_walktalk.json
 (--out to name another file there).
@@ -50,7 +50,7 @@ GOALS = {"splice_warm_ms": 20.0, "eval_s": 60.0, "demo_s": 10.0}
 
 
 def bench_splice(data_dir: Path) -> dict:
-    from convsynth_jax.walktalk.evaluate import load_library
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p = WalkTalkParams()
@@ -101,12 +101,8 @@ def bench_demo(data_dir: Path, synthesized_dir: str | None = None) -> dict:
 
 
 def bench_ablation(data_dir: Path) -> list[dict]:
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        load_library,
-        run_evaluation,
-        summarize,
-    )
+    from convsynth_jax.walktalk.evaluate import EvalParams, run_evaluation, summarize
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     rows = []
@@ -138,7 +134,8 @@ def bench_ablation(data_dir: Path) -> list[dict]:
 
 
 def bench_elbow(data_dir: Path) -> dict:
-    from convsynth_jax.walktalk.evaluate import elbow_tracking, elbow_tracking_summary, load_library
+    from convsynth_jax.walktalk.elbow import elbow_tracking, elbow_tracking_summary
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p = WalkTalkParams()
@@ -167,7 +164,7 @@ def loop_spread(lib) -> dict:
     spread (std over the loop), and the correlation of the two (degrees)."""
     import numpy as np
 
-    from convsynth_jax.walktalk.evaluate import lc_bend
+    from convsynth_jax.walktalk.elbow import lc_bend
 
     out = {}
     for gait, lcs in lib.loops.items():
@@ -202,18 +199,14 @@ def elbow_variants(sp) -> dict:
 def elbow_diagnosis(data_dir: Path, every: int = 6, variants: dict | None = None) -> dict:
     """Why the within-gait elbow correlation is low, and what raises it: every walk and run clip as
     a loop, every ``every``-th single-peak gesture, the stylization variants of
-    :func:`elbow_variants` through the library's study (evaluate.elbow_tracking), with three ways to
+    :func:`elbow_variants` through the library's study (elbow.elbow_tracking), with three ways to
     measure the loop's elbow bend (its mean over the loop, the bend of its mean pose B_L, the loop
     over the stroke's own frames). Per gait and variant: the plain per-gesture correlation with each
     loop measure, and the partial one given the loop's bend spread with its slope."""
     import numpy as np
 
-    from convsynth_jax.walktalk.evaluate import (
-        _per_gesture_corr,
-        elbow_partial_corr,
-        elbow_tracking,
-        load_library,
-    )
+    from convsynth_jax.walktalk.elbow import _per_gesture_corr, elbow_partial_corr, elbow_tracking
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p = WalkTalkParams()
@@ -236,7 +229,7 @@ def elbow_diagnosis(data_dir: Path, every: int = 6, variants: dict | None = None
 
 
 def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
-    """Where the per-frame joint-limit reading (evaluate.limit_violations) fails: every
+    """Where the per-frame joint-limit reading (limit_metrics.limit_violations) fails: every
     ``every``-th single-peak gesture x the evaluation's loops, naive and stylized+synced, per gait:
     the share of t_Pb..t_Re frames failing, split by cause (a gesturing-arm DOF, the gesturing
     hand in the torso, the idle hand in the torso) and by phase (preparation incl. the pad,
@@ -246,17 +239,12 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     import numpy as np
 
     from convsynth_jax.walktalk.body import joint_positions
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        dof_limits,
-        hand_torso_distance,
-        limit_violations,
-        load_library,
-        peak_placed_splices,
-        torso_radius,
-    )
+    from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
+    from convsynth_jax.walktalk.library import dof_limits, load_library, peak_placed_splices
+    from convsynth_jax.walktalk.limit_metrics import LimitCheck, ScoredSpan, limit_violations
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.pipeline import splice_gesture
+    from convsynth_jax.walktalk.torso import hand_torso_distance
 
     p, ep = WalkTalkParams(), EvalParams()
     lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
@@ -273,7 +261,7 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
             fr = np.arange(ph.pb, ph.re + 1)
             phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
             for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
-                dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, radius)
+                dof, _ = limit_violations(ScoredSpan(m, pos, ph, gc.joints, g.sides), LimitCheck(lib.body, limits, radius))
                 inside = hand_torso_distance(pos, lib.body, fr) < radius
                 gest = np.array([s in g.sides for s in ("l", "r")])
                 tg, ti = inside[:, gest].any(axis=1), inside[:, ~gest].any(axis=1)
@@ -316,7 +304,7 @@ def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dic
     import numpy as np
 
     from convsynth_jax.walktalk.body import joint_positions
-    from convsynth_jax.walktalk.evaluate import dof_limits, peak_placed_splices
+    from convsynth_jax.walktalk.library import dof_limits, peak_placed_splices
     from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
 
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
@@ -351,12 +339,8 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
     stylized+synced, naive beside it)."""
     import dataclasses
 
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        load_library,
-        run_evaluation,
-        summarize,
-    )
+    from convsynth_jax.walktalk.evaluate import EvalParams, run_evaluation, summarize
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p, ep = WalkTalkParams(), EvalParams()
@@ -404,7 +388,8 @@ def _goal_rows(lib, p, settings: dict, naive_df=None) -> tuple[list[dict], objec
     (plain and partial given the loop's spread, per gesture over its loops)."""
     import pandas as pd
 
-    from convsynth_jax.walktalk.evaluate import EvalParams, limit_readings, run_evaluation, summarize
+    from convsynth_jax.walktalk.evaluate import EvalParams, run_evaluation, summarize
+    from convsynth_jax.walktalk.limit_metrics import limit_readings
 
     if naive_df is None:
         naive_df = run_evaluation(lib, p, EvalParams(methods=("naive",)))
@@ -444,24 +429,18 @@ def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> di
       acceptance figures come from (jerk, limits, contact, shifts, +- c sigma);
     * ``all_loops``: every walk and run clip as a loop (24 + 52), every ``every``-th single-peak
       gesture: the within-gait elbow correlation over many loops (of the evaluation's rows, and of
-      the peak-placed study evaluate.elbow_tracking used by the earlier figures), and the other goals
+      the peak-placed study elbow.elbow_tracking used by the earlier figures), and the other goals
       again on these loops (with band_std=gait_min the band is the gait's narrowest over the loops
       loaded, so it differs between the two libraries).
 
-    Also both joint-limit readings of the sources themselves, unmodified (evaluate.source_readings,
-    evaluate.in_sample_violations) and the calibrated torso radius; and the price of each setting,
+    Also both joint-limit readings of the sources themselves, unmodified (limit_metrics.source_readings,
+    limit_metrics.in_sample_violations) and the calibrated torso radius; and the price of each setting,
     the gesture's reach at the stroke peak (:func:`gesture_reach`, every 4th gesture, the eval's
     loops)."""
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        dof_limits,
-        elbow_tracking,
-        elbow_tracking_summary,
-        in_sample_violations,
-        load_library,
-        source_readings,
-        torso_radius,
-    )
+    from convsynth_jax.walktalk.elbow import elbow_tracking, elbow_tracking_summary
+    from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
+    from convsynth_jax.walktalk.library import dof_limits, load_library
+    from convsynth_jax.walktalk.limit_metrics import in_sample_violations, source_readings
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     settings = COMBINED if settings is None else settings
@@ -528,7 +507,9 @@ def loop_seams(data_dir: Path) -> dict:
 
     from convsynth_jax.io.bvh import load_bvh
     from convsynth_jax.walktalk.body import joint_positions
-    from convsynth_jax.walktalk.evaluate import EvalParams, hand_torso_distance, load_library, torso_radius
+    from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
+    from convsynth_jax.walktalk.library import load_library
+    from convsynth_jax.walktalk.torso import hand_torso_distance
     from convsynth_jax.walktalk.locomotion import _qconj, _qmul
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.synthesized import torso_frame

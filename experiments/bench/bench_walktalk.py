@@ -562,7 +562,12 @@ def contact_phases(data_dir: Path) -> dict:
     per loop the share of frames in contact by each reading and their agreement, and the
     synchronization rule (sync.align_peak, 0.6 s) applied with the stroke peak's nominal frame at
     every frame of the loop in turn: the share of synchronized peaks in contact by each reading,
-    beside the share of nominal (unsynchronized) frames in contact."""
+    beside the share of nominal (unsynchronized) frames in contact.
+
+    The second walking reading (feet apart) contains the primary one by construction, so a third,
+    independent reading is reported as a diagnostic (``root_low``, not a label the library uses):
+    the hips below their median height over the loop (Sec. 4: the root falls in contact and rises
+    in flight; a walker's hips are lowest around double support and highest as the legs pass)."""
     import numpy as np
 
     from convsynth_jax.errors import WalkTalkError
@@ -586,18 +591,22 @@ def contact_phases(data_dir: Path) -> dict:
             n = lp.num_frames
             c, alt = tile_contact(lp, 3 * n), tile_contact(lp, 3 * n, second=True)
             peaks = [k + align_peak(k, c, s_frames, False) for k in range(n + s_frames, 2 * n + s_frames)]
+            low = np.tile(lp.root_height <= np.median(lp.root_height), 3)
             rows.append({"loop": f"{f.stem}[{lp.start}:{lp.start + n}]", "gait": lp.gait, "frames": n,
                          "contact_frac": float(lp.contact.mean()), "contact_alt_frac": float(lp.contact_alt.mean()),
                          "agree_frac": float((lp.contact == lp.contact_alt).mean()),
+                         "root_low_agree_frac": float((lp.contact == low[:n]).mean()),
                          "synced_in_contact": float(np.mean(c[peaks])),
-                         "synced_in_contact_alt": float(np.mean(alt[peaks]))})
+                         "synced_in_contact_alt": float(np.mean(alt[peaks])),
+                         "synced_root_low": float(np.mean(low[peaks]))})
     per_gait = []
     for gait in ("walk", "jog"):
         d = [r for r in rows if r["gait"] == gait]
         if not d:
             continue
         rec = {"gait": gait, "loops": len(d)}
-        for k in ("contact_frac", "contact_alt_frac", "agree_frac", "synced_in_contact", "synced_in_contact_alt"):
+        for k in ("contact_frac", "contact_alt_frac", "agree_frac", "root_low_agree_frac", "synced_in_contact",
+                  "synced_in_contact_alt", "synced_root_low"):
             x = np.array([r[k] for r in d])
             rec.update({f"{k}_mean": float(x.mean()), f"{k}_min": float(x.min()), f"{k}_max": float(x.max())})
         per_gait.append(rec)

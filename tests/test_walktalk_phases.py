@@ -5,7 +5,9 @@ from __future__ import annotations
 from pathlib import Path
 
 import numpy as np
+import pytest
 
+from convsynth_jax.errors import WalkTalkError
 from convsynth_jax.io.bvh import load_bvh
 from convsynth_jax.walktalk.body import find_body, joint_positions
 from convsynth_jax.walktalk.locomotion import (
@@ -103,6 +105,12 @@ def test_phase_thresholds_scale_with_the_motion():
         b = contact_phases(scaled, g.down_l, g.down_r, gait, p)
         for x, y in zip(a, b):
             np.testing.assert_array_equal(x, y)
+
+
+def test_phase_fraction_parameters_are_checked():
+    for name in ("near_ground_frac", "pass_frac", "jog_ground_frac"):
+        with pytest.raises(WalkTalkError, match=f"walktalk.gait.{name}"):
+            GaitParams(**{name: 1.5})
 
 
 def test_walking_phases_on_fixture():

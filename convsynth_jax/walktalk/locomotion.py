@@ -32,6 +32,7 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
@@ -136,23 +137,31 @@ def foot_tracks(pos: np.ndarray, body: Body) -> FootTracks:
     return FootTracks(low["l"] - ground, low["r"] - ground, sep)
 
 
+class ContactReadings(NamedTuple):
+    """Contact labels (F,) bool (True = contact, False = flight) in the two readings of
+    :func:`contact_phases`: ``contact`` (primary; synchronization uses it) and ``second``."""
+
+    contact: np.ndarray
+    second: np.ndarray
+
+
 def contact_phases(tracks: FootTracks, down_l: np.ndarray, down_r: np.ndarray, gait: str,
-                   p: GaitParams) -> tuple[np.ndarray, np.ndarray]:
-    """Contact labels (F,) bool by the paper's definition (Sec. 3.1), in two readings (primary,
-    second); see the module docstring. ``down_l``, ``down_r``: (F,) feet down (height and speed).
+                   p: GaitParams) -> ContactReadings:
+    """Contact labels by the paper's definition (Sec. 3.1), in two readings; see the module
+    docstring. ``down_l``, ``down_r``: (F,) feet down (height and speed).
     Thresholds come from ``tracks`` itself: each foot's swing clearance (its largest ``low``) and
     the step separation (the :data:`STEP_PERCENTILE` percentile of ``abs(separation)``)."""
     clear_l, clear_r = float(tracks.low_l.max()), float(tracks.low_r.max())
     if gait == "jog":
         on_ground = (tracks.low_l <= p.jog_ground_frac * clear_l) | (tracks.low_r <= p.jog_ground_frac * clear_r)
-        return down_l | down_r, on_ground
+        return ContactReadings(down_l | down_r, on_ground)
     sep = tracks.separation
     step = float(np.percentile(np.abs(sep), STEP_PERCENTILE)) if len(sep) else 0.0
     apart = (np.abs(sep) >= p.pass_frac * step) & (step > 0)
     near_l = _landing(down_l, tracks.low_l <= p.near_ground_frac * clear_l)
     near_r = _landing(down_r, tracks.low_r <= p.near_ground_frac * clear_r)
     front_near = np.where(sep > 0, near_l, near_r)
-    return front_near & apart, apart
+    return ContactReadings(front_near & apart, apart)
 
 
 def _landing(down: np.ndarray, low: np.ndarray) -> np.ndarray:

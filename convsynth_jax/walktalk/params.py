@@ -26,6 +26,12 @@ class GaitParams:
     jog_flight_frac: float = 0.05     # a clip with this fraction of frames with both feet up is a jog
     max_root_travel_cm: float = 20.0  # a gesture clip whose root moves farther than this is not standing
 
+    def __post_init__(self):
+        for name in ("near_ground_frac", "pass_frac", "jog_ground_frac"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise WalkTalkError(f"{name} must lie in [0, 1], got {v}", where=f"walktalk.gait.{name}")
+
 
 @dataclass(frozen=True)
 class PhaseParams:

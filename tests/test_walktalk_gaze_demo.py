@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 
 from convsynth_jax.config import compose, run_task
-from convsynth_jax.errors import WalkTalkError
+from convsynth_jax.errors import MissingFileError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh
 from convsynth_jax.walktalk.body import quat_to_matrix_np
 from convsynth_jax.walktalk.gaze import (
@@ -167,3 +167,32 @@ def test_demo_with_real_speech(tmp_path, speech_dir, bandai_dir):
     assert ev.loc[ev["single_peak"], "contact_alt_at_peak"].mean() >= 0.95
     assert summary["single_peak_contact_rate_naive"] == pytest.approx(ev.loc[ev["single_peak"], "contact_at_nominal"].mean())
     assert set(ev["character"]) == {"A", "B"}
+
+
+def _demo_cfg(tmp_path, *extra):
+    a = _tsv(tmp_path / "a.tsv", [2.0, 5.1])
+    b = _tsv(tmp_path / "b.tsv", [3.5])
+    return compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", "task.duration_s=8", "task.gaits=[walk]",
+                    "task.loop_candidates=1", "task.video_fps=2", *extra,
+                    f"task.speakers=[{{name: A, peaks_tsv: '{a}', wav: '{tmp_path / 'nowhere.wav'}'}}, "
+                    f"{{name: B, peaks_tsv: '{b}'}}]"])
+
+
+def test_demo_video_missing_speech_names_the_file_and_writes_nothing(tmp_path):
+    """A speaker's speech recording that is not there stops the demo before anything is written."""
+    with pytest.raises(MissingFileError, match="nowhere.wav"):
+        run_task(_demo_cfg(tmp_path), tmp_path / "out")
+    assert not list((tmp_path / "out").iterdir())
+
+
+def test_demo_video_unwritable_path_is_a_clear_error(tmp_path):
+    """A video path that cannot be written (its folder is a file) is refused before any work, naming
+    the path; nothing is written."""
+    (tmp_path / "taken").write_text("a file, not a folder")
+    (tmp_path / "nowhere.wav").write_bytes(b"")   # never read: the path check comes first
+    with pytest.raises(WalkTalkError, match="cannot write the demo video") as e:
+        run_task(_demo_cfg(tmp_path, f"task.video_file={tmp_path / 'taken' / 'demo.mp4'}"), tmp_path / "out")
+    assert "taken/demo.mp4" in str(e.value)
+    assert not list((tmp_path / "out").iterdir())
+    with pytest.raises(WalkTalkError, match="MP4"):
+        run_task(_demo_cfg(tmp_path, "task.video_file=demo.gif"), tmp_path / "out")

@@ -196,3 +196,24 @@ def test_demo_video_unwritable_path_is_a_clear_error(tmp_path):
     assert not list((tmp_path / "out").iterdir())
     with pytest.raises(WalkTalkError, match="MP4"):
         run_task(_demo_cfg(tmp_path, "task.video_file=demo.gif"), tmp_path / "out")
+
+
+def test_speech_wav_places_each_recording_at_its_offset(tmp_path):
+    """The demo's speech track (tasks.converse.write_stereo with offsets): planted ramps, one starting
+    0.5 s in (silence before it), one whose first 0.25 s fall before the timeline (dropped), one
+    missing speaker (silent); B at another rate is resampled onto A's."""
+    from convsynth_jax.io.audio import Audio, load_audio
+    from convsynth_jax.tasks.converse import write_stereo
+
+    rate = 8000
+    a = Audio(np.linspace(-0.5, 0.5, rate).astype(np.float32), rate)
+    x = load_audio(write_stereo(tmp_path / "a.wav", a, None, 2.0, offsets_s=(0.5, 0.0))).samples
+    assert x.shape == (2 * rate, 2) and np.abs(x[:rate // 2]).max() == 0 and np.abs(x[:, 1]).max() == 0
+    np.testing.assert_allclose(x[rate // 2:rate // 2 + rate, 0], a.samples, atol=1e-4)
+    assert np.abs(x[rate // 2 + rate:, 0]).max() == 0
+    b = Audio(np.linspace(0.0, 0.4, 2 * rate).astype(np.float32), 2 * rate)   # 1 s at twice the rate
+    x = load_audio(write_stereo(tmp_path / "b.wav", a, b, 1.0, offsets_s=(-0.25, 0.0))).samples
+    np.testing.assert_allclose(x[:3 * rate // 4, 0], a.samples[rate // 4:], atol=1e-4)
+    assert np.abs(x[3 * rate // 4:, 0]).max() == 0
+    np.testing.assert_allclose(x[:, 1], np.interp(np.arange(rate) / rate, np.arange(2 * rate) / (2 * rate), b.samples),
+                               atol=1e-4)

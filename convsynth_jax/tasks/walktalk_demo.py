@@ -3,7 +3,7 @@ talking, driven by real speech. Writes one BVH per character and gait (``<name>_
 ``walktalk_events.csv`` (one row per spliced gesture) and ``walktalk_aar.csv`` (gaze events); with
 ``task.video`` (default) also ``walktalk_speech.wav`` (the speech of both characters on the demo's
 timeline, the first speaker left, the second right) and a video, ``task.video_file`` (default
-``walktalk_demo.mp4``): one panel per gait, both characters seen from behind by a camera that
+``walktalk_demo.mp4``): one panel per gait, both characters seen along the direction of travel by a camera that
 follows the pair, gestures per character on a timeline underneath, the speech as its audio track.
 
 Speech audio per speaker: its ``wav``; with ``gesture_source=synthesized`` and no ``wav``, the
@@ -167,13 +167,22 @@ def _speaker_audio(spec: dict, synthesized_dir: str | None, character: str | Non
 def _follow_pair(tracks, hips: list[int]):
     """Tracks with the camera on the pair: every frame shifted on the ground so the mean of the
     characters' hips (``hips``: the hips joint per track) is at the origin; the walkers stay in view
-    and the locomotion shows in the legs."""
+    and the locomotion shows in the legs. Joints above the hips (bandai2's static ``joint_Root``, left
+    behind at the start of the walk) are drawn at the hips."""
     from ..render import Track
 
     centre = np.mean([t.positions[:, h] for t, h in zip(tracks, hips)], axis=0)
     shift = np.zeros_like(centre)
     shift[:, [0, 2]] = centre[:, [0, 2]]
-    return tuple(Track(t.name, t.positions - shift[:, None, :], t.parents, t.transitions) for t in tracks)
+    out = []
+    for t, h in zip(tracks, hips):
+        pos = t.positions - shift[:, None, :]
+        j = t.parents[h]
+        while j >= 0:
+            pos[:, j] = pos[:, h]
+            j = t.parents[j]
+        out.append(Track(t.name, pos, t.parents, t.transitions))
+    return tuple(out)
 
 
 def write_demo_video(motions_by_gait: dict, events: pd.DataFrame, names: list[str], fps: float, path: Path,
@@ -191,7 +200,7 @@ def write_demo_video(motions_by_gait: dict, events: pd.DataFrame, names: list[st
     for gait in motions_by_gait:
         for n in names:
             ev = events[(events["gait"] == gait) & (events["character"] == n)] if len(events) else events
-            timelines.append(Timeline(f"{n} {gait}: gestures", pd.DataFrame(
+            timelines.append(Timeline(f"{n}, {gait}", pd.DataFrame(
                 {"kind": ["G"] * len(ev), "start": list(ev.get("t_prep_begin", [])), "end": list(ev.get("t_retraction_end", []))})))
     try:
         return render_video(panels, timelines, fps, path, audio=wav, render_fps=video_fps, dpi=dpi, width=3.0)

@@ -203,7 +203,9 @@ def write_demo_video(motions_by_gait: dict, events: pd.DataFrame, names: list[st
             timelines.append(Timeline(f"{n}, {gait}", pd.DataFrame(
                 {"kind": ["G"] * len(ev), "start": list(ev.get("t_prep_begin", [])), "end": list(ev.get("t_retraction_end", []))})))
     try:
-        return render_video(panels, timelines, fps, path, audio=wav, render_fps=video_fps, dpi=dpi, width=3.0)
+        # the view along the direction of travel (+Z, demo.place_character): X, across the pair, is horizontal
+        return render_video(panels, timelines, fps, path, audio=wav, render_fps=video_fps, dpi=dpi, width=3.0,
+                            ground_axis=0)
     except (OSError, RuntimeError) as e:   # ffmpeg's own failures (imageio-ffmpeg raises these)
         raise WalkTalkError(f"writing the demo video failed: {e}", path) from None
 

@@ -6,8 +6,8 @@ timeline, the first speaker left, the second right) and a video, ``task.video_fi
 ``walktalk_demo.mp4``): one panel per gait, both characters seen along the direction of travel by a camera that
 follows the pair, gestures per character on a timeline underneath, the speech as its audio track.
 
-Speech audio per speaker: its ``wav``; with ``gesture_source=synthesized`` and no ``wav``, the
-input audio that ``task=synthesize`` wrote for its character (``<role>_input.wav`` in
+Speech audio per speaker: its ``wav``; with ``gesture_source=synthesized``, ``synthesized_timing=own``
+and no ``wav``, the input audio that ``task=synthesize`` wrote for its character (``<role>_input.wav`` in
 ``task.synthesized_dir``, the role read from its ``report.json``). Each recording's time 0 is placed
 at the speaker's ``offset_s``, as its stress peaks or gesture times are. A speaker with neither
 (a ``peaks_tsv`` alone) is silent in the video (logged)."""
@@ -149,8 +149,7 @@ def _speaker_audio(spec: dict, synthesized_dir: str | None, character: str | Non
         return load_audio(_resolve(str(spec["wav"])))   # MissingFileError names the file
     if not synthesized_dir:
         return None
-    folder = _resolve(synthesized_dir)
-    char = character
+    folder, char = _resolve(synthesized_dir), character
     report = folder / "report.json"
     if not report.is_file():
         raise MissingFileError("the synthesized conversation's report.json (the character's role, for its input "
@@ -238,7 +237,7 @@ def run(cfg, out_dir: Path) -> dict:
     if video_path is not None:   # read before any work, so a missing recording stops the run here
         for spec, sp in zip(t["speakers"], speakers):
             char = Path(synth_info[sp.name]["file"]).stem if sp.name in synth_info else None
-            audio[sp.name] = _speaker_audio(spec, t.get("synthesized_dir") if source == "synthesized" else None, char)
+            audio[sp.name] = _speaker_audio(spec, t.get("synthesized_dir") if own_times else None, char)
             if audio[sp.name] is None:
                 log.warning("speaker %s has no speech recording (wav): silent in the video", sp.name)
     t2 = time.perf_counter()

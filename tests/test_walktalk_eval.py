@@ -558,3 +558,24 @@ def test_elbow_tracking_variants_and_loop_measures_on_fixtures():
     assert (np.abs(w.xs("jog", level="gait")["default"] - w.xs("jog", level="gait")["paper band"]) > 1.0).all()
     assert (np.abs(df["loop_pose_bend"] - df["loop_bend"]) < 10).all()
     assert (np.abs(df["loop_phase_bend"] - df["loop_bend"]) < 25).all()
+
+
+def test_quality_preset_sets_our_splice_options_and_paper_keeps_the_papers():
+    """preset=quality turns on our three stylization options (docs/presets.md) and nothing else of
+    walktalk; preset=paper (the default) leaves every walktalk value at the paper's (the dataclass
+    defaults: one std per loop, the hard range-of-motion cut, one rescale factor per DOF)."""
+    def walktalk(*overrides):
+        return params_from_dict(OmegaConf.to_container(compose(["task=walktalk_eval", *overrides]).walktalk,
+                                                       resolve=True))
+
+    paper, default = walktalk("preset=paper"), walktalk()
+    assert _asdict(paper) == _asdict(default) == _asdict(WalkTalkParams())
+    assert (paper.splice.band_std, paper.splice.joint_limit_mode, paper.splice.rescale_coupling) == ("loop", "hard", 0.0)
+    quality = walktalk("preset=quality")
+    assert quality.splice.band_std == "gait_min" and quality.splice.joint_limit_mode == "soft"
+    assert 0.0 < quality.splice.rescale_coupling <= 1.0
+    back = dataclasses.replace(quality, splice=dataclasses.replace(quality.splice, band_std="loop", joint_limit_mode="hard",
+                                                                   rescale_coupling=0.0))
+    assert _asdict(back) == _asdict(paper)
+    # a key after the preset still wins
+    assert walktalk("preset=quality", "walktalk.splice.rescale_coupling=0.5").splice.rescale_coupling == 0.5

@@ -386,23 +386,33 @@ def run(cfg, out_dir: Path) -> dict:
     return summary
 
 
-def write_stereo(path: Path, a, b, duration: float) -> Path:
-    """A and B as the left and right channels of one WAV (B resampled to A's rate if they differ)."""
+def write_stereo(path: Path, a, b, duration: float, offsets_s=(0.0, 0.0)) -> Path:
+    """A and B as the left and right channels of one WAV of ``duration`` seconds (B resampled to A's
+    rate if they differ; a multichannel recording gives its first channel). ``offsets_s``: where each
+    recording's time 0 lies on the WAV's timeline (a negative offset drops the recording's start);
+    a speaker given as None is silent."""
     from ..io import save_wav
 
-    rate = int(a.sample_rate)
+    rate = int((a if a is not None else b).sample_rate) if (a is not None or b is not None) else 16000
     n = int(round(duration * rate))
 
-    def at_rate(x):
+    def at_rate(x, offset):
+        out = np.zeros(n)
+        if x is None:
+            return out
         s = np.asarray(x.samples, np.float64)
+        s = s[:, 0] if s.ndim == 2 else s
         if int(x.sample_rate) != rate:
             t = np.arange(int(round(len(s) * rate / x.sample_rate))) / rate
             s = np.interp(t, np.arange(len(s)) / x.sample_rate, s)
-        out = np.zeros(n)
-        out[:min(n, len(s))] = s[:n]
+        k = int(round(offset * rate))
+        s = s[max(0, -k):]
+        k = max(0, k)
+        m = max(0, min(n - k, len(s)))
+        out[k:k + m] = s[:m]
         return out
 
-    return save_wav(path, np.stack([at_rate(a), at_rate(b)], axis=1), rate)
+    return save_wav(path, np.stack([at_rate(a, offsets_s[0]), at_rate(b, offsets_s[1])], axis=1), rate)
 
 
 def render_conversation(results, seg, chars, plan, fps, path: Path, wav: Path, p: ConverseParams) -> Path:

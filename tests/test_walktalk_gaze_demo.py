@@ -126,7 +126,7 @@ def test_demo_on_fixtures_with_peak_tsv(tmp_path):
     a = _tsv(tmp_path / "a.tsv", [2.0, 5.1, 8.3, 12.0])
     b = _tsv(tmp_path / "b.tsv", [3.5, 9.9, 14.2])
     cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", "task.duration_s=18",
-                   "task.loop_candidates=1", "task.max_gestures=null",
+                   "task.loop_candidates=1", "task.max_gestures=null", "task.video=false",  # video: below
                    f"task.speakers=[{{name: A, peaks_tsv: '{a}'}}, {{name: B, peaks_tsv: '{b}'}}]"])
     out = tmp_path / "out"
     summary = run_task(cfg, out)
@@ -157,7 +157,7 @@ def test_demo_utterance_outside_timeline_writes_nothing(tmp_path):
 
 def test_demo_with_real_speech(tmp_path, speech_dir, bandai_dir):
     cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={bandai_dir}", "task.gaits=[walk]",
-                   "task.max_gestures=30", "task.loop_candidates=4",
+                   "task.max_gestures=30", "task.loop_candidates=4", "task.video=false",  # video: below
                    (f"task.speakers=[{{name: A, wav: '{speech_dir / 'acoustic_corpus.wav'}', transcript: '{speech_dir / 'acoustic_corpus.TextGrid'}', offset_s: 1.0}},"
                    f"{{name: B, wav: '{speech_dir / 'cold_corpus.wav'}', transcript: '{speech_dir / 'cold_corpus.TextGrid'}', offset_s: 29.0}}]")])
     summary = run_task(cfg, tmp_path)

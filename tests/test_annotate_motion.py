@@ -5,11 +5,12 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from convsynth_jax.annotate.motion import (Window, candidate_windows, detect_in_window, find_joints, idle_threshold,
-                                           joint_speeds, segment_motion, segment_windows)
+from convsynth_jax.annotate.motion import (Window, candidate_windows, detect_in_window, idle_threshold, joint_speeds,
+                                           segment_motion, segment_windows)
 from convsynth_jax.data.skeleton_seated import INDEX, seated_skeleton
 from convsynth_jax.annotate.params import AnnotateParams
 from convsynth_jax.errors import ConfigError
+from convsynth_jax.rig import find_joints
 from convsynth_jax.skeleton import Motion
 
 AP = AnnotateParams()

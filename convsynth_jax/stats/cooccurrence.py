@@ -34,7 +34,7 @@ from ..annotate.motion import (HYPOTHESIS_SPEC, Window, candidate_windows, check
 from ..annotate.params import AnnotateParams
 from ..annotate.types import HYPOTHESES
 from .params import StatsParams
-from .tests import chi2_independence, permutation_test, wilson_interval
+from .hypothesis import chi2_independence, permutation_test, wilson_interval
 
 log = logging.getLogger(__name__)
 

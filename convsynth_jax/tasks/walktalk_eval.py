@@ -80,17 +80,13 @@ def run(cfg, out_dir: Path) -> dict:
 
 
 def _figures(df, lib, p, out_dir: Path) -> list[str]:
-    from ..walktalk.figures import (
-        contact_sheet,
-        elbow_scatter,
-        peak_phase_histogram,
-        save_figure,
-    )
+    from ..figures import save_figure
+    from ..figures.walktalk import elbow_bend_figure, peak_phase_figure, splice_contact_sheet_figure
     from ..walktalk.locomotion import tile_contact, tile_loop
     from ..walktalk.pipeline import splice_gesture
 
-    save_figure(peak_phase_histogram(df), out_dir / "walktalk_peak_phase.png")
-    save_figure(elbow_scatter(df), out_dir / "walktalk_elbow.png")
+    save_figure(peak_phase_figure(df), out_dir / "walktalk_peak_phase.png")
+    save_figure(elbow_bend_figure(df), out_dir / "walktalk_elbow.png")
     # contact sheet: the first jog loop (else walk) with the first gesture, naive vs stylized+synced
     lcs = lib.loops.get("jog") or lib.loops.get("walk")
     lc, gc = lcs[0], lib.gestures[0]
@@ -103,7 +99,7 @@ def _figures(df, lib, p, out_dir: Path) -> list[str]:
            for m in ("naive", "stylized+synced")}
     ph = res["stylized+synced"].phases
     frames = sorted({ph.pb, (ph.pb + ph.sb) // 2, ph.sb, *ph.peaks, ph.se, (ph.rb + ph.re) // 2, ph.re})
-    fig = contact_sheet({m: r.motion for m, r in res.items()}, frames,
-                        f"{Path(gc.gesture.name).stem} on {Path(lc.loop.source).stem}")
+    fig = splice_contact_sheet_figure({m: r.motion for m, r in res.items()}, frames,
+                                      f"{Path(gc.gesture.name).stem} on {Path(lc.loop.source).stem}")
     save_figure(fig, out_dir / "walktalk_contact_sheet.png")
     return ["walktalk_peak_phase.png", "walktalk_elbow.png", "walktalk_contact_sheet.png"]

@@ -21,7 +21,8 @@ import pandas as pd
 
 from ..errors import ConfigError, MissingFileError, WalkTalkError
 from ..io.bvh import load_bvh
-from .body import Body, check_same_skeleton, find_body, joint_positions
+from ..kinematics import forward_kinematics_np, jerk
+from .body import Body, check_same_skeleton, find_body
 from .gestures import apply_phase_override, load_phase_table, make_gesture
 from .locomotion import extract_loop, seam_foot_slide, tile_contact, tile_loop
 from .params import WalkTalkParams
@@ -114,7 +115,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
                 ref, body = m, find_body(m.skeleton, str(f))
             check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
             source.append(joint_euler(m, _arm_joints(body)))
-            torso.append(hand_torso_distance(joint_positions(m), body))
+            torso.append(hand_torso_distance(forward_kinematics_np(m), body))
             kinds.append(gait)
             if f not in chosen:
                 continue
@@ -134,7 +135,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
         m = load_bvh(f, fps=p.fps)
         check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
         source.append(joint_euler(m, _arm_joints(body)))
-        torso.append(hand_torso_distance(joint_positions(m), body))
+        torso.append(hand_torso_distance(forward_kinematics_np(m), body))
         kinds.append("gesture")
         g = make_gesture(m, p.gait, p.phases, body)
         if table is not None:
@@ -150,7 +151,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
         m = load_bvh(f, fps=p.fps)
         check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
         source.append(joint_euler(m, _arm_joints(body)))
-        torso.append(hand_torso_distance(joint_positions(m), body))
+        torso.append(hand_torso_distance(forward_kinematics_np(m), body))
         kinds.append("limits only")
     return Library(body, loops, gestures, skipped, source, kinds, torso)
 
@@ -241,7 +242,7 @@ def source_readings(lib: Library, limits: JointLimits, torso_radius_cm: float) -
         frame, cell = [], []
         for lc in lcs:
             bad = limits.violations(lc.euler, lc.joints)
-            inside = np.any(hand_torso_distance(joint_positions(lc.loop.motion), body) < torso_radius_cm, axis=1)
+            inside = np.any(hand_torso_distance(forward_kinematics_np(lc.loop.motion), body) < torso_radius_cm, axis=1)
             rows = {s: [lc.joints.index(j) for j in body.arm(s)] for s in ("l", "r")}
             frame.append(_frame_reading(bad, rows, inside))
             cell.append(np.mean([bad[:, rows[s]].mean() for s in ("l", "r")]))
@@ -249,7 +250,7 @@ def source_readings(lib: Library, limits: JointLimits, torso_radius_cm: float) -
     frame, cell = [], []
     for gc in lib.gestures:
         g = gc.gesture
-        pos = joint_positions(g.motion)
+        pos = forward_kinematics_np(g.motion)
         eu = gc.euler[g.phases.pb:g.phases.re + 1]
         dof, torso = limit_violations(g.motion, pos, g.phases, gc.joints, body, limits, torso_radius_cm, eu)
         cells, _ = limit_cells(g.motion, pos, g.phases, gc.joints, g.sides, body, limits, torso_radius_cm, eu)
@@ -309,14 +310,14 @@ def wrist_jerk(pos: np.ndarray, body: Body, sides, fps: float) -> np.ndarray:
     out = None
     for s in sides:
         x = pos[:, body.joints[f"hand_{s}"]] - pos[:, body.joints["hips"]]
-        j = np.linalg.norm(np.diff(x, n=3, axis=0), axis=-1) * fps ** 3
+        j = np.linalg.norm(jerk(x, fps), axis=-1)
         out = j if out is None else np.maximum(out, j)
     return out
 
 
 def loop_source_jerk(lc: LoopContext, sides) -> float:
     m = tile_loop(lc.loop, 3 * lc.loop.num_frames)
-    return float(wrist_jerk(joint_positions(m), lc.body, sides, m.fps).max())
+    return float(wrist_jerk(forward_kinematics_np(m), lc.body, sides, m.fps).max())
 
 
 def limit_violations(m, pos, ph, joints, body: Body, limits: JointLimits, torso_radius_cm: float, euler=None):
@@ -374,7 +375,7 @@ def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits
     body, g, ph = lc.body, gc.gesture, res.phases
     m = res.motion
     fps = m.fps
-    pos = joint_positions(m)
+    pos = forward_kinematics_np(m)
     if loco is None:
         loco = tile_loop(lc.loop, m.num_frames)
     jerk = wrist_jerk(pos, body, g.sides, fps)
@@ -391,7 +392,7 @@ def splice_metrics(res, lc: LoopContext, gc: GestureContext, limits: JointLimits
         # FK of the loop over t_Pb..t_Re only (same for the methods that place the gesture alike)
         seg = loco.slice(ph.pb, ph.re + 1)
         seg_ph = ph.shifted(-ph.pb)
-        seg_pos = joint_positions(seg)
+        seg_pos = forward_kinematics_np(seg)
         seg_eu = joint_euler(seg, gc.joints)
         ld, lt = limit_violations(seg, seg_pos, seg_ph, gc.joints, body, limits, ep.torso_radius_cm, seg_eu)
         lc_cells, lc_torso = limit_cells(seg, seg_pos, seg_ph, gc.joints, g.sides, body, limits, ep.torso_radius_cm,
@@ -450,7 +451,7 @@ def lc_bend(lc: LoopContext, side: str, sd: bool = False) -> float:
     key = (id(lc), side)
     hit = _BEND_CACHE.get(key)
     if hit is None or hit[0] is not lc:   # an id can be reused once its loop is freed: check identity
-        b = elbow_bend(joint_positions(lc.loop.motion), lc.body, side)
+        b = elbow_bend(forward_kinematics_np(lc.loop.motion), lc.body, side)
         hit = _BEND_CACHE[key] = (lc, float(b.mean()), float(b.std()))
     return hit[2 if sd else 1]
 
@@ -471,7 +472,7 @@ def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bo
     for gc in gests:
         g = gc.gesture
         fg, pk = g.motion.num_frames, g.phases.peaks[0]
-        gjerk = float(wrist_jerk(joint_positions(g.motion), lib.body, g.sides, fps).max())
+        gjerk = float(wrist_jerk(forward_kinematics_np(g.motion), lib.body, g.sides, fps).max())
         for gait, lcs in lib.loops.items():
             for lc in lcs:
                 n = lc.loop.num_frames
@@ -642,7 +643,7 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
     rows = []
     for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, gestures):
         g = gc.gesture
-        lpos = joint_positions(loco) if loop_measures else None
+        lpos = forward_kinematics_np(loco) if loop_measures else None
         base = {"gesture": Path(g.name).stem, "gait": gait, "loop": Path(lc.loop.source).stem,
                 "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides])),
                 "loop_bend_sd": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides]))}
@@ -651,7 +652,7 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
         for name, (sp, method) in variants.items():
             r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=limits)
             st = slice(r.phases.sb, r.phases.se + 1)
-            pos = joint_positions(r.motion.slice(st.start, st.stop))
+            pos = forward_kinematics_np(r.motion.slice(st.start, st.stop))
             row = {**base, "method": name,
                    "bend": float(np.mean([elbow_bend(pos, lib.body, s).mean() for s in g.sides]))}
             if loop_measures:
@@ -664,7 +665,7 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
 def pose_bend(lc: LoopContext, side: str) -> float:
     """Elbow bend (degrees) of the loop's mean arm pose B_L (the forearm's mean Euler angles applied
     to the skeleton's rest offsets), one of the loop measures of :func:`elbow_tracking`."""
-    from .body import quat_to_matrix_np
+    from ..rotations import quat_to_matrix_np
     from .splice import euler_to_joint_quats
 
     m = lc.loop.motion

@@ -22,8 +22,9 @@ from dataclasses import dataclass
 import numpy as np
 
 from ..errors import WalkTalkError
+from ..kinematics import forward_kinematics_np
 from ..skeleton import Motion
-from .body import Body, find_body, joint_positions
+from .body import Body, find_body
 from .params import GaitParams
 
 
@@ -95,7 +96,7 @@ def detect_gait(motion: Motion, p: GaitParams, body: Body | None = None,
                 positions: np.ndarray | None = None) -> GaitInfo:
     """Foot contacts, heel strikes and contact phases of a locomotion clip (Y up, cm)."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion) if positions is None else positions
+    pos = forward_kinematics_np(motion) if positions is None else positions
     fps = motion.fps
     downs = {}
     for side in ("l", "r"):
@@ -222,7 +223,7 @@ def seam_foot_slide(motion: Motion, n_loop: int, p: GaitParams, body: Body | Non
     frames, over the frames within ``window`` of a loop seam (frame k*N-1 -> k*N); 0 when no seam
     lies inside the motion."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion) if positions is None else positions
+    pos = forward_kinematics_np(motion) if positions is None else positions
     n = motion.num_frames
     near = np.zeros(n, bool)          # frames t whose step t-1 -> t lies within ``window`` of a seam
     for s in range(n_loop, n, n_loop):

@@ -1,17 +1,18 @@
 """Figures of the walk-the-talk evaluation, drawn from the evaluation table (object-oriented
 matplotlib, no pyplot state): gesture peak vs gait phase, elbow bend loop vs stroke, and a contact
-sheet of one splice."""
+sheet of one splice. Each returns the Figure; ``task=walktalk_eval`` writes it with
+``figures.save_figure``."""
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from ..skeleton import Motion
-from .body import joint_positions
+from ...kinematics import forward_kinematics_np
+from ...skeleton import Motion
 
 
-def peak_phase_histogram(df: pd.DataFrame) -> Figure:
+def peak_phase_figure(df: pd.DataFrame) -> Figure:
     """Histogram of the stroke peak's position in the gait cycle (0 = left contact), per gait and
     method; the share of peaks in contact is in each legend."""
     gaits = list(dict.fromkeys(df["gait"]))
@@ -32,7 +33,8 @@ def peak_phase_histogram(df: pd.DataFrame) -> Figure:
     return fig
 
 
-def elbow_scatter(df: pd.DataFrame) -> Figure:
+def elbow_bend_figure(df: pd.DataFrame) -> Figure:
+    """Per method, the stroke's elbow bend against the loop's mean elbow bend (degrees), per gait."""
     methods = list(dict.fromkeys(df["method"]))
     fig = Figure(figsize=(4 * len(methods), 3.6))
     for i, m in enumerate(methods):
@@ -50,14 +52,14 @@ def elbow_scatter(df: pd.DataFrame) -> Figure:
     return fig
 
 
-def contact_sheet(motions: dict[str, Motion], frames: list[int], title: str = "") -> Figure:
+def splice_contact_sheet_figure(motions: dict[str, Motion], frames: list[int], title: str = "") -> Figure:
     """Side views (forward axis vs height) of a few frames, one row per motion (e.g. naive vs
     stylized+synced), each frame drawn around its own root."""
     rows = list(motions)
     fig = Figure(figsize=(1.6 * len(frames), 2.6 * len(rows)))
     for r, name in enumerate(rows):
         m = motions[name]
-        pos = joint_positions(m)
+        pos = forward_kinematics_np(m)
         parents = m.skeleton.parents
         travel = pos[-1, 1] - pos[0, 1]
         fwd = 2 if abs(travel[2]) >= abs(travel[0]) else 0
@@ -82,9 +84,3 @@ def contact_sheet(motions: dict[str, Motion], frames: list[int], title: str = ""
     fig.tight_layout()
     return fig
 
-
-def save_figure(fig: Figure, path, dpi: int = 110) -> None:
-    from ..utils import atomic_path
-
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format=str(path).rsplit(".", 1)[-1])

@@ -1,7 +1,11 @@
-"""Forward kinematics and the root-relative pose features of the paper's transition cost.
+"""Forward kinematics, the root-relative pose features of the paper's transition cost, and time
+derivatives of positions (velocities, jerk): the project's one home for each.
 
-Shapes: F frames, J joints. Kernels are jitted with the skeleton topology (parents) static, the
-frame axis is vectorized, and the joint loop is unrolled at trace time (J is small).
+Shapes: F frames, J joints. One recursion (:func:`_chain`) serves the jitted kernel (:func:`fk_kernel`,
+float32 by default, one FK call for many clips in :func:`padded_global_transforms`) and the float64
+NumPy path (:func:`global_transforms_np`, no compilation per clip length). Kernels are jitted with the
+skeleton topology (parents) static, the frame axis is vectorized, and the joint loop is unrolled at
+trace time (J is small).
 """
 from __future__ import annotations
 

@@ -127,13 +127,15 @@ def check_thresholds(thresholds: dict, kinds, where: str = "thresholds") -> None
         raise ConfigError(f"no finite idle threshold (Eq. 1) for {bad}; got {dict(thresholds)}", where=where)
 
 
-class Window(NamedTuple):
+class FrameWindow(NamedTuple):
+    """A candidate window of Figure 3 in frames (the leave-one-out window is evaluation.windows.Window)."""
+
     start: int  # frame, inclusive
     end: int    # frame, exclusive
 
 
 def candidate_windows(segments: pd.DataFrame, num_frames: int, fps: float, neighbours: pd.DataFrame | None = None,
-                      motion_segments: pd.DataFrame | None = None) -> list[Window]:
+                      motion_segments: pd.DataFrame | None = None) -> list[FrameWindow]:
     """Figure 3: each audio segment [s, e] (seconds) expanded to twice its length around its centre,
     [s - L/2, e + L/2], then trimmed so it does not reach into the neighbouring audio segments
     (``neighbours``, default ``segments``: the previous one's end bounds it on the left, the next
@@ -163,11 +165,11 @@ def candidate_windows(segments: pd.DataFrame, num_frames: int, fps: float, neigh
                 hi = min(hi, right.min())
         a = int(np.clip(np.floor(lo * fps), 0, num_frames))
         b = int(np.clip(np.ceil(hi * fps), 0, num_frames))
-        out.append(Window(a, max(a, b)))
+        out.append(FrameWindow(a, max(a, b)))
     return out
 
 
-def detect_in_window(v: np.ndarray, window: Window, theta_s: float, alpha_w: float = 0.1):
+def detect_in_window(v: np.ndarray, window: FrameWindow, theta_s: float, alpha_w: float = 0.1):
     """(start, peak, end) frames of the movement in ``window`` (end exclusive), or None if the speed
     v (F,) never exceeds the clip threshold θ_S there. Start = first frame above θ_W (Eq. 2), end =
     one past the last, peak = the frame of maximal speed."""
@@ -179,7 +181,7 @@ def detect_in_window(v: np.ndarray, window: Window, theta_s: float, alpha_w: flo
     return window.start + int(above[0]), window.start + int(np.argmax(w)), window.start + int(above[-1]) + 1
 
 
-def segment_windows(v: np.ndarray, windows: list[Window], theta_s: float, alpha_w: float = 0.1,
+def segment_windows(v: np.ndarray, windows: list[FrameWindow], theta_s: float, alpha_w: float = 0.1,
                     trim_motion: bool = True, extend_trim: bool = True) -> list:
     """Detect one movement per window of v (F,) in time order: a list with (start, peak, end) frames
     or None per window (in the order given).
@@ -198,7 +200,7 @@ def segment_windows(v: np.ndarray, windows: list[Window], theta_s: float, alpha_
     for k in order:
         w = windows[k]
         if trim_motion and last_end > w.start:
-            w = Window(min(last_end, w.end), w.end)
+            w = FrameWindow(min(last_end, w.end), w.end)
         hit = detect_in_window(v, w, theta_s, alpha_w)
         found[k] = hit
         if hit is None:

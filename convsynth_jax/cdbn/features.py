@@ -64,7 +64,7 @@ def _pitch(x, sr, step, floor, ceiling):
     return np.asarray(p.xs(), np.float64), f0
 
 
-def f0_track(audio, params: CDBNFeatureParams, path: str | Path | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+def prosody_f0_track(audio, params: CDBNFeatureParams, path: str | Path | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """(times, f0 with NaN where unvoiced, floor used) at ``params.hop``."""
     x, sr = _mono(audio)
     if params.f0_floor == "auto":
@@ -110,7 +110,7 @@ def speech_features(audio, params: CDBNFeatureParams, num_frames: int | None = N
     x, sr = _mono(audio)
     if len(x) < int(0.2 * sr):
         raise CDBNError(f"audio too short for prosody ({len(x) / sr:.3f} s)", where)
-    t, f0, floor = f0_track(audio, params, path)
+    t, f0, floor = prosody_f0_track(audio, params, path)
     voiced = np.isfinite(f0)
     if voiced.sum() < max(3, params.min_voiced_fraction * len(f0)):
         raise CDBNError(f"too few voiced frames for F0 ({int(voiced.sum())} of {len(f0)} at a {floor:.0f} Hz floor); "

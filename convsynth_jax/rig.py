@@ -6,7 +6,8 @@ Unreal, 3ds Max Biped). Every module that looks a joint up by what it does goes 
 annotation (hand and head speeds: the six roles of :data:`DEFAULT_JOINTS`, :func:`find_joints`),
 Walk the Talk (body parts, retargeting, gaze: :func:`find_role`), the CDBN (head and arm streams:
 role names in ``cdbn.features``), and the transition cost's finger weights (:data:`FINGER_PATTERN`).
-No module of the project holds its own list of rig joint names.
+The one configured list of joint names elsewhere is the gaze's per-joint yaw shares
+(``walktalk.gaze.joint_shares``, ``lean_joint``), which name joints of the locomotion library's rig.
 
 The module only reads a skeleton's ``names``, ``parents`` and ``find`` (``convsynth_jax.skeleton``),
 so it sits below it.
@@ -119,6 +120,7 @@ def find_role(skeleton, role: str) -> int | None:
     except KeyError:
         raise ConfigError(f"unknown joint role {role!r}; roles are {sorted(RIG_JOINTS)}") from None
     return skeleton.find(*patterns)
+
 
 # Words that make a joint a plausible candidate for a role, listed when no pattern matched.
 _ROLE_HINTS = {"left_hand": r"hand|hnd|wrist|wrst", "right_hand": r"hand|hnd|wrist|wrst", "left_shoulder": r"arm|shoulder|clav|collar",

@@ -25,6 +25,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
 from .errors import ConvSynthError, MissingFileError
+from .figures.save import save_figure
 from .utils import atomic_path
 
 log = logging.getLogger(__name__)
@@ -410,11 +411,7 @@ def contact_sheet(panels, timelines, fps: float, path: str | Path, num: int = 6,
     tl.set_xlim(0, dur)
     tl.tick_params(axis="x", labelsize=6)
     tl.set_xlabel("time (s)", fontsize=7)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    return path
+    return save_figure(fig, path, dpi=dpi)
 
 
 def bvh_files(path: str | Path) -> list[Path]:

@@ -14,7 +14,8 @@ from omegaconf import OmegaConf
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.errors import ConfigError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh, save_bvh
-from convsynth_jax.walktalk.body import find_body, joint_positions
+from convsynth_jax.kinematics import forward_kinematics_np
+from convsynth_jax.walktalk.body import find_body
 from convsynth_jax.walktalk.gestures import make_gesture
 from convsynth_jax.walktalk.locomotion import extract_loop, seam_foot_slide, tile_loop
 from convsynth_jax.walktalk.params import WalkTalkParams, params_from_dict
@@ -121,7 +122,7 @@ def test_spliced_lower_body_equals_locomotion_on_real_fixture():
     loco = tile_loop(lc.loop, T)
     keep = [j for j in range(m.skeleton.num_joints) if j not in body.arm_r]
     np.testing.assert_allclose(r.motion.rotations[:, keep], loco.rotations[:, keep], atol=1e-6)
-    pa, pb = joint_positions(r.motion), joint_positions(loco)
+    pa, pb = forward_kinematics_np(r.motion), forward_kinematics_np(loco)
     for j in body.lower:
         np.testing.assert_allclose(pa[:, j], pb[:, j], atol=1e-3)
 
@@ -303,7 +304,7 @@ def test_limit_cells_count_spliced_dofs_on_blended_frames():
     hi = np.full((len(joints), 3), 10.0)
     hi[2, 0] = thr
     lim = JointLimits(joints, np.zeros((len(joints), 3)), lo, hi)
-    pos = joint_positions(m)
+    pos = forward_kinematics_np(m)
     span = ScoredSpan(m, pos, ph, joints, ("r",))
     cells, torso = limit_cells(span, LimitCheck(body, lim, 0.0))
     inner = np.arange(ph.pb + 1, ph.re)
@@ -426,7 +427,7 @@ def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
     got = in_sample_violations(lib, dof_limits(lib), radius)
     assert all(v["hand_in_torso_frac"] == 0.0 for v in got.values())
     m = load_bvh(excerpt, fps=30.0)
-    pos = joint_positions(m)
+    pos = forward_kinematics_np(m)
     ph = Phases(0, 4, 5, 12, 13, m.num_frames - 1, (8,))
     joints = lib.body.arm("r")
     lim = dof_limits(lib)
@@ -478,7 +479,7 @@ def test_source_readings_against_a_frame_by_frame_reference():
     got = source_readings(lib, lim, radius)
     for gait, lcs in lib.loops.items():
         lc = lcs[0]
-        pos = joint_positions(lc.loop.motion)
+        pos = forward_kinematics_np(lc.loop.motion)
         frames, cells = [], []
         for s in ("l", "r"):
             rows = [lc.joints.index(j) for j in body.arm(s)]
@@ -491,7 +492,7 @@ def test_source_readings_against_a_frame_by_frame_reference():
     frames, cells = [], []
     for gc in lib.gestures:
         g = gc.gesture
-        pos = joint_positions(g.motion)
+        pos = forward_kinematics_np(g.motion)
         ph = g.phases
         frames.append(np.mean([out_of_limits(gc.euler[t], gc.joints).any() or inside(pos[t])
                                for t in range(ph.pb, ph.re + 1)]))

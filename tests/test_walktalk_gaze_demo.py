@@ -12,7 +12,7 @@ import pytest
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.errors import MissingFileError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh
-from convsynth_jax.walktalk.body import quat_to_matrix_np
+from convsynth_jax.rotations import quat_to_matrix_np
 from convsynth_jax.walktalk.gaze import (
     AAREvent,
     apply_gaze,
@@ -21,7 +21,7 @@ from convsynth_jax.walktalk.gaze import (
     validate_events,
 )
 from convsynth_jax.walktalk.params import GazeParams
-from convsynth_jax.walktalk.synthetic import synthetic_jog
+from convsynth_jax.walktalk.planted_clips import synthetic_jog
 
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 

@@ -9,7 +9,8 @@ import pytest
 
 from convsynth_jax.errors import WalkTalkError
 from convsynth_jax.io.bvh import load_bvh
-from convsynth_jax.walktalk.body import find_body, joint_positions
+from convsynth_jax.kinematics import forward_kinematics_np
+from convsynth_jax.walktalk.body import find_body
 from convsynth_jax.walktalk.locomotion import (
     contact_phases,
     detect_gait,
@@ -18,7 +19,7 @@ from convsynth_jax.walktalk.locomotion import (
     tile_contact,
 )
 from convsynth_jax.walktalk.params import GaitParams
-from convsynth_jax.walktalk.synthetic import synthetic_jog, synthetic_walk
+from convsynth_jax.walktalk.planted_clips import synthetic_jog, synthetic_walk
 
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 
@@ -85,7 +86,7 @@ def test_jogging_contact_is_a_foot_on_the_ground_planted():
     np.testing.assert_array_equal(g.contact, truth["contact"])
     assert g.contact_alt[truth["contact"]].all()
     extra = g.contact_alt & ~truth["contact"]
-    tracks = foot_tracks(joint_positions(m), find_body(m.skeleton))
+    tracks = foot_tracks(forward_kinematics_np(m), find_body(m.skeleton))
     low = np.minimum(tracks.low_l / tracks.low_l.max(), tracks.low_r / tracks.low_r.max())
     assert (low[extra] <= p.jog_ground_frac + 1e-9).all()
     assert 0.0 < g.contact.mean() < 1.0
@@ -95,7 +96,7 @@ def test_phase_thresholds_scale_with_the_motion():
     """Thresholds come from the labelled frames: scaling every foot height and the separation by
     the same factor leaves the labels unchanged."""
     m, _ = synthetic_walk(periods=3.5)
-    pos = joint_positions(m)
+    pos = forward_kinematics_np(m)
     t = foot_tracks(pos, find_body(m.skeleton))
     g = detect_gait(m, GaitParams())
     p = GaitParams()

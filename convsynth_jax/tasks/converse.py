@@ -82,7 +82,7 @@ def converse_params(task) -> ConverseParams:
 
 # ----------------------------------------------------------------------------------------------- inputs
 @dataclass
-class Speaker:
+class SpeakerInput:
     name: str              # "A" or "B"
     audio: Any             # io.audio.Audio (mono)
     words: pd.DataFrame
@@ -97,7 +97,7 @@ def _require(value, key: str) -> str:
     return str(value)
 
 
-def load_inputs(p: ConverseParams) -> tuple[Speaker, Speaker, float]:
+def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
     """(A, B, duration in seconds): both channels' audio and words, checked against each other."""
     from ..io import load_audio, load_transcript
 
@@ -125,7 +125,7 @@ def load_inputs(p: ConverseParams) -> tuple[Speaker, Speaker, float]:
             i = int(late[0])
             raise TranscriptFormatError(f"word {words['word'].iat[i]!r} ends at {words['end'].iat[i]:.3f} s, after the "
                                         f"end of its audio {f} ({a.duration:.3f} s)", tf, f"word {i}")
-        out.append(Speaker(name, a, words, f, tf))
+        out.append(SpeakerInput(name, a, words, f, tf))
     duration = max(a.duration for a in auds)
     if abs(auds[0].duration - auds[1].duration) > 0.1:
         log.warning("A's audio lasts %.2f s, B's %.2f s: the conversation lasts %.2f s (the shorter is silent after "
@@ -133,7 +133,7 @@ def load_inputs(p: ConverseParams) -> tuple[Speaker, Speaker, float]:
     return out[0], out[1], duration
 
 
-def annotate(sp: Speaker, params) -> pd.DataFrame:
+def annotate(sp: SpeakerInput, params) -> pd.DataFrame:
     """Audio segments of one speaker (the corpus's annotation); errors name the speaker's files."""
     from ..annotate.audio import annotate_audio
 

@@ -86,7 +86,7 @@ def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
     import dataclasses
 
     from ..walktalk.pipeline import gesture_context
-    from ..walktalk.synthesized import synthesized_gestures
+    from ..walktalk.conversation_gestures import synthesized_gestures
 
     folder = _resolve(str(t.get("synthesized_dir") or ""))
     if not t.get("synthesized_dir") or not folder.is_dir():

@@ -83,19 +83,19 @@ def _contact_fracs(lcs) -> dict:
 
 
 def _figures(df, lib, p, out_dir: Path) -> list[str]:
-    from ..walktalk.figures import (
-        contact_sheet,
-        elbow_scatter,
+    from ..figures import save_figure
+    from ..figures.walktalk import (
+        elbow_bend_figure,
         gait_phase_panel,
-        gait_phases,
-        peak_phase_histogram,
-        save_figure,
+        gait_phases_figure,
+        peak_phase_figure,
+        splice_contact_sheet_figure,
     )
     from ..walktalk.locomotion import tile_contact, tile_loop
     from ..walktalk.pipeline import splice_gesture
 
-    save_figure(peak_phase_histogram(df), out_dir / "walktalk_peak_phase.png")
-    save_figure(elbow_scatter(df), out_dir / "walktalk_elbow.png")
+    save_figure(peak_phase_figure(df), out_dir / "walktalk_peak_phase.png")
+    save_figure(elbow_bend_figure(df), out_dir / "walktalk_elbow.png")
     # contact sheet: the first jog loop (else walk) with the first gesture, naive vs stylized+synced
     lcs = lib.loops.get("jog") or lib.loops.get("walk")
     lc, gc = lcs[0], lib.gestures[0]
@@ -108,11 +108,11 @@ def _figures(df, lib, p, out_dir: Path) -> list[str]:
            for m in ("naive", "stylized+synced")}
     ph = res["stylized+synced"].phases
     frames = sorted({ph.pb, (ph.pb + ph.sb) // 2, ph.sb, *ph.peaks, ph.se, (ph.rb + ph.re) // 2, ph.re})
-    fig = contact_sheet({m: r.motion for m, r in res.items()}, frames,
-                        f"{Path(gc.gesture.name).stem} on {Path(lc.loop.source).stem}")
+    fig = splice_contact_sheet_figure({m: r.motion for m, r in res.items()}, frames,
+                                      f"{Path(gc.gesture.name).stem} on {Path(lc.loop.source).stem}")
     save_figure(fig, out_dir / "walktalk_contact_sheet.png")
     # contact/flight phases of the first walk and the first jog loop (locomotion.contact_phases)
     panels = {f"{Path(v[0].loop.source).stem}[{v[0].loop.start}:{v[0].loop.start + v[0].loop.num_frames}]":
               gait_phase_panel(v[0].loop, lib.body) for v in lib.loops.values() if v}
-    save_figure(gait_phases(panels, p.gait), out_dir / "walktalk_gait_phases.png")
+    save_figure(gait_phases_figure(panels, p.gait), out_dir / "walktalk_gait_phases.png")
     return ["walktalk_peak_phase.png", "walktalk_elbow.png", "walktalk_contact_sheet.png", "walktalk_gait_phases.png"]

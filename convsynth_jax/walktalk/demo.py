@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
+from ..rig import find_role
 from ..skeleton import Motion
 from .gaze import (
     AAREvent,
@@ -145,12 +145,12 @@ def run_demo(loops: list[LoopContext], gestures, speakers: list[Speaker], p: Wal
                          "t_retraction_begin": r.phases.rb / fps, "t_retraction_end": r.phases.re / fps})
         lateral = (i - (len(speakers) - 1) / 2) * dp.spacing_cm
         motions[sp.name] = dataclasses.replace(place_character(cur, lc.loop.advance, lateral), name=sp.name)
-    from .body import joint_positions
+    from ..kinematics import forward_kinematics_np
 
     roots = {}
     for n, m in motions.items():
-        hips = m.skeleton.find(*RIG_JOINTS["hips"])
-        roots[n] = joint_positions(m)[:, hips]
+        hips = find_role(m.skeleton, "hips")
+        roots[n] = forward_kinematics_np(m)[:, hips]
     if dp.aar == "scripted":
         aar = list(scripted or [])
     elif dp.aar == "statistics":

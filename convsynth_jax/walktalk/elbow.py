@@ -9,7 +9,8 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from .body import Body, joint_positions
+from ..kinematics import forward_kinematics_np
+from .body import Body
 from .library import Library, dof_limits, peak_placed_splices
 from .params import SpliceParams, WalkTalkParams
 from .pipeline import METHODS, LoopContext, splice_gesture
@@ -48,7 +49,7 @@ def lc_bend(lc: LoopContext, side: str, sd: bool = False) -> float:
     key = (id(lc), side)
     hit = _BEND_CACHE.get(key)
     if hit is None or hit.loop is not lc:   # an id can be reused once its loop is freed: check identity
-        b = elbow_bend(joint_positions(lc.loop.motion), lc.body, side)
+        b = elbow_bend(forward_kinematics_np(lc.loop.motion), lc.body, side)
         hit = _BEND_CACHE[key] = LoopBend(lc, float(b.mean()), float(b.std()))
     return hit.std if sd else hit.mean
 
@@ -56,7 +57,7 @@ def lc_bend(lc: LoopContext, side: str, sd: bool = False) -> float:
 def pose_bend(lc: LoopContext, side: str) -> float:
     """Elbow bend (degrees) of the loop's mean arm pose B_L (the forearm's mean Euler angles applied
     to the skeleton's rest offsets), one of the loop measures of :func:`elbow_tracking`."""
-    from .body import quat_to_matrix_np
+    from ..rotations import quat_to_matrix_np
     from .splice import euler_to_joint_quats
 
     m = lc.loop.motion
@@ -168,7 +169,7 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
     for ps in peak_placed_splices(lib, p, gestures):
         gc, gait, lc, loco = ps.gesture, ps.gait, ps.loop, ps.loco
         g = gc.gesture
-        lpos = joint_positions(loco) if loop_measures else None
+        lpos = forward_kinematics_np(loco) if loop_measures else None
         base = {"gesture": Path(g.name).stem, "gait": gait, "loop": Path(lc.loop.source).stem,
                 "loop_bend": float(np.mean([lc_bend(lc, s) for s in g.sides])),
                 "loop_bend_sd": float(np.mean([lc_bend(lc, s, sd=True) for s in g.sides]))}
@@ -178,7 +179,7 @@ def elbow_tracking(lib: Library, p: WalkTalkParams, gestures=None, methods=("nai
             r = splice_gesture(lc, gc, ps.utterance_peak_s, ps.frames, v.splice, METHODS[v.method], loco=loco,
                                contact=ps.contact, limits=limits)
             st = slice(r.phases.sb, r.phases.se + 1)
-            pos = joint_positions(r.motion.slice(st.start, st.stop))
+            pos = forward_kinematics_np(r.motion.slice(st.start, st.stop))
             row = {**base, "method": name,
                    "bend": float(np.mean([elbow_bend(pos, lib.body, s).mean() for s in g.sides]))}
             if loop_measures:

@@ -21,7 +21,7 @@ import pandas as pd
 
 from ..errors import ConfigError, WalkTalkError
 from ..skeleton import Motion
-from .body import joint_positions
+from ..kinematics import forward_kinematics_np
 from .elbow import elbow_bend, elbow_summary, lc_bend
 from .library import Library, dof_limits
 from .limit_metrics import CellReading, LimitCheck, ScoredSpan, limit_cells, limit_violations, mean_or_zero
@@ -111,7 +111,7 @@ def splice_metrics(res: SpliceResult, lc: LoopContext, gc: GestureContext, timel
     body, g, ph = lc.body, gc.gesture, res.phases
     m = res.motion
     fps = m.fps
-    pos = joint_positions(m)
+    pos = forward_kinematics_np(m)
     check = LimitCheck(body, scoring.limits, scoring.ep.torso_radius_cm)
     near = boundary_jerk(wrist_jerk(pos, body, g.sides, fps), ph)
     eu = joint_euler(m.slice(ph.pb, ph.re + 1), gc.joints)   # one conversion for both readings
@@ -122,7 +122,7 @@ def splice_metrics(res: SpliceResult, lc: LoopContext, gc: GestureContext, timel
     if loop_cache is None or key not in loop_cache:
         # FK of the loop over t_Pb..t_Re only (same for the methods that place the gesture alike)
         seg = timeline.loco.slice(ph.pb, ph.re + 1)
-        seg_span = ScoredSpan(seg, joint_positions(seg), ph.shifted(-ph.pb), gc.joints, g.sides,
+        seg_span = ScoredSpan(seg, forward_kinematics_np(seg), ph.shifted(-ph.pb), gc.joints, g.sides,
                               joint_euler(seg, gc.joints))
         ld, lt = limit_violations(seg_span, check)
         if loop_cache is None:
@@ -185,7 +185,7 @@ def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bo
     for gc in gests:
         g = gc.gesture
         fg, pk = g.motion.num_frames, g.phases.peaks[0]
-        gjerk = float(wrist_jerk(joint_positions(g.motion), lib.body, g.sides, fps).max())
+        gjerk = float(wrist_jerk(forward_kinematics_np(g.motion), lib.body, g.sides, fps).max())
         for gait, lcs in lib.loops.items():
             for lc in lcs:
                 n = lc.loop.num_frames

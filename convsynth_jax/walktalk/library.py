@@ -14,7 +14,8 @@ import numpy as np
 from ..errors import MissingFileError, WalkTalkError
 from ..io.bvh import load_bvh
 from ..skeleton import Motion
-from .body import Body, check_same_skeleton, find_body, joint_positions
+from ..kinematics import forward_kinematics_np
+from .body import Body, check_same_skeleton, find_body
 from .gestures import apply_phase_override, load_phase_table, make_gesture
 from .locomotion import extract_loop, tile_contact, tile_loop
 from .params import WalkTalkParams
@@ -82,7 +83,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
                 ref, body = m, find_body(m.skeleton, str(f))
             check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
             source.append(joint_euler(m, arm_joints(body)))
-            torso.append(hand_torso_distance(joint_positions(m), body))
+            torso.append(hand_torso_distance(forward_kinematics_np(m), body))
             kinds.append(gait)
             if f not in chosen:
                 continue
@@ -102,7 +103,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
         m = load_bvh(f, fps=p.fps)
         check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
         source.append(joint_euler(m, arm_joints(body)))
-        torso.append(hand_torso_distance(joint_positions(m), body))
+        torso.append(hand_torso_distance(forward_kinematics_np(m), body))
         kinds.append("gesture")
         g = make_gesture(m, p.gait, p.phases, body)
         if table is not None:
@@ -118,7 +119,7 @@ def load_library(p: WalkTalkParams, data_dir: Path, loops_per_gait: int, max_ges
         m = load_bvh(f, fps=p.fps)
         check_same_skeleton(ref.skeleton, m.skeleton, ref.name, str(f))
         source.append(joint_euler(m, arm_joints(body)))
-        torso.append(hand_torso_distance(joint_positions(m), body))
+        torso.append(hand_torso_distance(forward_kinematics_np(m), body))
         kinds.append("limits only")
     return Library(body, loops, gestures, skipped, source, kinds, torso)
 

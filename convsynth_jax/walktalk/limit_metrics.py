@@ -11,7 +11,8 @@ from typing import NamedTuple
 import numpy as np
 
 from ..skeleton import Motion
-from .body import Body, joint_positions
+from ..kinematics import forward_kinematics_np
+from .body import Body
 from .gestures import Phases
 from .library import Library
 from .splice import JointLimits, joint_euler
@@ -138,7 +139,7 @@ def source_readings(lib: Library, limits: JointLimits, torso_radius_cm: float) -
         frame, cell = [], []
         for lc in lcs:
             bad = limits.violations(lc.euler, lc.joints)
-            inside = np.any(hand_torso_distance(joint_positions(lc.loop.motion), body) < torso_radius_cm, axis=1)
+            inside = np.any(hand_torso_distance(forward_kinematics_np(lc.loop.motion), body) < torso_radius_cm, axis=1)
             rows = {s: [lc.joints.index(j) for j in body.arm(s)] for s in ("l", "r")}
             frame.append(_frame_reading(bad, rows, inside))
             cell.append(np.mean([bad[:, rows[s]].mean() for s in ("l", "r")]))
@@ -146,7 +147,7 @@ def source_readings(lib: Library, limits: JointLimits, torso_radius_cm: float) -
     frame, cell = [], []
     for gc in lib.gestures:
         g = gc.gesture
-        pos = joint_positions(g.motion)
+        pos = forward_kinematics_np(g.motion)
         eu = gc.euler[g.phases.pb:g.phases.re + 1]
         span = ScoredSpan(g.motion, pos, g.phases, gc.joints, g.sides, eu)
         check = LimitCheck(body, limits, torso_radius_cm)

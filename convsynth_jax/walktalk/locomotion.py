@@ -37,8 +37,9 @@ from typing import NamedTuple
 import numpy as np
 
 from ..errors import WalkTalkError
+from ..kinematics import forward_kinematics_np
 from ..skeleton import Motion
-from .body import Body, find_body, joint_positions
+from .body import Body, find_body
 from .params import GaitParams
 
 
@@ -181,7 +182,7 @@ def detect_gait(motion: Motion, p: GaitParams, body: Body | None = None,
     """Foot contacts, heel strikes and contact phases of a locomotion clip (Y up, cm); the phase
     thresholds are taken from the whole clip (:func:`extract_loop` relabels a loop from its own frames)."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion) if positions is None else positions
+    pos = forward_kinematics_np(motion) if positions is None else positions
     downs = feet_down(pos, body, motion.fps, p)
     flight = ~(downs["l"] | downs["r"])
     gait = "jog" if flight.mean() >= p.jog_flight_frac else "walk"
@@ -241,7 +242,7 @@ def extract_loop(motion: Motion, p: GaitParams, body: Body | None = None, which:
     """Two full gait cycles from a left heel strike (paper Sec. 4); raises :class:`WalkTalkError`
     listing the strikes found when the clip holds fewer than two cycles."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion)
+    pos = forward_kinematics_np(motion)
     g = detect_gait(motion, p, body, pos)
     sl = list(g.strikes_l)
     if len(sl) < 3:
@@ -305,7 +306,7 @@ def seam_foot_slide(motion: Motion, n_loop: int, p: GaitParams, body: Body | Non
     frames, over the frames within ``window`` of a loop seam (frame k*N-1 -> k*N); 0 when no seam
     lies inside the motion."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion) if positions is None else positions
+    pos = forward_kinematics_np(motion) if positions is None else positions
     n = motion.num_frames
     near = np.zeros(n, bool)          # frames t whose step t-1 -> t lies within ``window`` of a seam
     for s in range(n_loop, n, n_loop):

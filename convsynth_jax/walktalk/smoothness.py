@@ -4,7 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from .body import Body, joint_positions
+from ..kinematics import forward_kinematics_np, jerk
+from .body import Body
 from .gestures import Phases
 from .locomotion import tile_loop
 from .pipeline import LoopContext
@@ -17,7 +18,7 @@ def wrist_jerk(pos: np.ndarray, body: Body, sides, fps: float) -> np.ndarray:
     out = None
     for s in sides:
         x = pos[:, body.joints[f"hand_{s}"]] - pos[:, body.joints["hips"]]
-        j = np.linalg.norm(np.diff(x, n=3, axis=0), axis=-1) * fps ** 3
+        j = np.linalg.norm(jerk(x, fps), axis=-1)
         out = j if out is None else np.maximum(out, j)
     return out
 
@@ -25,7 +26,7 @@ def wrist_jerk(pos: np.ndarray, body: Body, sides, fps: float) -> np.ndarray:
 def loop_source_jerk(lc: LoopContext, sides) -> float:
     """The largest wrist jerk (cm/s^3) of ``sides`` over the loop tiled three times (its seams included)."""
     m = tile_loop(lc.loop, 3 * lc.loop.num_frames)
-    return float(wrist_jerk(joint_positions(m), lc.body, sides, m.fps).max())
+    return float(wrist_jerk(forward_kinematics_np(m), lc.body, sides, m.fps).max())
 
 
 def boundary_jerk(jerk: np.ndarray, ph: Phases) -> float | None:

@@ -238,7 +238,7 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     per loop (``per_loop``: the splices fail where, and only where, their loop does)."""
     import numpy as np
 
-    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.kinematics import forward_kinematics_np
     from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
     from convsynth_jax.walktalk.library import dof_limits, load_library, peak_placed_splices
     from convsynth_jax.walktalk.limit_metrics import LimitCheck, ScoredSpan, limit_violations
@@ -254,13 +254,13 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     acc: dict = {}
     for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
         g = gc.gesture
-        lpos = joint_positions(loco)
+        lpos = forward_kinematics_np(loco)
         for method in ("naive", "stylized+synced"):
             r = splice_gesture(lc, gc, u, T, p.splice, method, loco=loco, contact=contact, limits=rom)
             ph = r.phases
             fr = np.arange(ph.pb, ph.re + 1)
             phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
-            for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
+            for who, m, pos in (("splice", r.motion, forward_kinematics_np(r.motion)), ("loop", loco, lpos)):
                 dof, _ = limit_violations(ScoredSpan(m, pos, ph, gc.joints, g.sides), LimitCheck(lib.body, limits, radius))
                 inside = hand_torso_distance(pos, lib.body, fr) < radius
                 gest = np.array([s in g.sides for s in ("l", "r")])
@@ -303,7 +303,7 @@ def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dic
     variant ``base``."""
     import numpy as np
 
-    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.kinematics import forward_kinematics_np
     from convsynth_jax.walktalk.library import dof_limits, peak_placed_splices
     from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
 
@@ -312,10 +312,10 @@ def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dic
     reach: dict = {}
     for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
         gst = gc.gesture
-        lpos = joint_positions(loco)
+        lpos = forward_kinematics_np(loco)
         for name, (sp, method) in variants.items():
             r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=rom)
-            pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
+            pos = forward_kinematics_np(r.motion.slice(r.peak, r.peak + 1))[0]
             d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
                                         - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
                          for s in gst.sides])
@@ -506,13 +506,13 @@ def loop_seams(data_dir: Path) -> dict:
     import numpy as np
 
     from convsynth_jax.io.bvh import load_bvh
-    from convsynth_jax.walktalk.body import joint_positions
+    from convsynth_jax.kinematics import forward_kinematics_np
     from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
     from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.torso import hand_torso_distance
     from convsynth_jax.walktalk.locomotion import _qconj, _qmul
     from convsynth_jax.walktalk.params import WalkTalkParams
-    from convsynth_jax.walktalk.synthesized import torso_frame
+    from convsynth_jax.walktalk.conversation_gestures import torso_frame
 
     p, ep = WalkTalkParams(), EvalParams()
     lib = load_library(p, data_dir, 10_000, max_gestures=1, single_peak_only=True)
@@ -531,7 +531,7 @@ def loop_seams(data_dir: Path) -> dict:
             q = np.asarray(raw.rotations, dtype=np.float64)
             r = _qmul(q[a], _qconj(q[a + n]))
             ang = np.degrees(2 * np.arccos(np.clip(np.abs(r[:, 0]), 0, 1)))
-            pr, pl = joint_positions(raw)[a:a + n], joint_positions(lp.motion)
+            pr, pl = forward_kinematics_np(raw)[a:a + n], forward_kinematics_np(lp.motion)
             world = max(float(np.linalg.norm((pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
                                              - (pr[:, body.joints[f"hand_{s}"]] - pr[:, hips]), axis=-1).max())
                         for s in ("l", "r"))

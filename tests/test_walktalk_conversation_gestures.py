@@ -1,4 +1,4 @@
-"""Gestures from the core system's synthesized conversation (walktalk/synthesized.py, ours): the
+"""Gestures from the core system's synthesized conversation (walktalk/conversation_gestures.py, ours): the
 retargeting by joint role against planted bone directions, the movement segmentation against
 planted movements, and the demo end to end on the tiny corpus's synthesized conversation."""
 from __future__ import annotations
@@ -16,8 +16,9 @@ from convsynth_jax.errors import ConvSynthError
 from convsynth_jax.io.bvh import load_bvh
 from convsynth_jax.rotations import euler_deg_to_quat_np
 from convsynth_jax.skeleton import Motion
-from convsynth_jax.walktalk.body import find_body, joint_positions
-from convsynth_jax.walktalk.synthesized import SegmentParams, movement_runs, retarget_arms
+from convsynth_jax.kinematics import forward_kinematics_np
+from convsynth_jax.walktalk.body import find_body
+from convsynth_jax.walktalk.conversation_gestures import SegmentParams, movement_runs, retarget_arms
 
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 
@@ -67,7 +68,7 @@ def test_retarget_carries_bone_directions_in_the_torso_frame(bandai):
     src = _seated_motion(e)
     out = retarget_arms(src, template, body)
     assert out.skeleton is template.skeleton and out.num_frames == f
-    sp, tp = joint_positions(src), joint_positions(out)
+    sp, tp = forward_kinematics_np(src), forward_kinematics_np(out)
     s = {k: INDEX[k] for k in ("Hips", "Neck", "LeftArm", "RightArm", "LeftForeArm", "RightForeArm", "LeftHand",
                                "RightHand")}
     fs = _frame(sp, s["Hips"], s["Neck"], s["LeftArm"], s["RightArm"])

@@ -16,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..easing import smoothstep
 from ..skeleton import Motion, Skeleton
 
 NAMES = ("joint_Root", "Hips", "Spine", "Chest", "Neck", "Head", "Shoulder_L", "UpperArm_L", "LowerArm_L",
@@ -121,8 +122,7 @@ def synthetic_walk(periods: float = 3.0, period: int = 32, duty: float = 0.6, sp
 
 
 def _smooth(x):
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3 - 2 * x)
+    return smoothstep(np.clip(x, 0.0, 1.0))
 
 
 def synthetic_gesture(n: int = 70, rise=(10, 25), fall=(40, 55), amp_deg: float = 90.0, sides: str = "r",

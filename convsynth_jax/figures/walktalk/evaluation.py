@@ -1,17 +1,18 @@
 """Figures of the walk-the-talk evaluation, drawn from the evaluation table (object-oriented
 matplotlib, no pyplot state): gesture peak vs gait phase, elbow bend loop vs stroke, a contact
-sheet of one splice, and the contact/flight phases of a walk and a jog loop."""
+sheet of one splice, and the contact/flight phases of a walk and a jog loop. Each returns the Figure;
+``task=walktalk_eval`` writes it with ``figures.save_figure``."""
 from __future__ import annotations
 
 import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
-from ..skeleton import Motion
-from .body import joint_positions
+from ...kinematics import forward_kinematics_np
+from ...skeleton import Motion
 
 
-def peak_phase_histogram(df: pd.DataFrame) -> Figure:
+def peak_phase_figure(df: pd.DataFrame) -> Figure:
     """Histogram of the stroke peak's position in the gait cycle (0 = left contact), per gait and
     method; the share of peaks in contact is in each legend."""
     gaits = list(dict.fromkeys(df["gait"]))
@@ -32,7 +33,8 @@ def peak_phase_histogram(df: pd.DataFrame) -> Figure:
     return fig
 
 
-def elbow_scatter(df: pd.DataFrame) -> Figure:
+def elbow_bend_figure(df: pd.DataFrame) -> Figure:
+    """Per method, the stroke's elbow bend against the loop's mean elbow bend (degrees), per gait."""
     methods = list(dict.fromkeys(df["method"]))
     fig = Figure(figsize=(4 * len(methods), 3.6))
     for i, m in enumerate(methods):
@@ -50,14 +52,14 @@ def elbow_scatter(df: pd.DataFrame) -> Figure:
     return fig
 
 
-def contact_sheet(motions: dict[str, Motion], frames: list[int], title: str = "") -> Figure:
+def splice_contact_sheet_figure(motions: dict[str, Motion], frames: list[int], title: str = "") -> Figure:
     """Side views (forward axis vs height) of a few frames, one row per motion (e.g. naive vs
     stylized+synced), each frame drawn around its own root."""
     rows = list(motions)
     fig = Figure(figsize=(1.6 * len(frames), 2.6 * len(rows)))
     for r, name in enumerate(rows):
         m = motions[name]
-        pos = joint_positions(m)
+        pos = forward_kinematics_np(m)
         parents = m.skeleton.parents
         travel = pos[-1, 1] - pos[0, 1]
         fwd = 2 if abs(travel[2]) >= abs(travel[0]) else 0
@@ -83,7 +85,7 @@ def contact_sheet(motions: dict[str, Motion], frames: list[int], title: str = ""
     return fig
 
 
-def gait_phases(panels: dict, gait_params=None) -> Figure:
+def gait_phases_figure(panels: dict, gait_params=None) -> Figure:
     """Contact and flight phases of a few loops, one column per loop (e.g. one walk and one jog):
     the feet's lowest-point heights above the ground with the contact frames of the primary
     reading shaded (top), and below the quantity the second reading is taken from with its contact
@@ -129,17 +131,12 @@ def gait_phases(panels: dict, gait_params=None) -> Figure:
 
 
 def gait_phase_panel(loop, body, positions: np.ndarray | None = None) -> dict:
-    """The arrays :func:`gait_phases` draws for one loop (``positions``: its joint positions, (N, J, 3))."""
-    from .locomotion import foot_tracks
+    """The arrays :func:`gait_phases_figure` draws for one loop (``positions``: its joint positions, (N, J, 3))."""
+    from ...kinematics import forward_kinematics_np
+    from ...walktalk.locomotion import foot_tracks
 
-    tr = foot_tracks(joint_positions(loop.motion) if positions is None else positions, body)
+    tr = foot_tracks(forward_kinematics_np(loop.motion) if positions is None else positions, body)
     alt = loop.contact if loop.contact_alt is None else loop.contact_alt
     return {"low_l": tr.low_l, "low_r": tr.low_r, "separation": tr.separation, "contact": loop.contact,
             "contact_alt": alt, "gait": loop.gait, "fps": loop.motion.fps}
 
-
-def save_figure(fig: Figure, path, dpi: int = 110) -> None:
-    from ..utils import atomic_path
-
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, dpi=dpi, format=str(path).rsplit(".", 1)[-1])

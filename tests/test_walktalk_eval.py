@@ -359,21 +359,26 @@ def test_elbow_partial_corr_planted():
     assert _per_gesture_corr(naive) == [0.0, 0.0] and elbow_partial_corr(naive) == ([0.0, 0.0], [0.0, 0.0])
 
 
-def test_loop_bend_cache_is_not_fooled_by_a_reused_id(monkeypatch):
-    """lc_bend caches by id(loop context); a freed context's id can come back for another loop (the
-    bench builds several libraries in one process). Planted collision: every id is 1."""
+def test_loop_bend_is_kept_by_its_loop_context(monkeypatch):
+    """lc_bend's cache lives on the loop context it describes (no process-wide cache keyed by id(),
+    whose ids come back for other loops once a context is freed): two loops never share a value, and
+    a context built again from the same loop (dataclasses.replace) computes its own."""
+    import dataclasses
+
     from convsynth_jax.walktalk import evaluate
     from convsynth_jax.walktalk.params import GaitParams
     from convsynth_jax.walktalk.pipeline import loop_context
 
-    monkeypatch.setattr(evaluate, "_BEND_CACHE", {})
-    monkeypatch.setattr(evaluate, "id", lambda x: 1, raising=False)
+    monkeypatch.setattr(evaluate, "id", lambda x: 1, raising=False)   # were anything keyed by id, all would collide
     walk = extract_loop(load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh"))), GaitParams())
     run = extract_loop(load_bvh(next(FIXTURES.glob("*_run_normal_*.bvh"))), GaitParams())
     a, b = loop_context(walk), loop_context(run)
     bend_a, bend_b = evaluate.lc_bend(a, "r"), evaluate.lc_bend(b, "r")
     assert abs(bend_a - bend_b) > 20     # walking vs running elbows
     assert evaluate.lc_bend(a, "r") == bend_a
+    assert set(a.elbow_bend) == {"r"} and a.elbow_bend is not b.elbow_bend
+    c = dataclasses.replace(a, gait_min_std=None)
+    assert c.elbow_bend == {} and evaluate.lc_bend(c, "r") == bend_a
 
 
 def test_joint_limits_pool_every_clip_walk_turns_included(tmp_path):

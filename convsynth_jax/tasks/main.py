@@ -34,7 +34,7 @@ def _csv(df: pd.DataFrame, path: Path) -> None:
 
 def run(cfg, out_dir: Path) -> dict:
     from ..errors import ConfigError
-    from ..evaluation.loo import fit_fold, run_fold
+    from ..evaluation.loo import fit_fold, recording_threshold_table, run_fold
     from ..figures import ablation_figure, success_rate_figure
     from ..stats.cooccurrence import cooccurrence_table
     from .common import annotated_corpus, cache_dir, make_configured_system, open_corpus, params_of
@@ -94,10 +94,11 @@ def run(cfg, out_dir: Path) -> dict:
 
     t0 = time.perf_counter()
     frames = []
+    thresholds = recording_threshold_table(annotations, params.annotate)
     for cond in tqdm(conditions, desc="leave-one-out conditions", disable=not progress, leave=False):
         frames.append(run_fold(system, annotations, fold, cond, params, out_dir=out_dir, cache_dir=cache,
                                export_bvh=bool(cfg.task.get("export_bvh", True)), models=models,
-                               with_audio=system.needs_audio))
+                               with_audio=system.needs_audio, thresholds=thresholds))
     cases = pd.concat(frames, ignore_index=True)
     _csv(cases, out_dir / "cases.csv")
     timings["leave_one_out_s"] = time.perf_counter() - t0

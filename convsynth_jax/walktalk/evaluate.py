@@ -442,17 +442,16 @@ def _mean(x) -> float:
 
 
 _GAIT = None  # set by run_evaluation (GaitParams for the seam foot-slide test)
-_BEND_CACHE: dict = {}
 
 
 def lc_bend(lc: LoopContext, side: str, sd: bool = False) -> float:
-    """The loop's elbow bend (degrees) of ``side``: its mean over the loop, or (``sd``) its std."""
-    key = (id(lc), side)
-    hit = _BEND_CACHE.get(key)
-    if hit is None or hit[0] is not lc:   # an id can be reused once its loop is freed: check identity
+    """The loop's elbow bend (degrees) of ``side``: its mean over the loop, or (``sd``) its std
+    (computed once per context and side, kept in ``lc.elbow_bend``)."""
+    hit = lc.elbow_bend.get(side)
+    if hit is None:
         b = elbow_bend(joint_positions(lc.loop.motion), lc.body, side)
-        hit = _BEND_CACHE[key] = (lc, float(b.mean()), float(b.std()))
-    return hit[2 if sd else 1]
+        hit = lc.elbow_bend[side] = (float(b.mean()), float(b.std()))
+    return hit[1 if sd else 0]
 
 
 def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bool = False) -> pd.DataFrame:

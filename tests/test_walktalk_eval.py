@@ -9,15 +9,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from omegaconf import OmegaConf
 
-from convsynth_jax.config import compose, run_task
+from convsynth_jax.config import compose, group_params, run_task
 from convsynth_jax.errors import ConfigError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh, save_bvh
 from convsynth_jax.walktalk.body import find_body, joint_positions
 from convsynth_jax.walktalk.gestures import make_gesture
 from convsynth_jax.walktalk.locomotion import extract_loop, seam_foot_slide, tile_loop
-from convsynth_jax.walktalk.params import WalkTalkParams, params_from_dict
+from convsynth_jax.schema import build_params
+from convsynth_jax.walktalk.params import WalkTalkParams
 
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 COLUMNS = ["gesture", "loop", "gait", "method", "stroke_peak_s", "utterance_peak_s", "shift_s", "peak_in_contact",
@@ -34,12 +34,12 @@ def _asdict(x):
 
 def test_yaml_defaults_equal_dataclass_defaults():
     cfg = compose(["task=walktalk_eval"])
-    from_yaml = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
+    from_yaml = group_params(cfg, "walktalk")
     assert _asdict(from_yaml) == _asdict(WalkTalkParams())
-    with pytest.raises(WalkTalkError, match="unknown keys"):
-        params_from_dict({"splice": {"cc": 1.0}})
+    with pytest.raises(ConfigError, match=r"walktalk\.splice\.cc"):
+        build_params(WalkTalkParams, {"splice": {"cc": 1.0}}, "walktalk")
     with pytest.raises(WalkTalkError, match="c must be > 0"):
-        params_from_dict({"splice": {"c": -1.0}})
+        build_params(WalkTalkParams, {"splice": {"c": -1.0}}, "walktalk")
 
 
 def test_fixture_size_and_licence():
@@ -186,7 +186,7 @@ def test_phase_csv_override_and_out_of_order(tmp_path):
     run_task(cfg, tmp_path / "ok")
     from convsynth_jax.walktalk.evaluate import load_library
 
-    lib = load_library(params_from_dict({"phases_csv": str(csv), "splice": {"transition_pad_s": 0.0}}), FIXTURES, 1)
+    lib = load_library(build_params(WalkTalkParams, {"phases_csv": str(csv), "splice": {"transition_pad_s": 0.0}}), FIXTURES, 1)
     g = next(gc.gesture for gc in lib.gestures if Path(gc.gesture.name).stem == stem)
     assert (g.phases.pb, g.phases.pe, g.phases.sb, g.phases.se, g.phases.rb, g.phases.re) == (3, 9, 12, 30, 33, 48)
     assert g.phases.peaks == (15,) and g.handedness == "r"

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import json
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List
 
 import numpy as np
 import pandas as pd
@@ -14,19 +16,29 @@ import pandas as pd
 from ..utils import atomic_path
 
 
+@dataclass(frozen=True)
+class Figure4Settings:
+    """``conf/task/figure4.yaml``."""
+
+    name: str = "figure4"
+    ks: List[int] = field(default_factory=lambda: [2, 3, 4, 5])  # key-state granularities k
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..graph import build_database
     from ..graph.build import k_step_costs, velocity_weight
     from ..stats.fits import fit_distributions
     from .build_graph import character_clip_sets
+    from ..config import task_settings
     from .common import params_of
 
     params = params_of(cfg)
+    ks = task_settings(cfg).ks
     p = params.graph
     hist_rows, fit_rows = [], []
     for char, clips in character_clip_sets(params).items():
         db = build_database(clips, params.features)
-        for k in cfg.task.get("ks", [2, 3, 4, 5]):
+        for k in ks:
             # w_v as build_graph would choose it for this k, so each panel's threshold is the graph's
             w_v = velocity_weight(db, dataclasses.replace(p, k=int(k)))
             x = k_step_costs(db, int(k), w_v)

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import dataclasses
 import logging
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List
 
 import pandas as pd
 
@@ -16,16 +18,26 @@ from ..utils import atomic_path, write_text_atomic
 log = logging.getLogger(__name__)
 
 
+@dataclass(frozen=True)
+class Table2Settings:
+    """``conf/task/table2.yaml``."""
+
+    name: str = "table2"
+    ks: List[int] = field(default_factory=lambda: [2, 3, 4, 5])  # key-state granularities k
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..graph import build_database, build_graph
     from .build_graph import character_clip_sets
+    from ..config import task_settings
     from .common import params_of
 
     params = params_of(cfg)
+    ks = task_settings(cfg).ks
     rows = []
     for char, clips in character_clip_sets(params).items():
         db = build_database(clips, params.features)
-        for k in cfg.task.get("ks", [2, 3, 4, 5]):
+        for k in ks:
             g = build_graph(db, dataclasses.replace(params.graph, k=int(k)))
             m = g.meta
             rows.append({"character": char or "all", "k": int(k), "threshold": m["threshold"],

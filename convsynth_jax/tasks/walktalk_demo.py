@@ -5,19 +5,20 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Dict, List, Optional
 
 import numpy as np
 import pandas as pd
-from omegaconf import OmegaConf
 
+from ..config import group_params, task_settings
 from ..errors import MissingFileError, WalkTalkError
 from ..io.bvh import save_bvh
 from ..utils import atomic_path
 from ..walktalk.demo import DemoParams, Speaker, run_demo
 from ..walktalk.evaluate import dof_limits, load_library, resolve_data_dir
 from ..walktalk.gaze import AAREvent
-from ..walktalk.params import params_from_dict
 
 REPO = Path(__file__).resolve().parents[2]
 log = logging.getLogger(__name__)
@@ -64,7 +65,7 @@ def _pick_loops(lcs, n):
     return [lcs[k] for k in order[best:best + n]]
 
 
-def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
+def _synthesized_source(t: WalkTalkDemoSettings, speakers: list, lib, p, own_times: bool):
     """Per speaker, the gestures cut from its character's synthesized BVH (``task.synthesized_dir``,
     the output folder of ``task=synthesize``; ``task.synthesized_characters`` one character per
     speaker, default the folder's BVHs sorted) as GestureContexts; with ``own_times`` each speaker's peaks
@@ -75,22 +76,22 @@ def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
     from ..walktalk.pipeline import gesture_context
     from ..walktalk.synthesized import synthesized_gestures
 
-    folder = _resolve(str(t.get("synthesized_dir") or ""))
-    if not t.get("synthesized_dir") or not folder.is_dir():
+    folder = _resolve(t.synthesized_dir)
+    if not t.synthesized_dir or not folder.is_dir():
         raise MissingFileError("gesture_source=synthesized needs task.synthesized_dir, the output folder of "
                                "task=synthesize", folder)
-    chars = t.get("synthesized_characters") or sorted(f.stem for f in folder.glob("*.bvh"))
+    chars = t.synthesized_characters or sorted(f.stem for f in folder.glob("*.bvh"))
     if len(chars) < len(speakers):
         raise WalkTalkError(f"{len(speakers)} speakers but synthesized characters {list(chars)}", folder)
     files = {sp.name: folder / f"{c}.bvh" for sp, c in zip(speakers, chars)}
-    offsets = {s["name"]: float(s.get("offset_s", 0.0)) for s in t["speakers"]}
+    offsets = {s["name"]: float(s.get("offset_s", 0.0)) for s in t.speakers}
     template = lib.gestures[0].gesture.motion if lib.gestures else None
     if template is None:
         raise WalkTalkError("gesture_source=synthesized needs one standing gesture clip of the library as the "
                             "retargeting template", where="walktalk.gesture_globs")
     pad = round(p.splice.transition_pad_s * p.fps)
     by_speaker, out_speakers, info = {}, [], {}
-    duration = float(t["duration_s"])
+    duration = t.duration_s
     for sp in speakers:
         path = _resolve(str(files[sp.name]))
         if not path.is_file():
@@ -107,34 +108,55 @@ def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
     return by_speaker, out_speakers, info
 
 
+@dataclass(frozen=True)
+class WalkTalkDemoSettings:
+    """``conf/task/walktalk_demo.yaml``."""
+
+    name: str = "walktalk_demo"
+    gaits: List[str] = field(default_factory=lambda: ["walk", "jog"])  # one pair of characters per gait
+    duration_s: float = 60.0
+    spacing_cm: float = 100.0           # lateral distance between the two walkers (ours)
+    min_gap_s: float = 0.2              # least gap between consecutive gestures of a character (ours)
+    aar: str = "inferred"               # inferred | random | scripted | statistics
+    scripted_aar: List[Dict[str, Any]] = field(default_factory=list)  # aar=scripted: [{addresser, addressee, t_begin, t_full, t_release, t_end}]
+    method: str = "stylized+synced"
+    include_multi_peak: bool = True     # also use multi-peak gestures (never realigned)
+    loop_candidates: int = 6            # loops per gait to choose the closest-speed pair from
+    max_gestures: Optional[int] = 60    # gesture clips loaded, spread across kinds (None = all)
+    gesture_source: str = "library"     # library | synthesized
+    synthesized_dir: str = ""           # the output folder of task=synthesize
+    synthesized_characters: Optional[List[str]] = None  # one character per speaker (None: the folder's BVHs, sorted)
+    synthesized_timing: str = "own"     # own | speech
+    speakers: List[Dict[str, Any]] = field(default_factory=list)  # {name, wav, transcript, offset_s} (or peaks_tsv)
+
+
 def run(cfg, out_dir: Path) -> dict:
-    t = OmegaConf.to_container(cfg.task, resolve=True)
-    p = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
-    dp = DemoParams(duration_s=float(t["duration_s"]), spacing_cm=float(t["spacing_cm"]),
-                    min_gap_s=float(t["min_gap_s"]), aar=str(t["aar"]), method=str(t["method"]),
-                    include_multi_peak=bool(t["include_multi_peak"]))
-    source = str(t.get("gesture_source", "library"))
+    t = task_settings(cfg)
+    p = group_params(cfg, "walktalk")
+    dp = DemoParams(duration_s=t.duration_s, spacing_cm=t.spacing_cm, min_gap_s=t.min_gap_s, aar=t.aar,
+                    method=t.method, include_multi_peak=t.include_multi_peak)
+    source = t.gesture_source
     if source not in ("library", "synthesized"):
         raise WalkTalkError(f"gesture_source must be library or synthesized, got {source!r}", where="task.gesture_source")
-    timing = str(t.get("synthesized_timing", "own"))
+    timing = t.synthesized_timing
     if timing not in ("own", "speech"):
         raise WalkTalkError(f"synthesized_timing must be own or speech, got {timing!r}", where="task.synthesized_timing")
     own_times = source == "synthesized" and timing == "own"
     t0 = time.perf_counter()
     speakers = [Speaker(s["name"], () if own_times else speech_peaks(s, cfg), str(s.get("wav") or s.get("peaks_tsv")))
-                for s in t["speakers"]]
+                for s in t.speakers]
     t1 = time.perf_counter()
     data_dir = resolve_data_dir(p, REPO)
-    lib = load_library(p, data_dir, int(t["loop_candidates"]), 1 if source == "synthesized" else t.get("max_gestures"))
+    lib = load_library(p, data_dir, t.loop_candidates, 1 if source == "synthesized" else t.max_gestures)
     gestures, synth_info = lib.gestures, {}
     if source == "synthesized":
         gestures, speakers, synth_info = _synthesized_source(t, speakers, lib, p, own_times)
-    scripted = [AAREvent(**e) for e in (t.get("scripted_aar") or [])]
+    scripted = [AAREvent(**e) for e in t.scripted_aar]
     t2 = time.perf_counter()
     rows, aar_rows, files = [], [], []
     rng = np.random.default_rng(p.seed)
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
-    for gait in t["gaits"]:
+    for gait in t.gaits:
         lcs = lib.loops.get(gait) or []
         if not lcs:
             raise WalkTalkError(f"no {gait} loop found", data_dir)

@@ -23,7 +23,7 @@ import dataclasses
 import functools
 import types
 import typing
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 from .errors import ConfigError, ConvSynthError
@@ -38,6 +38,11 @@ def _hints(cls) -> dict:
 
 def _type_name(tp) -> str:
     return getattr(tp, "__name__", None) or str(tp).replace("typing.", "")
+
+
+def _is_list(value) -> bool:
+    """A list-like value (a list, a tuple, or another sequence that is not a string)."""
+    return isinstance(value, Sequence) and not isinstance(value, (str, bytes))
 
 
 def _fail(where: str, tp, value) -> ConfigError:
@@ -93,17 +98,17 @@ def _convert(value, tp, where: str, default=_MISSING):
             return None
         raise _fail(where, tp, value)
     if tp is tuple or origin is tuple:
-        if not isinstance(value, (list, tuple)):
+        if not _is_list(value):
             raise _fail(where, tp, value)
         if not args:   # a bare ``tuple``: nested lists become tuples too (hashable, as the field's default)
-            return tuple(tuple(x) if isinstance(x, list) else x for x in value)
+            return tuple(tuple(x) if _is_list(x) else x for x in value)
         if len(args) == 2 and args[1] is Ellipsis:
             return tuple(_convert(x, args[0], f"{where}[{i}]") for i, x in enumerate(value))
         if len(args) != len(value):
             raise ConfigError(f"{where}: expected {len(args)} values, got {len(value)}: {value!r}")
         return tuple(_convert(x, a, f"{where}[{i}]") for i, (x, a) in enumerate(zip(args, value)))
     if tp is list or origin is list:
-        if not isinstance(value, (list, tuple)):
+        if not _is_list(value):
             raise _fail(where, tp, value)
         return [_convert(x, args[0], f"{where}[{i}]") if args else x for i, x in enumerate(value)]
     if tp is dict or origin in (dict, Mapping, typing.Mapping):

@@ -164,4 +164,6 @@ def test_demo_with_real_speech(tmp_path, speech_dir, bandai_dir):
     assert summary["utterance_peaks"]["A"] > 3 and summary["gestures_spliced"] > 3
     ev = pd.read_csv(tmp_path / "walktalk_events.csv")
     assert ev.loc[ev["single_peak"], "contact_at_peak"].mean() >= 0.95
+    assert ev.loc[ev["single_peak"], "contact_alt_at_peak"].mean() >= 0.95
+    assert summary["single_peak_contact_rate_naive"] == pytest.approx(ev.loc[ev["single_peak"], "contact_at_nominal"].mean())
     assert set(ev["character"]) == {"A", "B"}

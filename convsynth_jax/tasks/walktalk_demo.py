@@ -17,7 +17,7 @@ from ..errors import MissingFileError, WalkTalkError
 from ..io.bvh import save_bvh
 from ..utils import atomic_path
 from ..walktalk.demo import DemoParams, Speaker, run_demo
-from ..walktalk.evaluate import dof_limits, load_library, resolve_data_dir
+from ..walktalk.library import dof_limits, load_library, resolve_data_dir
 from ..walktalk.gaze import AAREvent
 
 REPO = Path(__file__).resolve().parents[2]
@@ -170,7 +170,8 @@ def run(cfg, out_dir: Path) -> dict:
         rows += ev
         aar_rows += [{"gait": gait, **e.__dict__} for e in aar]
     t3 = time.perf_counter()
-    events = pd.DataFrame(rows, columns=EVENT_COLUMNS + ["single_peak"])
+    events = pd.DataFrame(rows, columns=EVENT_COLUMNS + ["single_peak", "contact_alt_at_peak", "contact_at_nominal",
+                                                        "contact_alt_at_nominal"])
     with atomic_path(out_dir / "walktalk_events.csv") as tmp:
         events.to_csv(tmp, index=False)
     with atomic_path(out_dir / "walktalk_aar.csv") as tmp:
@@ -179,6 +180,14 @@ def run(cfg, out_dir: Path) -> dict:
     return {"data_dir": str(data_dir), "files": files, "gestures_spliced": len(events),
             "utterance_peaks": {s.name: len(s.peaks_s) for s in speakers},
             "single_peak_contact_rate": float(single["contact_at_peak"].mean()) if len(single) else None,
+            # the same by the second reading of the phases, and both at the nominal (naive,
+            # unsynchronized) peak; per gait in contact_by_gait
+            "single_peak_contact_alt_rate": float(single["contact_alt_at_peak"].mean()) if len(single) else None,
+            "single_peak_contact_rate_naive": float(single["contact_at_nominal"].mean()) if len(single) else None,
+            "single_peak_contact_alt_rate_naive": float(single["contact_alt_at_nominal"].mean()) if len(single) else None,
+            "contact_by_gait": {g: {"single_peak": int(len(d)), **{c: float(d[c].mean()) for c in (
+                "contact_at_peak", "contact_alt_at_peak", "contact_at_nominal", "contact_alt_at_nominal")}}
+                for g, d in single.groupby("gait")} if len(single) else {},
             "shift_range_s": [float(events["shift_s"].min()), float(events["shift_s"].max())] if len(events) else None,
             "aar_events": len(aar_rows), "gesture_source": source, "synthesized": synth_info,
             "speech_seconds": t1 - t0, "load_seconds": t2 - t1,

@@ -1,6 +1,6 @@
 """Figures of the walk-the-talk evaluation, drawn from the evaluation table (object-oriented
-matplotlib, no pyplot state): gesture peak vs gait phase, elbow bend loop vs stroke, and a contact
-sheet of one splice."""
+matplotlib, no pyplot state): gesture peak vs gait phase, elbow bend loop vs stroke, a contact
+sheet of one splice, and the contact/flight phases of a walk and a jog loop."""
 from __future__ import annotations
 
 import numpy as np
@@ -81,6 +81,61 @@ def contact_sheet(motions: dict[str, Motion], frames: list[int], title: str = ""
         fig.suptitle(title, fontsize=9)
     fig.tight_layout()
     return fig
+
+
+def gait_phases(panels: dict, gait_params=None) -> Figure:
+    """Contact and flight phases of a few loops, one column per loop (e.g. one walk and one jog):
+    the feet's lowest-point heights above the ground with the contact frames of the primary
+    reading shaded (top), and below the quantity the second reading is taken from with its contact
+    frames shaded: the feet's separation along the direction of travel (walk) or the heights again
+    (jog) (``locomotion.contact_phases``).
+
+    panels: title -> dict with ``low_l``, ``low_r``, ``separation``, ``contact``, ``contact_alt``
+    (F,) arrays, ``gait`` and ``fps``; ``gait_params`` (``GaitParams``): draws the second
+    reading's thresholds (walk: +- ``pass_frac`` of the step separation, the 95th percentile of the
+    absolute separation; jog: ``jog_ground_frac`` of each foot's clearance)."""
+    names = list(panels)
+    fig = Figure(figsize=(5.2 * len(names), 4.6))
+    labels = {"low_l": "left foot", "low_r": "right foot", "separation": "left ahead of right"}
+    for c, name in enumerate(names):
+        d = panels[name]
+        t = np.arange(len(d["contact"])) / d["fps"]
+        second = ("separation",) if d["gait"] == "walk" else ("low_l", "low_r")
+        for r, (keys, mask, label) in enumerate(((("low_l", "low_r"), d["contact"], "contact"),
+                                                 (second, d["contact_alt"], "contact, second reading"))):
+            ax = fig.add_subplot(2, len(names), r * len(names) + c + 1)
+            for k in keys:
+                ax.plot(t, d[k], color={"low_l": "C0", "low_r": "C1", "separation": "C2"}[k], lw=1.3, label=labels[k])
+            lo, hi = ax.get_ylim()
+            ax.fill_between(t, lo, hi, where=np.asarray(mask, bool), step="mid", color="0.85", zorder=0,
+                            label=f"{label} ({100 * np.mean(mask):.0f}%)")
+            ax.set_ylim(lo, hi)
+            if r == 1 and gait_params is not None:
+                if d["gait"] == "walk":
+                    step = np.percentile(np.abs(d["separation"]), 95)
+                    for sgn in (-1, 1):
+                        ax.axhline(sgn * gait_params.pass_frac * step, color="0.4", lw=0.8, ls="--")
+                else:
+                    for k, colour in (("low_l", "C0"), ("low_r", "C1")):
+                        ax.axhline(gait_params.jog_ground_frac * d[k].max(), color=colour, lw=0.8, ls="--")
+            ax.set_ylabel("separation (cm)" if keys == ("separation",) else "height above ground (cm)")
+            if r == 0:
+                ax.set_title(f"{name} ({d['gait']})", fontsize=9)
+            else:
+                ax.set_xlabel("time in the loop (s)")
+            ax.legend(fontsize=6, loc="upper right")
+    fig.tight_layout()
+    return fig
+
+
+def gait_phase_panel(loop, body, positions: np.ndarray | None = None) -> dict:
+    """The arrays :func:`gait_phases` draws for one loop (``positions``: its joint positions, (N, J, 3))."""
+    from .locomotion import foot_tracks
+
+    tr = foot_tracks(joint_positions(loop.motion) if positions is None else positions, body)
+    alt = loop.contact if loop.contact_alt is None else loop.contact_alt
+    return {"low_l": tr.low_l, "low_r": tr.low_r, "separation": tr.separation, "contact": loop.contact,
+            "contact_alt": alt, "gait": loop.gait, "fps": loop.motion.fps}
 
 
 def save_figure(fig: Figure, path, dpi: int = 110) -> None:

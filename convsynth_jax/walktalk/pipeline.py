@@ -63,7 +63,7 @@ class LoopContext:
     # ours; set by :func:`share_gait_band`); None = the loop's own
     gait_min_std: np.ndarray | None = None
     # side -> (mean, std) elbow bend in degrees over the loop, filled on first use by
-    # walktalk.evaluate.lc_bend (a cache held by the context it describes)
+    # walktalk.elbow.lc_bend (a cache held by the context it describes)
     elbow_bend: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
 

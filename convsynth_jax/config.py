@@ -4,11 +4,16 @@
 ``convsynth_jax.tasks.NAME.run(cfg, out_dir)``, which returns a summary dict; the summary is written
 as ``summary.json`` into Hydra's output directory (``conf/hydra/`` decides where that is).
 
-Typed parameters: every config group with parameters has a frozen dataclass (``GROUPS``) that is
-registered here as a Hydra structured-config schema named ``schema`` in its group; the group's
-YAML files extend it (``defaults: [schema, _self_]``), so keys and types are checked when the config
-is composed and the defaults live in the dataclass only. :func:`to_params` converts a composed
-config into :class:`convsynth_jax.params.Params` once, at the task boundary.
+Typed parameters: every config group has a frozen dataclass (``GROUPS``: the pipeline's groups,
+``cdbn``, ``walktalk``, ``loo``, ``jax_cache``; ``TASKS``: each task's settings, ``cfg.task``), and
+one function converts it, :func:`convsynth_jax.schema.build_params` (unknown and mistyped keys are
+a ConfigError naming the key). :func:`to_params` converts a composed config into
+:class:`convsynth_jax.params.Params` once, at the task boundary; :func:`task_settings` converts the
+task's settings. The pipeline's groups (``SCHEMA_GROUPS``) are also registered here as Hydra
+structured-config schemas named ``schema`` in their group; their YAML files extend it
+(``defaults: [schema, _self_]``), so command-line overrides of keys the YAML does not list work and
+keys are checked already when the config is composed. Only this module and ``tasks/`` know
+OmegaConf: the library receives the dataclasses.
 """
 from __future__ import annotations
 
@@ -24,6 +29,7 @@ from hydra.core.hydra_config import HydraConfig
 from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from .errors import ConfigError, ConvSynthError
+from .schema import build_params
 from .utils import write_json_atomic
 
 log = logging.getLogger("convsynth_jax")
@@ -32,7 +38,7 @@ log = logging.getLogger("convsynth_jax")
 # shipped inside the wheel, so editable and regular installs find it here.
 CONFIG_DIR = str(Path(__file__).resolve().parent / "conf")
 
-# config group -> "module:Dataclass" of its typed parameters (systems add theirs here)
+# config key -> "module:Dataclass" of its typed parameters (systems add theirs here)
 GROUPS = {
     "corpus": "convsynth_jax.params:CorpusParams",
     "features": "convsynth_jax.graph.params:FeatureParams",
@@ -42,11 +48,35 @@ GROUPS = {
     "search": "convsynth_jax.search.params:SearchParams",
     "synth": "convsynth_jax.synth.params:SynthParams",
     "system": "convsynth_jax.systems.base:SystemParams",
+    "cdbn": "convsynth_jax.cdbn.params:CDBNParams",
+    "walktalk": "convsynth_jax.walktalk.params:WalkTalkParams",
+    "loo": "convsynth_jax.params:LooParams",
+    "jax_cache": "convsynth_jax.kernel_cache:JaxCacheParams",
 }
-# groups that are not part of Params' fixed fields go to Params.extra
-CORE_GROUPS = ("corpus", "features", "annotate", "stats", "graph", "search", "synth", "system")
-# groups of other systems that convert their own parameters (Params.extra[group] is a plain dict)
-SYSTEM_GROUPS = ("cdbn", "walktalk")
+# groups whose conf/<group>/*.yaml extend a registered structured-config schema
+SCHEMA_GROUPS = ("corpus", "features", "annotate", "stats", "graph", "search", "synth", "system")
+# task name (conf/task/<name>.yaml) -> "module:Dataclass" of its settings (``cfg.task``), defined beside
+# the task's run()
+TASKS = {
+    "build_graph": "convsynth_jax.tasks.build_graph:BuildGraphSettings",
+    "cdbn_eval": "convsynth_jax.tasks.cdbn_eval:CDBNEvalSettings",
+    "cdbn_make_data": "convsynth_jax.tasks.cdbn_make_data:CDBNMakeDataSettings",
+    "cdbn_synthesize": "convsynth_jax.tasks.cdbn_synthesize:CDBNSynthesizeSettings",
+    "collect": "convsynth_jax.tasks.collect:CollectSettings",
+    "converse": "convsynth_jax.tasks.converse:ConverseParams",
+    "cooccurrence": "convsynth_jax.tasks.cooccurrence:CooccurrenceSettings",
+    "figure4": "convsynth_jax.tasks.figure4:Figure4Settings",
+    "inspect": "convsynth_jax.tasks.inspect:InspectSettings",
+    "loo": "convsynth_jax.tasks.loo:LooSettings",
+    "main": "convsynth_jax.tasks.main:MainSettings",
+    "make_corpus": "convsynth_jax.tasks.make_corpus:MakeCorpusSettings",
+    "render": "convsynth_jax.tasks.render:RenderSettings",
+    "synthesize": "convsynth_jax.tasks.synthesize:SynthesizeSettings",
+    "table2": "convsynth_jax.tasks.table2:Table2Settings",
+    "user_study": "convsynth_jax.tasks.user_study:UserStudySettings",
+    "walktalk_demo": "convsynth_jax.tasks.walktalk_demo:WalkTalkDemoSettings",
+    "walktalk_eval": "convsynth_jax.tasks.walktalk_eval:WalkTalkEvalSettings",
+}
 
 
 def _load(spec: str):
@@ -74,43 +104,44 @@ def schema_node(cls) -> DictConfig:
 
 def register_schemas() -> None:
     cs = ConfigStore.instance()
-    for group, spec in GROUPS.items():
-        cs.store(group=group, name="schema", node=schema_node(_load(spec)))
+    for group in SCHEMA_GROUPS:
+        cs.store(group=group, name="schema", node=schema_node(_load(GROUPS[group])))
 
 
 register_schemas()
 
 
+def _container(node, where: str):
+    try:
+        return OmegaConf.to_container(node, resolve=True, throw_on_missing=True)
+    except Exception as e:  # an unresolvable interpolation or a missing value (omegaconf names the key)
+        raise ConfigError(f"invalid {where} config: {e}") from None
+
+
 def group_params(cfg: DictConfig, group: str):
     """The frozen dataclass of one config group (``cfg[group]`` converted and type-checked)."""
-    cls = _load(GROUPS[group])
     node = cfg.get(group)
     if node is None:
         raise ConfigError(f"the config has no group {group!r}")
-    try:
-        merged = OmegaConf.merge(schema_node(cls), OmegaConf.to_container(node, resolve=True, throw_on_missing=True))
-        return OmegaConf.to_object(merged)
-    except ConvSynthError:
-        raise
-    except Exception as e:  # omegaconf's validation errors name the key
-        raise ConfigError(f"invalid {group} config: {e}") from None
+    return build_params(_load(GROUPS[group]), _container(node, group), group)
 
 
 def to_params(cfg: DictConfig):
-    """Convert a composed config into the typed :class:`~convsynth_jax.params.Params` tree."""
-    from .params import LooParams, Params
+    """Convert a composed config into the typed :class:`~convsynth_jax.params.Params` tree (groups
+    absent from ``cfg`` take their defaults)."""
+    from .params import Params
 
-    core = {g: group_params(cfg, g) for g in CORE_GROUPS}
-    extra = {g: group_params(cfg, g) for g in GROUPS if g not in CORE_GROUPS and cfg.get(g) is not None}
-    extra.update({g: OmegaConf.to_container(cfg[g], resolve=True) for g in SYSTEM_GROUPS
-                  if g not in GROUPS and cfg.get(g) is not None})
-    loo = OmegaConf.to_container(cfg.get("loo") or {}, resolve=True)
-    try:
-        loo = LooParams(**loo)
-    except TypeError as e:
-        raise ConfigError(f"invalid loo config: {e}") from None
-    return Params(seed=int(cfg.get("seed", 0)), cache_dir=str(cfg.cache_dir), progress=bool(cfg.get("progress", True)),
-                  loo=loo, extra=extra, **core)
+    groups = {g: group_params(cfg, g) for g in GROUPS if cfg.get(g) is not None}
+    top = {k: cfg.get(k) for k in ("seed", "cache_dir", "progress") if cfg.get(k) is not None}
+    return build_params(Params, {**top, **groups}, "config")
+
+
+def task_settings(cfg: DictConfig):
+    """The typed settings of the task ``cfg.task.name`` (its dataclass in ``TASKS``)."""
+    name = cfg.task.name
+    if name not in TASKS:
+        raise ConfigError(f"unknown task {name!r}; tasks are {sorted(TASKS)}")
+    return build_params(_load(TASKS[name]), _container(cfg.task, "task"), "task")
 
 
 def run_task(cfg: DictConfig, out_dir: str | Path) -> dict:
@@ -126,7 +157,8 @@ def run_task(cfg: DictConfig, out_dir: str | Path) -> dict:
         raise
     from . import kernel_cache
 
-    kernel_cache.enable_compilation_cache(cfg.get("jax_cache"))
+    task_settings(cfg)  # unknown or mistyped task keys fail before any work
+    kernel_cache.enable_compilation_cache(group_params(cfg, "jax_cache") if cfg.get("jax_cache") is not None else None)
     t0 = time.perf_counter()
     summary = module.run(cfg, out_dir) or {}
     summary = {"task": name, **summary, "task_seconds": time.perf_counter() - t0}

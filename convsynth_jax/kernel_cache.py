@@ -34,7 +34,9 @@ import logging
 import pickle
 import sys
 import threading
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import jax
 import numpy as np
@@ -235,8 +237,19 @@ def _fresh_compilation():
         compilation_cache.reset_cache()
 
 
-def enable_compilation_cache(node) -> Path | None:
-    """Turn on JAX's persistent compilation cache at ``node['dir']`` (the config's ``jax_cache.dir``, default
+@dataclass(frozen=True)
+class JaxCacheParams:
+    """``jax_cache:`` in ``conf/config.yaml`` (see :func:`enable_compilation_cache`); the config
+    points both folders into ``${cache_dir}``, None turns a cache off."""
+
+    dir: Optional[str] = None              # JAX's persistent compilation cache
+    kernel_dir: Optional[str] = None       # the search kernels' whole executables
+    min_compile_time_s: float = 0.0        # cache kernels that took at least this long to compile
+    min_entry_size_bytes: int = 0          # ... and are at least this large
+
+
+def enable_compilation_cache(params: JaxCacheParams | None) -> Path | None:
+    """Turn on JAX's persistent compilation cache at ``params.dir`` (the config's ``jax_cache.dir``, default
     ``${cache_dir}/jax_cache``), so a second run of any task loads its compiled kernels from disk
     instead of compiling them again. ``jax_cache.dir=null`` turns it off. The directory holds only
     compiled executables and is safe to delete (the next run recompiles). Entries are written for
@@ -245,8 +258,8 @@ def enable_compilation_cache(node) -> Path | None:
     The search kernels' executables are also stored whole in ``jax_cache.kernel_dir`` (default
     ``${cache_dir}/jax_kernels``; :mod:`convsynth_jax.kernel_cache`), so a second run skips their
     tracing and lowering too; null turns that off, and so does ``jax_cache.dir=null``.
-    Returns the directory (or None when disabled)."""
-    path = node.get("dir") if node is not None else None
+    Returns the directory (or None when disabled; ``params`` None: disabled)."""
+    path = params.dir if params is not None else None
     if not path:
         _set_cache_dir(jax, None)  # off, also when an earlier task of this process turned it on
         set_kernel_dir(None)
@@ -256,10 +269,10 @@ def enable_compilation_cache(node) -> Path | None:
         path.mkdir(parents=True, exist_ok=True)
     except OSError as e:
         raise ConfigError(f"jax_cache.dir={path}: cannot create the compilation cache directory ({e})") from None
-    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(node.get("min_compile_time_s", 0.0)))
-    jax.config.update("jax_persistent_cache_min_entry_size_bytes", int(node.get("min_entry_size_bytes", 0)))
+    jax.config.update("jax_persistent_cache_min_compile_time_secs", float(params.min_compile_time_s))
+    jax.config.update("jax_persistent_cache_min_entry_size_bytes", int(params.min_entry_size_bytes))
     _set_cache_dir(jax, str(path))
-    kdir = node.get("kernel_dir")
+    kdir = params.kernel_dir
     set_kernel_dir(Path(str(kdir)).expanduser().resolve() if kdir else None)
     log.debug("jax compilation cache: %s", path)
     return path

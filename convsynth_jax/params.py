@@ -1,9 +1,9 @@
 """The typed parameter tree of a run: one frozen dataclass per config group.
 
-Defaults live in the dataclasses (each stage's ``params.py``) and nowhere else: ``config.py``
-registers them as Hydra structured-config schemas that the YAML files in ``conf/<group>/`` extend,
-and converts the composed config into a :class:`Params` once per task. Library functions take
-these dataclasses and arrays, never a DictConfig.
+Defaults live in the dataclasses (each stage's ``params.py``) and nowhere else. ``config.py``
+converts the composed config into a :class:`Params` once per task, group by group, with the one
+conversion function :func:`convsynth_jax.schema.build_params`; library functions take these
+dataclasses and arrays, never the configuration objects of Hydra.
 """
 from __future__ import annotations
 
@@ -11,11 +11,14 @@ from dataclasses import dataclass, field
 from typing import Any, Dict, Optional
 
 from .annotate.params import AnnotateParams
+from .cdbn.params import CDBNParams
 from .graph.params import FeatureParams, GraphParams
+from .kernel_cache import JaxCacheParams
 from .search.params import SearchParams
 from .stats.params import StatsParams
 from .synth.params import SynthParams
 from .systems.base import SystemParams
+from .walktalk.params import WalkTalkParams
 
 
 @dataclass(frozen=True)
@@ -29,7 +32,15 @@ class CorpusParams:
     pattern: str = "**/*.bvh"      # bvh_folder: files to read
     characters: Dict[str, str] = field(default_factory=dict)  # role -> character name (genea)
     duration_tolerance: float = 1.0  # s; motion/audio/transcript durations may differ by this much
-    generator: Dict[str, Any] = field(default_factory=dict)  # synthetic: keys of data/synthetic.py DEFAULTS
+    # synthetic: the generator's keys that differ from its defaults (data/synthetic/config.py:
+    # GeneratorParams; checked by generator_params when the config is converted)
+    generator: Dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        if self.generator:
+            from .data.synthetic.config import generator_params
+
+            generator_params(self.generator)
 
 
 @dataclass(frozen=True)
@@ -43,6 +54,8 @@ class LooParams:
 
 @dataclass(frozen=True)
 class Params:
+    """Every group of a run's config (``conf/config.yaml``), typed."""
+
     seed: int
     cache_dir: str
     progress: bool
@@ -55,7 +68,9 @@ class Params:
     synth: SynthParams
     loo: LooParams
     system: SystemParams
-    extra: Dict[str, Any] = field(default_factory=dict)  # groups of other systems (walktalk, cdbn, ...)
+    cdbn: CDBNParams = field(default_factory=CDBNParams)
+    walktalk: WalkTalkParams = field(default_factory=WalkTalkParams)
+    jax_cache: JaxCacheParams = field(default_factory=JaxCacheParams)
 
     @property
     def fps(self) -> float:

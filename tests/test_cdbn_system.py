@@ -12,11 +12,11 @@ from convsynth_jax.systems.base import SystemParams, WindowInput, make_system
 def annotated(tiny_corpus_dir, tiny_annotations):
     import copy
 
-    from convsynth_jax.config import compose
+    from convsynth_jax.config import default_params
     from convsynth_jax.io import load_corpus
 
     corpus = load_corpus(tiny_corpus_dir)
-    cfg = compose(["corpus=synthetic_tiny"])
+    cfg = default_params(["corpus=synthetic_tiny"])   # typed: the system reads its cdbn group
     ann = copy.deepcopy(tiny_annotations)   # annotated once per session with AnnotateParams()
     paths = {(s.name, p.role): (p.audio_path, p.audio_channel) for s in corpus.sessions for p in s.participants}
     for sname, roles in ann.items():   # the evaluation wires these in (main's ParticipantAnnotation has them)

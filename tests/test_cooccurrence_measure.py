@@ -278,15 +278,15 @@ def test_synthesized_and_ground_truth_windows_are_counted_alike(annotations, tin
     win = window_input(held, role, w, 30.0, 0)
     gt = held[role].motion.slice(win.start_frame, win.start_frame + win.num_frames)
     system = _CopySystem(tiny_params, annotations)
-    row, motion = evaluate_window(system, None, win, "none", gt, {}, tiny_params, gt_thresholds=gt_th[role],
+    row, motion = evaluate_window(system, None, win, "none", gt, tiny_params, gt_thresholds=gt_th[role],
                                   synth_thresholds=gt_th[role])
     hyps = ("PC-LH", "PC-RH", "PC-LH/RH", "LR-Nod", "PH-Nod")
     for h in hyps:
         assert (row[f"synth_{h}_matched"], row[f"synth_{h}_total"]) == (row[f"gt_{h}_matched"], row[f"gt_{h}_total"])
     with pytest.raises(TypeError):  # thresholds are required
-        evaluate_window(system, None, win, "none", gt, {}, tiny_params)
+        evaluate_window(system, None, win, "none", gt, tiny_params)
     headless = _CopySystem(tiny_params, annotations, produces_hands=False)
-    row2, _ = evaluate_window(headless, None, win, "none", gt, {}, tiny_params, gt_thresholds=gt_th[role],
+    row2, _ = evaluate_window(headless, None, win, "none", gt, tiny_params, gt_thresholds=gt_th[role],
                               synth_thresholds=synth_th[held[role].character])
     for h in hyps[:3]:
         assert np.isnan(row2[f"synth_{h}_matched"]) and np.isnan(row2[f"synth_{h}_total"])
@@ -346,7 +346,7 @@ def test_head_only_system_is_measured_on_the_head(annotations, tiny_params):
             return WindowResult(True, Motion(gt.skeleton, rot, trans, gt.fps, "head"))
 
     system = StillBodyMovingHead(tiny_params, SystemParams("head", "x:y", {"none": {}}))
-    row, _ = evaluate_window(system, None, win, "none", gt, {}, tiny_params, gt_thresholds=gt_th[role],
+    row, _ = evaluate_window(system, None, win, "none", gt, tiny_params, gt_thresholds=gt_th[role],
                              synth_thresholds=synth_th[held[role].character])
     assert row["metric_scope"] == "head"
     assert row["jerk"] > 0 and row["acceleration"] > 0 and row["max_jump"] > 0

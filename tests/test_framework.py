@@ -118,6 +118,50 @@ def test_random_playback_is_a_system_in_the_generic_fold(tiny):
     pd.testing.assert_series_equal(cases["jerk"], again["jerk"])  # seeded: the same motion again
 
 
+def test_a_system_adds_its_own_columns_through_the_interface(tiny):
+    """The leave-one-out knows no system: the checker columns and the seam content ratio of a
+    playback system come through its hooks (window_diagnostics, source_positions), and a system
+    that adds a column of its own gets it into the table; a system that does not give its source
+    clips' positions gets no seam content ratio and nothing else changes."""
+    from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold
+    from convsynth_jax.systems.random_playback import RandomPlaybackSystem
+
+    p, ann, _ = tiny
+    p = dataclasses.replace(p, system=default_params(["system=random_playback"]).system)
+
+    class Tagged(RandomPlaybackSystem):
+        def window_diagnostics(self, model, window, result):
+            return {**super().window_diagnostics(model, window, result), "tag_frames": len(result.source_frame)}
+
+    class Private(RandomPlaybackSystem):
+        def source_positions(self, model, clip):
+            return None
+
+    table = recording_threshold_table(ann, p.annotate)
+    cases = run_fold(Tagged(p, p.system), ann, 0, "none", p, thresholds=table)
+    assert (cases["tag_frames"] == 450).all()        # 15 s at 30 fps
+    assert cases["all_constraints_total"].ge(1).all() and cases["checker_matching"].eq(p.search.matching).all()
+    assert cases["seam_content_ratio"].notna().all()
+    private = run_fold(Private(p, p.system), ann, 0, "none", p)    # thresholds computed here: the same
+    assert "seam_content_ratio" not in private and "tag_frames" not in private
+    shared = [c for c in private.columns if c not in ("fit_seconds", "synthesis_seconds")]
+    pd.testing.assert_frame_equal(private[shared], cases[shared])
+
+
+def test_the_library_keys_nothing_by_object_id():
+    """Caches live with their owners (the system, the loop context, the caller's threshold table),
+    never in a module-wide dict keyed by id(), whose ids are reused once an object is freed."""
+    import ast
+
+    import convsynth_jax
+
+    root = Path(convsynth_jax.__file__).parent
+    calls = [f"{f.relative_to(root)}:{n.lineno}" for f in root.rglob("*.py")
+             for n in ast.walk(ast.parse(f.read_text()))
+             if isinstance(n, ast.Call) and isinstance(n.func, ast.Name) and n.func.id == "id"]
+    assert calls == []
+
+
 def test_playback_provenance_excludes_the_held_out_session(tiny):
     from convsynth_jax.evaluation.loo import fit_fold, session_windows, window_input
     from convsynth_jax.systems.base import make_system

@@ -9,16 +9,16 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
-from omegaconf import OmegaConf
 
-from convsynth_jax.config import compose, run_task
+from convsynth_jax.config import compose, group_params, run_task
 from convsynth_jax.errors import ConfigError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh, save_bvh
 from convsynth_jax.kinematics import forward_kinematics_np
+from convsynth_jax.schema import build_params
 from convsynth_jax.walktalk.body import find_body
 from convsynth_jax.walktalk.gestures import make_gesture
 from convsynth_jax.walktalk.locomotion import extract_loop, seam_foot_slide, tile_loop
-from convsynth_jax.walktalk.params import WalkTalkParams, params_from_dict
+from convsynth_jax.walktalk.params import WalkTalkParams
 
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 COLUMNS = ["gesture", "loop", "gait", "method", "stroke_peak_s", "utterance_peak_s", "shift_s", "peak_in_contact",
@@ -35,12 +35,12 @@ def _asdict(x):
 
 def test_yaml_defaults_equal_dataclass_defaults():
     cfg = compose(["task=walktalk_eval"])
-    from_yaml = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
+    from_yaml = group_params(cfg, "walktalk")
     assert _asdict(from_yaml) == _asdict(WalkTalkParams())
-    with pytest.raises(WalkTalkError, match="unknown keys"):
-        params_from_dict({"splice": {"cc": 1.0}})
+    with pytest.raises(ConfigError, match=r"walktalk\.splice\.cc"):
+        build_params(WalkTalkParams, {"splice": {"cc": 1.0}}, "walktalk")
     with pytest.raises(WalkTalkError, match="c must be > 0"):
-        params_from_dict({"splice": {"c": -1.0}})
+        build_params(WalkTalkParams, {"splice": {"c": -1.0}}, "walktalk")
 
 
 def test_fixture_size_and_licence():
@@ -196,7 +196,7 @@ def test_phase_csv_override_and_out_of_order(tmp_path):
     run_task(cfg, tmp_path / "ok")
     from convsynth_jax.walktalk.library import load_library
 
-    lib = load_library(params_from_dict({"phases_csv": str(csv), "splice": {"transition_pad_s": 0.0}}), FIXTURES, 1)
+    lib = load_library(build_params(WalkTalkParams, {"phases_csv": str(csv), "splice": {"transition_pad_s": 0.0}}), FIXTURES, 1)
     g = next(gc.gesture for gc in lib.gestures if Path(gc.gesture.name).stem == stem)
     assert (g.phases.pb, g.phases.pe, g.phases.sb, g.phases.se, g.phases.rb, g.phases.re) == (3, 9, 12, 30, 33, 48)
     assert g.phases.peaks == (15,) and g.handedness == "r"
@@ -348,21 +348,26 @@ def test_elbow_partial_corr_planted():
     assert _per_gesture_corr(naive) == [0.0, 0.0] and elbow_partial_corr(naive) == ([0.0, 0.0], [0.0, 0.0])
 
 
-def test_loop_bend_cache_is_not_fooled_by_a_reused_id(monkeypatch):
-    """lc_bend caches by id(loop context); a freed context's id can come back for another loop (the
-    bench builds several libraries in one process). Planted collision: every id is 1."""
+def test_loop_bend_is_kept_by_its_loop_context(monkeypatch):
+    """lc_bend's cache lives on the loop context it describes (no process-wide cache keyed by id(),
+    whose ids come back for other loops once a context is freed): two loops never share a value, and
+    a context built again from the same loop (dataclasses.replace) computes its own."""
+    import dataclasses
+
     from convsynth_jax.walktalk import elbow
     from convsynth_jax.walktalk.params import GaitParams
     from convsynth_jax.walktalk.pipeline import loop_context
 
-    monkeypatch.setattr(elbow, "_BEND_CACHE", {})
-    monkeypatch.setattr(elbow, "id", lambda x: 1, raising=False)
+    monkeypatch.setattr(elbow, "id", lambda x: 1, raising=False)   # were anything keyed by id, all would collide
     walk = extract_loop(load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh"))), GaitParams())
     run = extract_loop(load_bvh(next(FIXTURES.glob("*_run_normal_*.bvh"))), GaitParams())
     a, b = loop_context(walk), loop_context(run)
     bend_a, bend_b = elbow.lc_bend(a, "r"), elbow.lc_bend(b, "r")
     assert abs(bend_a - bend_b) > 20     # walking vs running elbows
     assert elbow.lc_bend(a, "r") == bend_a
+    assert set(a.elbow_bend) == {"r"} and a.elbow_bend is not b.elbow_bend
+    c = dataclasses.replace(a, gait_min_std=None)
+    assert c.elbow_bend == {} and elbow.lc_bend(c, "r") == bend_a
 
 
 def test_joint_limits_pool_every_clip_walk_turns_included(tmp_path):
@@ -566,8 +571,7 @@ def test_quality_preset_sets_our_splice_options_and_paper_keeps_the_papers():
     walktalk; preset=paper (the default) leaves every walktalk value at the paper's (the dataclass
     defaults: one std per loop, the hard range-of-motion cut, one rescale factor per DOF)."""
     def walktalk(*overrides):
-        return params_from_dict(OmegaConf.to_container(compose(["task=walktalk_eval", *overrides]).walktalk,
-                                                       resolve=True))
+        return group_params(compose(["task=walktalk_eval", *overrides]), "walktalk")
 
     paper, default = walktalk("preset=paper"), walktalk()
     assert _asdict(paper) == _asdict(default) == _asdict(WalkTalkParams())

@@ -55,7 +55,7 @@ def load_word_corpus(path=None, extra: dict | None = None) -> dict:
     ``path``: a YAML file with those two keys (default: the shipped ``resources/word_corpus.yaml``),
     or a mapping with the lists themselves (inline config). ``extra``: lists added to either key.
     """
-    if path is not None and hasattr(path, "keys"):  # inline lists (dict or DictConfig)
+    if path is not None and hasattr(path, "keys"):  # inline lists (a mapping)
         data, where = {k: path.get(k) for k in path.keys()}, "annotate.word_corpus"
     else:
         where = Path(path) if path else _DEFAULT_CORPUS

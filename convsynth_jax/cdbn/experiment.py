@@ -11,7 +11,6 @@ from __future__ import annotations
 import itertools
 import logging
 import time
-from dataclasses import dataclass
 
 import numpy as np
 from scipy import stats
@@ -26,31 +25,10 @@ from .cdbn import (
 from .dataset import Turn
 from .em import e_step, fit_em, make_batch
 from .evaluate import cca, gaussian_kld, gesture_features
-from .params import CDBNParams, TrainParams
+from .params import CDBNEvalParams, CDBNParams, TrainParams  # noqa: F401  (CDBNEvalParams: the protocol's settings)
 from .synthesize import expected_motion, keypoint_smooth, state_posteriors, state_posteriors_batch
 
 log = logging.getLogger(__name__)
-
-
-@dataclass(frozen=True)
-class CDBNEvalParams:
-    folds: int = 10
-    jdbn_grid: tuple = (4, 7, 10)
-    cdbn_grid: tuple = (3, 4, 6)
-    cca_slack: float = 0.01
-    llr_slack: float = 0.01
-    max_test_folds: int | None = None     # evaluate only the first n test folds (None: all nine)
-    fig6_states: int = 16
-    seed: int = 0
-    # Eq. 8 models are trained to convergence (the paper's EM is not cut at a fixed count): with the
-    # cross-validation's max_iter = 20 the shared-state model's fast states are still moving and
-    # its nod/shake distance was 0.13-0.18; converged 0.016 (README, "transition distance")
-    distance_max_iter: int = 300
-    distance_tol: float = 1e-4
-    # ours (speed): the converged sparse CDBN of Eq. 8 continues EM from the cross-validation's CDBN
-    # trained on the same turns with the same N (its per-constraint models, merges and first 20 EM
-    # iterations are reused) instead of training it again from LBG
-    distance_warm_start: bool = True
 
 
 def fit(kind: str, turns: list[Turn], n: int, p: CDBNParams, train: TrainParams | None = None) -> TrainedModel:

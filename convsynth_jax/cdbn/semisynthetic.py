@@ -19,7 +19,6 @@ from __future__ import annotations
 
 import json
 import logging
-from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -32,27 +31,11 @@ from ..io.audio import save_wav
 from ..io.bvh import save_bvh
 from ..skeleton import Motion
 from ..utils import atomic_path, write_json_atomic
+from .params import SemiSyntheticParams
 
 log = logging.getLogger(__name__)
 
 CONSTRAINTS = ("other", "nod", "shake")
-
-
-@dataclass(frozen=True)
-class SemiSyntheticParams:
-    num_turns: int = 160
-    turn_seconds: tuple = (5.0, 9.0)
-    fps: float = 30.0
-    sample_rate: int = 16000
-    subjects: tuple = (("subject1", 120.0, 1.0), ("subject2", 205.0, 0.8))  # name, F0 (Hz), motion gain
-    gestures_per_turn: tuple = (0, 2)      # inclusive range of gesture clauses per turn
-    p_nod: float = 0.6                     # a gesture clause is a nod with this probability, else a shake
-    nod_degrees: float = 9.0
-    shake_degrees: float = 10.0
-    pitch_gain: float = 4.5                # degrees per SD of the smoothed F0
-    yaw_gain: float = 3.0                  # degrees per SD of the smoothed energy
-    noise_degrees: float = 2.5
-    seed: int = 0
 
 
 def _clauses(rng, duration: float) -> list[Segment]:
@@ -170,14 +153,6 @@ def load_semisynthetic_corpus(root: str | Path) -> list[dict]:
     meta = json.loads(meta_path.read_text())
     return [{**t, "wav": root / "turns" / f"{t['turn']}.wav", "bvh": root / "turns" / f"{t['turn']}.bvh",
              "constraints": root / "turns" / f"{t['turn']}_constraints.tsv"} for t in meta["turns"]]
-
-
-def params_from_dict(d: dict | None) -> SemiSyntheticParams:
-    d = dict(d or {})
-    for k, v in list(d.items()):
-        if isinstance(v, list):
-            d[k] = tuple(tuple(x) if isinstance(x, list) else x for x in v)
-    return SemiSyntheticParams(**d)
 
 
 def ensure_corpus(root: str | Path, p: SemiSyntheticParams) -> Path:

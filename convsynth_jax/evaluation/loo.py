@@ -13,6 +13,10 @@ Eq. 1's idle thresholds of a recording, never of the window: the ground truth of
 uses its recording's own thresholds, synthesized motion the mean thresholds of the character's
 training recordings (``fold_thresholds``; our choice, the paper is silent). Every system is scored
 this way; one without hand motion (``produces_hands`` False) gets NaN hand hypotheses.
+
+Nothing here knows a particular system: what only a system can tell (the motion graph's independent
+constraint checker, the joint positions of the training clips it played back) comes through the
+interface's ``window_diagnostics`` and ``source_positions`` hooks.
 """
 from __future__ import annotations
 
@@ -26,7 +30,6 @@ import pandas as pd
 from ..errors import ConfigError
 from ..seeding import derive_seed
 from ..systems.base import SynthesisSystem, WindowInput
-from ..systems.motion_graph import clip_name
 from .windows import Window, sliding_windows, window_segments
 
 log = logging.getLogger(__name__)
@@ -62,29 +65,14 @@ def fit_fold(system: SynthesisSystem, annotations: dict, held_out: str, conditio
     return out
 
 
-_THRESHOLD_CACHE: dict = {}  # (id(motion), annotate params) -> (motion, thresholds); the motion is kept so its id stays its own
-
-
-def _recording_thresholds(motion, annotate) -> dict:
-    """Eq. 1's θ_S per kind over the whole ``motion``, memoized per Motion object: a sweep in one
-    process (17 folds x 4 conditions) would otherwise run forward kinematics over every training
-    recording again for every fold and condition."""
+def recording_threshold_table(annotations: dict, annotate) -> dict:
+    """(session, role) -> Eq. 1's θ_S per motion kind over that participant's whole clip. A sweep
+    computes it once and passes it to every fold (``run_fold(thresholds=...)``): forward kinematics
+    over every recording is the costly part."""
     from ..annotate.motion import joint_speeds, recording_thresholds
 
-    key = (id(motion), repr(annotate))
-    hit = _THRESHOLD_CACHE.get(key)
-    if hit is not None and hit[0] is motion:
-        return dict(hit[1])
-    th = recording_thresholds(joint_speeds(motion, annotate), annotate.alpha_s)
-    if len(_THRESHOLD_CACHE) >= 256:
-        _THRESHOLD_CACHE.pop(next(iter(_THRESHOLD_CACHE)))
-    _THRESHOLD_CACHE[key] = (motion, th)
-    return dict(th)
-
-
-def recording_threshold_table(annotations: dict, annotate) -> dict:
-    """(session, role) -> Eq. 1's θ_S per motion kind over that participant's whole clip."""
-    return {(s, r): _recording_thresholds(a.motion, annotate) for s, d in annotations.items() for r, a in d.items()}
+    return {(s, r): recording_thresholds(joint_speeds(a.motion, annotate), annotate.alpha_s)
+            for s, d in annotations.items() for r, a in d.items()}
 
 
 def fold_thresholds(annotations: dict, held_out: str, annotate, table: dict | None = None) -> tuple[dict, dict]:
@@ -184,33 +172,13 @@ def _metric_points(motion, head_only: bool, params) -> np.ndarray:
     return np.asarray(forward_kinematics(motion), dtype=np.float64)
 
 
-_CLIP_ACC: dict = {}   # id(motion) -> (motion, per-frame acceleration): each training clip's once per process
-
-
-def _clip_acceleration(motion) -> np.ndarray:
-    """(F, J) root-relative acceleration magnitudes of a whole source clip (metrics.clip_acceleration),
-    by the padded forward kinematics of graph construction (one compile per power of two), cached."""
-    from ..kinematics import padded_global_transforms
-    from . import metrics
-
-    hit = _CLIP_ACC.get(id(motion))
-    if hit is not None and hit[0] is motion:
-        return hit[1]
-    pos, _, n = padded_global_transforms([motion])
-    acc = metrics.clip_acceleration(np.asarray(pos, np.float64)[:n], motion.fps)
-    if len(_CLIP_ACC) > 256:
-        _CLIP_ACC.clear()
-    _CLIP_ACC[id(motion)] = (motion, acc)
-    return acc
-
-
-def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition: str, gt_motion, clip_audio: dict,
-                    params, *, gt_thresholds: dict, synth_thresholds: dict) -> tuple[dict, object]:
-    """One row (generic fields + metrics) and the synthesized Motion (None on failure).
+def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition: str, gt_motion, params, *,
+                    gt_thresholds: dict, synth_thresholds: dict) -> tuple[dict, object]:
+    """One row (generic fields, the system's ``window_diagnostics``, metrics) and the synthesized
+    Motion (None on failure).
 
     gt_thresholds: Eq. 1's θ_S per kind of the held-out recording (its whole clip); synth_thresholds:
     those for the character's synthesized motion (``fold_thresholds``)."""
-    from ..search.check import check_path
     from . import metrics
 
     fps = win.fps
@@ -224,16 +192,8 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
                 "constraints_total": res.constraints_total, "constraints_met": res.constraints_met})
     row.update({f"diag_{k}": v for k, v in res.diagnostics.items() if np.isscalar(v)})
     own, partner = win.own_segments, win.partner_segments
-    if res.success and res.source_clip is not None and all(c in clip_audio for c in res.source_clip):
-        # every audio constraint of the window (whatever the condition), by the independent checker
-        chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, own, partner, fps,
-                         float(params.search.tolerance), matching=params.search.matching,
-                         warp=res.diagnostics.get("warp"))
-        row.update({"all_constraints_total": chk["total"], "all_constraints_met": chk["met"],
-                    "checker_matching": params.search.matching})
-        for kind in ("PC", "LR", "PH", "idle"):
-            d = [x["met"] for x in chk["details"] if x["kind"] == kind]
-            row[f"checker_{kind}_met"], row[f"checker_{kind}_total"] = int(sum(d)), len(d)
+    if res.success:
+        row.update(system.window_diagnostics(model, win, res))
     # Motion-quality metrics over every joint, or for a head-only system (no hands) over the head
     # point alone, in both the ground truth and the synthesis: a still body would otherwise score
     # zero jerk and hide what the system does (metric_scope says which).
@@ -254,20 +214,24 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
             "num_synthetic_transitions": len(res.synthetic_at) if res.synthetic_at is not None else np.nan,
             "seam_ratio": metrics.seam_ratio(pos, gt_pos, fps, [] if res.synthetic_at is None else list(res.synthetic_at)),
         })
-        clips = getattr(model, "motions", None)     # a motion-graph model: the source clips' own content
-        if (not head_only and clips is not None and res.source_clip is not None and res.synthetic_at
-                and all(c in clips for c in res.source_clip)):
-            acc = {c: _clip_acceleration(clips[c]) for c in set(res.source_clip)}
-            row["seam_content_ratio"] = metrics.seam_content_ratio(
-                acc, list(res.source_clip), [int(f) for f in res.source_frame], gt_pos, fps, list(res.synthetic_at),
-                int(getattr(getattr(params, "synth", None), "blend_frames", 0)))
+        if not head_only and res.source_clip is not None and res.synthetic_at:
+            # played-back output: what the source clips' own content brings to the seams
+            src = {c: system.source_positions(model, c) for c in set(res.source_clip)}
+            if all(p is not None for p in src.values()):
+                acc = {c: metrics.clip_acceleration(p, fps) for c, p in src.items()}
+                row["seam_content_ratio"] = metrics.seam_content_ratio(
+                    acc, list(res.source_clip), [int(f) for f in res.source_frame], gt_pos, fps,
+                    list(res.synthetic_at), int(res.blend_frames))
     return row, (res.motion if res.success else None)
 
 
 def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: str, params, out_dir: Path | None = None,
              cache_dir: str | Path | None = None, export_bvh: bool = False, models: dict | None = None,
-             with_audio: bool = False) -> pd.DataFrame:
-    """All test cases of one fold in one condition: one row per (window, character)."""
+             with_audio: bool = False, thresholds: dict | None = None) -> pd.DataFrame:
+    """All test cases of one fold in one condition: one row per (window, character).
+
+    models: fitted models kept across the conditions of one fold (``fit_fold``); thresholds: a
+    ``recording_threshold_table`` of ``annotations`` kept across folds (computed here when None)."""
     from ..io import save_bvh
     from ..kinematics import pose_features
     from . import metrics
@@ -283,8 +247,7 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
     fps = float(params.features.fps)
     held = annotations[held_out]
     windows = session_windows(held, fps, params.loo.window, params.loo.hop, params.loo.max_windows)
-    gt_thresholds, synth_thresholds = fold_thresholds(annotations, held_out, params.annotate)
-    clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in annotations.items() for r, a in d.items()}
+    gt_thresholds, synth_thresholds = fold_thresholds(annotations, held_out, params.annotate, thresholds)
     rows, synth_windows = [], {}
     for w in windows:
         for k, (role, ann) in enumerate(held.items()):
@@ -293,7 +256,7 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
                                role_index=k)
             win = window_input(held, role, w, fps, seed, with_audio=with_audio)
             gt = ann.motion.slice(f0, f0 + win.num_frames)
-            row, motion = evaluate_window(system, fitted[ann.character], win, condition, gt, clip_audio, params,
+            row, motion = evaluate_window(system, fitted[ann.character], win, condition, gt, params,
                                           gt_thresholds=gt_thresholds[role],
                                           synth_thresholds=synth_thresholds[ann.character])
             rows.append({"system": system.name, "fold": fold, "session": held_out, "condition": condition,

@@ -16,7 +16,12 @@ talk to this interface, so a new system is one module plus one ``conf/system/<na
 
 Ablation conditions are named in the system's config (``system.conditions``: name -> option dict);
 the evaluation checks the requested condition against them and passes its options through.
-Results carry generic fields only; anything system-specific goes into ``diagnostics``.
+Results carry generic fields only; anything system-specific goes into ``diagnostics``, or comes
+from two optional hooks the evaluation calls on every synthesized window (default: nothing):
+``window_diagnostics(model, window, result)`` adds system-specific columns (the motion graph's
+independent constraint checker), and ``source_positions(model, clip)`` gives the joint positions of
+a training clip the output was played back from (``WindowResult.source_clip``), for the seam
+content ratio.
 """
 from __future__ import annotations
 
@@ -94,6 +99,7 @@ class WindowResult:
     source_frame: np.ndarray | None = None
     diagnostics: dict = field(default_factory=dict)
     synthetic_at: Sequence[int] | None = None  # output frames where a synthetic transition arrives
+    blend_frames: int = 0                      # frames each synthetic transition is blended over
 
 
 class SynthesisSystem(abc.ABC):
@@ -138,6 +144,16 @@ class SynthesisSystem(abc.ABC):
     def prepare(self, models: Mapping[str, Any]) -> None:
         """Called with the fitted models of one conversation (character -> model) before its windows
         are synthesized, e.g. to let their kernels share one compiled program; default: nothing."""
+
+    def window_diagnostics(self, model: Any, window: WindowInput, result: WindowResult) -> Dict[str, Any]:
+        """System-specific columns of one successfully synthesized window (e.g. an independent
+        re-check of its constraints), written into the leave-one-out row as given; default: none."""
+        return {}
+
+    def source_positions(self, model: Any, clip: str) -> np.ndarray | None:
+        """(F, J, 3) global joint positions of the whole training clip ``clip`` named in
+        ``WindowResult.source_clip`` (for the seam content ratio); default: None (no provenance)."""
+        return None
 
     def fit_seconds(self, model: Any) -> float:
         """Construction / training time of ``model`` (for Table 3), NaN if unknown."""

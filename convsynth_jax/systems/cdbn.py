@@ -16,8 +16,9 @@ head rotation, 15 key points/s) or ``hands`` (the paper's separate hand model: a
 forearm 2 DOF x 2 of cdbn/hands.py, 12 key points/s; the head then holds the mean pose and the
 system reports produces_hands True).
 
-Parameters: ``params`` may be a :class:`~convsynth_jax.cdbn.params.CDBNParams`, an object or mapping
-with a ``cdbn`` entry, or None (defaults); ``system.options`` entries override ``cdbn`` keys.
+Parameters: ``params`` is the run's :class:`~convsynth_jax.params.Params` (its ``cdbn`` group), a
+:class:`~convsynth_jax.cdbn.params.CDBNParams`, or None (defaults); ``system.options`` entries
+override ``cdbn`` keys.
 """
 from __future__ import annotations
 
@@ -36,9 +37,10 @@ from ..cdbn.features import (
     speech_features,
 )
 from ..cdbn.hands import HAND_NAMES, arm_angles, arm_quaternions, arm_rig, arms_into_motion, keypoint_smooth_joints
-from ..cdbn.params import CDBNParams, cdbn_params_from_config
+from ..cdbn.params import CDBNParams
 from ..cdbn.synthesize import expected_motion, head_into_motion, keypoint_smooth, state_posteriors, synthesize_head
 from ..errors import CDBNError
+from ..schema import build_params
 from .base import SynthesisSystem, WindowInput, WindowResult
 
 log = logging.getLogger(__name__)
@@ -60,33 +62,14 @@ class CDBNFit:
 
 
 def _params(params, options: dict) -> CDBNParams:
-    if isinstance(params, CDBNParams) and not options:
-        return params
-    base = None
-    if params is not None:
-        base = params.get("cdbn") if isinstance(params, dict) else getattr(params, "cdbn", None)
-        if base is None:  # convsynth_jax.params.Params: the cdbn group's dict is in Params.extra
-            base = (getattr(params, "extra", None) or {}).get("cdbn")
-    if isinstance(base, CDBNParams):
-        if not options:
-            return base
-        base = None
-    d = {}
-    if base is not None:
-        try:
-            from omegaconf import OmegaConf
-
-            d = OmegaConf.to_container(base, resolve=True) if not isinstance(base, dict) else dict(base)
-        except (ImportError, ValueError):
-            d = dict(base)
-    for k, v in (options or {}).items():
-        if k == "constraint_map":
-            continue
-        if isinstance(v, dict) and isinstance(d.get(k), dict):
-            d[k] = {**d[k], **v}
-        else:
-            d[k] = v
-    return cdbn_params_from_config(d)
+    """The run's CDBN parameters (``params.cdbn`` of a :class:`~convsynth_jax.params.Params`, a
+    CDBNParams, or the defaults for None) with ``system.options`` merged onto them; ``constraint_map``
+    is an option of the system itself."""
+    base = params if isinstance(params, CDBNParams) else getattr(params, "cdbn", None)
+    if params is not None and not isinstance(base, CDBNParams):
+        raise CDBNError(f"system cdbn needs Params with a cdbn group or CDBNParams, got {type(params).__name__}")
+    opts = {k: v for k, v in (options or {}).items() if k != "constraint_map"}
+    return build_params(CDBNParams, opts, "system.options", base=base)
 
 
 def _audio_of(clip):

@@ -17,26 +17,26 @@ from ..graph import load_graph
 from ..graph.build import build_graph_from_clips
 from ..graph.types import MotionGraph
 from ..synth.pipeline import synthesize_character
-from .base import SynthesisSystem, WindowInput, WindowResult
+from .base import WindowInput, WindowResult
+from .playback import PlaybackSystem, clip_name, training_labels
 
 log = logging.getLogger(__name__)
 
-
-def clip_name(session: str, role: str) -> str:
-    """Name of one participant's recording inside a motion graph."""
-    return f"{session}_{role}"
+__all__ = ["GraphModel", "MotionGraphSystem", "clip_name"]
 
 
 @dataclass
 class GraphModel:
-    """A character's motion graph, the clip motions its states index, and its construction time."""
+    """A character's motion graph, the clip motions its states index, and its construction time;
+    labels: clip name -> (own, partner) per-frame audio labels (the independent checker's input)."""
 
     graph: MotionGraph
     motions: dict
     seconds: float
+    labels: dict = dataclasses.field(default_factory=dict)
 
 
-class MotionGraphSystem(SynthesisSystem):
+class MotionGraphSystem(PlaybackSystem):
     produces_hands = True
 
     def fit(self, clips, character: str, condition: str, cache_dir=None) -> GraphModel:
@@ -44,19 +44,20 @@ class MotionGraphSystem(SynthesisSystem):
         p = self.params
         items = [(clip_name(c.session, c.role), c.motion, c.own, c.partner) for c in clips]
         motions = {name: m for name, m, _, _ in items}
+        labels = training_labels(clips)
         # the graph stores the clips' audio labels, so the annotation parameters are part of the key
         key = params_hash(sorted(motions), p.graph, p.features, p.annotate)
         cached = Path(cache_dir) / f"graph_{character}_{key}.npz" if cache_dir else None
         if cached is not None and cached.is_file():
             g = load_graph(cached)
-            return GraphModel(g, motions, float(g.meta.get("seconds", np.nan)))
+            return GraphModel(g, motions, float(g.meta.get("seconds", np.nan)), labels)
         t0 = time.perf_counter()
         g = build_graph_from_clips(items, p.graph, p.features)
         seconds = time.perf_counter() - t0
         g.meta["seconds"] = seconds
         if cached is not None:
             g.save(cached)
-        return GraphModel(g, motions, seconds)
+        return GraphModel(g, motions, seconds, labels)
 
     def prepare(self, models) -> None:
         """The beam search's arrays of the characters' graphs padded to one shape: one compiled search
@@ -84,4 +85,4 @@ class MotionGraphSystem(SynthesisSystem):
             source_clip=res.source_clip if res.success else None,
             source_frame=np.asarray(res.source_frame) if res.success else None,
             diagnostics={**diag, "blinks": res.blinks, "path": res.path, "transition_costs": res.transition_costs},
-            synthetic_at=res.synthetic_at if res.success else None)
+            synthetic_at=res.synthetic_at if res.success else None, blend_frames=int(self.params.synth.blend_frames))

@@ -9,31 +9,32 @@ frames are chosen. It reports no constraints (0 of 0).
 from __future__ import annotations
 
 import time
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
 from ..errors import ConfigError
 from ..synth.pipeline import CHAIRS
 from ..synth.realize import realize
-from .base import SynthesisSystem, WindowInput, WindowResult
-from .motion_graph import clip_name
+from .base import WindowInput, WindowResult
+from .playback import PlaybackSystem, clip_name, training_labels
 
 
 @dataclass
 class PlaybackModel:
     motions: dict     # clip name -> Motion
     seconds: float = 0.0
+    labels: dict = field(default_factory=dict)  # clip name -> (own, partner) per-frame audio labels
 
 
-class RandomPlaybackSystem(SynthesisSystem):
+class RandomPlaybackSystem(PlaybackSystem):
     produces_hands = True
 
     def fit(self, clips, character: str, condition: str, cache_dir=None) -> PlaybackModel:
         motions = {clip_name(c.session, c.role): c.motion for c in clips}
         if not motions:
             raise ConfigError(f"random_playback: no training clips of character {character!r}")
-        return PlaybackModel(motions)
+        return PlaybackModel(motions, labels=training_labels(clips))
 
     def synthesize(self, model: PlaybackModel, window: WindowInput, condition: str) -> WindowResult:
         self.condition_options(condition)
@@ -57,8 +58,8 @@ class RandomPlaybackSystem(SynthesisSystem):
             clips += [name] * length
             frames += list(range(start, start + length))
         chair, yaw = CHAIRS.get(window.chair_index, CHAIRS[0])
+        blend = int(self.params.synth.blend_frames)
         motion = realize(clips, frames, model.motions, jumps, chair=chair, chair_yaw_deg=yaw,
-                         blend_frames=int(self.params.synth.blend_frames),
-                         blend_method=str(self.params.synth.blend_method))
+                         blend_frames=blend, blend_method=str(self.params.synth.blend_method))
         return WindowResult(True, motion, time.perf_counter() - t0, 0, 0, None, clips, np.asarray(frames),
-                            {"num_synthetic_transitions": len(jumps)}, jumps)
+                            {"num_synthetic_transitions": len(jumps)}, jumps, blend)

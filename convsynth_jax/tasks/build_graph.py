@@ -14,6 +14,7 @@ joint_names, root_relative. For dyadic corpora the same keys are given per chara
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 
@@ -40,6 +41,13 @@ def character_clip_sets(params):
     _, ann = annotated_corpus(params)
     return {c: [(clip_name(a.session, a.role), a.motion, a.own, a.partner)
                 for d in ann.values() for a in d.values() if a.character == c] for c in characters(ann)}
+
+
+@dataclass(frozen=True)
+class BuildGraphSettings:
+    """``conf/task/build_graph.yaml``."""
+
+    name: str = "build_graph"
 
 
 def run(cfg, out_dir: Path) -> dict:

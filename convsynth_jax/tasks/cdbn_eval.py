@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -20,12 +21,18 @@ from .cdbn_common import ensure_corpus, params
 log = logging.getLogger(__name__)
 
 
+@dataclass(frozen=True)
+class CDBNEvalSettings:
+    """``conf/task/cdbn_eval.yaml`` (the protocol's settings are the cdbn group's ``eval``)."""
+
+    name: str = "cdbn_eval"
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..cdbn.dataset import load_semisynthetic_turns, normalize_by_subject
     from ..cdbn.em import e_step, make_batch
     from ..cdbn.evaluate import cca, constraint_tests
     from ..cdbn.experiment import (
-        CDBNEvalParams,
         init_comparison,
         run_cdbn_evaluation,
         transition_distances,
@@ -37,9 +44,7 @@ def run(cfg, out_dir: Path) -> dict:
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
     p = params(cfg)
-    ev = dict(p.extra.get("eval") or {})
-    hands_cfg = ev.pop("hands", None)
-    ep = CDBNEvalParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in ev.items()})
+    ep = p.eval
     root = ensure_corpus(cfg, p)
     raw = load_semisynthetic_turns(root, p.constraints, p.features)
     turns, norms = normalize_by_subject(raw)
@@ -97,14 +102,14 @@ def run(cfg, out_dir: Path) -> dict:
     phases["statistics_models_tables_figures"] = time.perf_counter() - tick
     tick = time.perf_counter()
     hands = None
-    if hands_cfg and hands_cfg.get("bvh_dir"):
+    hc = ep.hands
+    if hc.bvh_dir:
         # hand model (Table V analogue, ours to make optional: it adds minutes): real Bandai2 raise/wave
         # arm motion, gesture constraints, paired with the real speech of hands.wav (unrelated to it)
         from ..cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns, hand_evaluation
 
-        ht, rig = bandai_hand_turns(hands_cfg["bvh_dir"], hands_cfg["wav"], p.features,
-                                    max_clips=hands_cfg.get("max_clips"), seed=ep.seed)
-        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in (hands_cfg.get("eval") or {}).items()}
+        ht, rig = bandai_hand_turns(hc.bvh_dir, hc.wav, p.features, max_clips=hc.max_clips, seed=ep.seed)
+        kw = {k: tuple(v) if isinstance(v, list) else v for k, v in hc.eval.items()}
         hands = hand_evaluation(ht, rig, BANDAI_CONSTRAINTS, {"seed": ep.seed, **kw}, p)
         pd.DataFrame(hands["table"]).to_csv(out_dir / "table_hands.csv", index=False, float_format="%.4f")
         phases["hands"] = time.perf_counter() - tick

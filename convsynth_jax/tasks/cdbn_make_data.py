@@ -2,16 +2,24 @@
 in ``cdbn.corpus_root`` (default ``<cache_dir>/cdbn_semisynthetic``)."""
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
-from .cdbn_common import corpus_root, params
+from .cdbn_common import corpus_root, params, semisynthetic_params
+
+
+@dataclass(frozen=True)
+class CDBNMakeDataSettings:
+    """``conf/task/cdbn_make_data.yaml`` (the corpus's settings are the cdbn group's ``data``)."""
+
+    name: str = "cdbn_make_data"
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..cdbn.semisynthetic import make_semisynthetic_corpus, params_from_dict
+    from ..cdbn.semisynthetic import make_semisynthetic_corpus
 
     p = params(cfg)
-    dp = params_from_dict({**(p.extra.get("data") or {}), "fps": p.features.fps})
+    dp = semisynthetic_params(p)
     root = corpus_root(cfg, p)
     stats = make_semisynthetic_corpus(root, dp)
     return {"success": True, "corpus_root": str(root), **stats}

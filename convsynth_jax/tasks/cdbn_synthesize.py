@@ -5,12 +5,25 @@ CDBN is trained on the semi-synthetic corpus (``cdbn.constrain.states_per_constr
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
 from ..errors import CDBNError, ConfigError
 from .cdbn_common import ensure_corpus, params
+
+
+@dataclass(frozen=True)
+class CDBNSynthesizeSettings:
+    """``conf/task/cdbn_synthesize.yaml``."""
+
+    name: str = "cdbn_synthesize"
+    audio: Optional[str] = None         # WAV to animate (required)
+    constraints: Optional[str] = None   # TSV rows: start end label (labels from cdbn.constraints); None: all 'other'
+    model: Optional[str] = None         # a model_cdbn.npz / model_jdbn.npz; None: train a CDBN on the semi-synthetic corpus
+    output: Optional[str] = None        # BVH name inside the output directory (None: <audio stem>.bvh)
 
 
 def run(cfg, out_dir: Path) -> dict:
@@ -29,14 +42,16 @@ def run(cfg, out_dir: Path) -> dict:
     from ..io.bvh import save_bvh
 
     t0 = time.perf_counter()
-    task = cfg.task
-    if not task.get("audio"):
+    from ..config import task_settings
+
+    task = task_settings(cfg)
+    if not task.audio:
         raise ConfigError("task.audio is required: convsynth task=cdbn_synthesize task.audio=F.wav")
     p = params(cfg)
     fps = p.features.fps
     audio = load_audio(task.audio)
     n = round(audio.duration * fps)
-    if task.get("model"):
+    if task.model:
         model, extra = load_model(task.model, FEATURE_LAYOUT)
         if "motion_mean" not in extra:
             raise CDBNError("model file lacks motion_mean/motion_sd (write it with task=cdbn_eval)", task.model)
@@ -49,7 +64,7 @@ def run(cfg, out_dir: Path) -> dict:
         msd = np.mean([v[1].sd for v in norms.values()], axis=0)
     t_model = time.perf_counter() - t0
     names = model.constraint_names
-    codes = (read_constraints(task.constraints, names, n, fps) if task.get("constraints")
+    codes = (read_constraints(task.constraints, names, n, fps) if task.constraints
              else np.zeros(n, np.int32))
     t1 = time.perf_counter()
     raw = speech_features(audio, p.features, n, fps, path=task.audio)
@@ -59,7 +74,7 @@ def run(cfg, out_dir: Path) -> dict:
     q = keypoint_smooth(angles, fps, p.synth.keypoints_per_second)
     template = head_motion(np.zeros((2, 3)), fps, "template")
     motion = head_into_motion(template, q, p.features.head_joints, Path(task.audio).stem)
-    name = task.get("output") or f"{Path(task.audio).stem}.bvh"
+    name = task.output or f"{Path(task.audio).stem}.bvh"
     out = save_bvh(motion, Path(out_dir) / name)
     return {"success": True, "bvh": str(out), "frames": int(n), "seconds": n / fps,
             "audio_seconds": audio.duration, "model_states": model.num_states,

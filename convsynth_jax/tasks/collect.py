@@ -6,14 +6,26 @@ Markdown) into this task's output directory. Failed jobs appear as rows with sta
 """
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 from ..errors import ConfigError
 from ..evaluation.collect import collect_cases, write_collected
 
 
+@dataclass(frozen=True)
+class CollectSettings:
+    """``conf/task/collect.yaml``."""
+
+    name: str = "collect"
+    dir: Optional[str] = None           # a multirun folder of task=loo jobs
+
+
 def run(cfg, out_dir: Path) -> dict:
-    src = cfg.task.get("dir")
+    from ..config import task_settings
+
+    src = task_settings(cfg).dir
     if not src:
         raise ConfigError("collect needs task.dir=<multirun directory>")
     cases = collect_cases(src)

@@ -11,10 +11,13 @@ log = logging.getLogger(__name__)
 
 
 def enable_compilation_cache(cfg) -> Path | None:
-    """:func:`convsynth_jax.kernel_cache.enable_compilation_cache` with the config's ``jax_cache`` group."""
+    """:func:`convsynth_jax.kernel_cache.enable_compilation_cache` with the config's ``jax_cache`` group
+    (off when the config has none)."""
     from .. import kernel_cache
+    from ..config import group_params
 
-    return kernel_cache.enable_compilation_cache(cfg.get("jax_cache") if hasattr(cfg, "get") else None)
+    return kernel_cache.enable_compilation_cache(group_params(cfg, "jax_cache") if cfg.get("jax_cache") is not None
+                                                 else None)
 
 
 def params_of(cfg):

@@ -68,18 +68,6 @@ class ConverseParams:
     video_dpi: int = 80
 
 
-def converse_params(task) -> ConverseParams:
-    from omegaconf import OmegaConf
-
-    from ..config import schema_node
-
-    try:
-        data = OmegaConf.to_container(task, resolve=True)
-        return OmegaConf.to_object(OmegaConf.merge(schema_node(ConverseParams), data))
-    except Exception as e:  # omegaconf names the key
-        raise ConfigError(f"invalid task=converse config: {e}") from None
-
-
 # ----------------------------------------------------------------------------------------------- inputs
 @dataclass
 class SpeakerInput:
@@ -274,6 +262,7 @@ def write_report_md(path: Path, report: dict) -> None:
 
 # ----------------------------------------------------------------------------------------------- task
 def run(cfg, out_dir: Path) -> dict:
+    from ..config import task_settings
     from ..io import save_bvh
     from ..seeding import derive_seed
     from ..synth.chain import plan_windows, quiet_mask, synthesize_conversation
@@ -282,7 +271,7 @@ def run(cfg, out_dir: Path) -> dict:
 
     t_start = time.perf_counter()
     timings = {}
-    p = converse_params(cfg.task)
+    p = task_settings(cfg)
     params = params_of(cfg)
     system = make_configured_system(params)
     if not isinstance(system, MotionGraphSystem):

@@ -9,6 +9,7 @@ segments) and ``cooccurrence.png``.
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
@@ -22,6 +23,13 @@ log = logging.getLogger(__name__)
 def _csv(df, path):
     with atomic_path(path) as tmp:
         df.to_csv(tmp, index=False)
+
+
+@dataclass(frozen=True)
+class CooccurrenceSettings:
+    """``conf/task/cooccurrence.yaml``."""
+
+    name: str = "cooccurrence"
 
 
 def run(cfg, out_dir: Path) -> dict:

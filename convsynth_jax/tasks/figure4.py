@@ -4,17 +4,28 @@ Writes ``figure4_histograms.csv`` (character, k, bin_left, bin_right, density), 
 script ``experiments/figure4.py`` redraws the figure from the two CSVs."""
 from __future__ import annotations
 
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List
 
 import pandas as pd
 
 from ..utils import atomic_path
 
 
+@dataclass(frozen=True)
+class Figure4Settings:
+    """``conf/task/figure4.yaml``."""
+
+    name: str = "figure4"
+    ks: List[int] = field(default_factory=lambda: [2, 3, 4, 5])  # key-state granularities k
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..graph import build_database
     from ..graph.statistics import graph_statistics
     from .build_graph import character_clip_sets
+    from ..config import task_settings
     from .common import params_of
 
     params = params_of(cfg)
@@ -22,7 +33,7 @@ def run(cfg, out_dir: Path) -> dict:
     for char, clips in character_clip_sets(params).items():
         db = build_database(clips, params.features)
         # w_v as build_graph would choose it for each k, so each panel's threshold is the graph's
-        st = graph_statistics(db, params.graph, cfg.task.get("ks", [2, 3, 4, 5]), char or "all", build_graphs=False,
+        st = graph_statistics(db, params.graph, task_settings(cfg).ks, char or "all", build_graphs=False,
                               fit_all=True)
         hist_rows += st.histograms
         fit_rows += st.fits

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
@@ -10,6 +11,13 @@ from ..io import load_bvh
 from ..kinematics import forward_kinematics
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class InspectSettings:
+    """``conf/task/inspect.yaml`` (the file: top-level ``path``)."""
+
+    name: str = "inspect"
 
 
 def run(cfg, out_dir: Path) -> dict:

@@ -11,6 +11,7 @@ from __future__ import annotations
 import logging
 import time
 import traceback
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
@@ -20,7 +21,16 @@ from ..utils import atomic_path
 log = logging.getLogger(__name__)
 
 
+@dataclass(frozen=True)
+class LooSettings:
+    """``conf/task/loo.yaml`` (fold and condition: the top-level ``fold``, ``condition``)."""
+
+    name: str = "loo"
+    export_bvh: bool = False            # write each synthesized window as BVH
+
+
 def run(cfg, out_dir: Path) -> dict:
+    from ..config import task_settings
     from ..evaluation.loo import run_fold
     from .common import annotated_corpus, cache_dir, make_configured_system, params_of
 
@@ -34,7 +44,7 @@ def run(cfg, out_dir: Path) -> dict:
         system.condition_options(condition)
         _, annotations = annotated_corpus(params)
         cases = run_fold(system, annotations, fold, condition, params, out_dir=out_dir, cache_dir=cache_dir(params),
-                         export_bvh=bool(cfg.task.get("export_bvh", False)),
+                         export_bvh=task_settings(cfg).export_bvh,
                          with_audio=system.needs_audio)
         error = None
     except Exception as e:  # a failing job is recorded, it does not end the sweep

@@ -16,7 +16,9 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List, Optional
 
 import pandas as pd
 from tqdm.auto import tqdm
@@ -32,9 +34,23 @@ def _csv(df: pd.DataFrame, path: Path) -> None:
         df.to_csv(tmp, index=False)
 
 
+@dataclass(frozen=True)
+class MainSettings:
+    """``conf/task/main.yaml``."""
+
+    name: str = "main"
+    fold: int = 0                       # held-out session index
+    conditions: Optional[List[str]] = None  # None: every condition of the system (conf/system/<name>.yaml)
+    export_bvh: bool = True
+    paper_ks: List[int] = field(default_factory=lambda: [2, 3, 4])  # Table 2 / Figure 4 for these k ([] skips the extra builds)
+    render: bool = True                 # render the first window (synthesized | ground truth) into the report
+    render_fps: float = 8.0
+
+
 def run(cfg, out_dir: Path) -> dict:
+    from ..config import task_settings
     from ..errors import ConfigError
-    from ..evaluation.loo import fit_fold, run_fold
+    from ..evaluation.loo import fit_fold, recording_threshold_table, run_fold
     from ..figures import save_figure
     from ..figures.motion_graph import ablation_figure, success_rate_figure
     from ..stats.cooccurrence import cooccurrence_table
@@ -44,7 +60,8 @@ def run(cfg, out_dir: Path) -> dict:
     timings = {}
     params = params_of(cfg)
     system = make_configured_system(params)
-    conditions = list(cfg.task.get("conditions") or system.conditions)
+    task = task_settings(cfg)
+    conditions = list(task.conditions or system.conditions)
     for cond in conditions:  # unknown conditions fail before any work
         system.condition_options(cond)
     progress = params.progress
@@ -69,7 +86,7 @@ def run(cfg, out_dir: Path) -> dict:
     timings["table1_s"] = time.perf_counter() - t0
     steps.update()
 
-    fold = int(cfg.task.get("fold", 0))
+    fold = task.fold
     held_out = corpus.sessions[fold].name
     t0 = time.perf_counter()
     models: dict = {}
@@ -89,16 +106,17 @@ def run(cfg, out_dir: Path) -> dict:
     steps.update()
 
     t0 = time.perf_counter()
-    ks = [int(k) for k in (cfg.task.get("paper_ks") or [])]
+    ks = list(task.paper_ks)
     graph_stats = _graph_statistics(system, annotations, held_out, fitted, params, cache, ks) if ks else None
     timings["table2_figure4_s"] = time.perf_counter() - t0
 
     t0 = time.perf_counter()
     frames = []
+    thresholds = recording_threshold_table(annotations, params.annotate)
     for cond in tqdm(conditions, desc="leave-one-out conditions", disable=not progress, leave=False):
         frames.append(run_fold(system, annotations, fold, cond, params, out_dir=out_dir, cache_dir=cache,
-                               export_bvh=bool(cfg.task.get("export_bvh", True)), models=models,
-                               with_audio=system.needs_audio))
+                               export_bvh=task.export_bvh, models=models,
+                               with_audio=system.needs_audio, thresholds=thresholds))
     cases = pd.concat(frames, ignore_index=True)
     _csv(cases, out_dir / "cases.csv")
     timings["leave_one_out_s"] = time.perf_counter() - t0
@@ -281,7 +299,10 @@ def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, pa
     """Synthesize again (same seeds as leave-one-out) the first window leave-one-out solved, in the
     first condition that solved one, and render it beside the ground truth: ``window.gif`` and
     ``window_contact_sheet.png``."""
-    if not bool(cfg.task.get("render", True)):
+    from ..config import task_settings
+
+    task = task_settings(cfg)
+    if not task.render:
         return []
     from ..evaluation.loo import session_windows, window_input
     from ..render import Panel, Timeline, contact_sheet, render_animation, track_from_motion
@@ -309,7 +330,7 @@ def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, pa
     if not synth:
         return ["## Rendering", "", f"_(no character was synthesized in window {index} under `{condition}`)_", ""]
     panels = [Panel(f"synthesized ({condition})", tuple(synth)), Panel("ground truth", tuple(truth))]
-    anim = render_animation(panels, lines, fps, out_dir / "window.gif", render_fps=float(cfg.task.get("render_fps", 8)))
+    anim = render_animation(panels, lines, fps, out_dir / "window.gif", render_fps=task.render_fps)
     sheet = contact_sheet(panels, lines, fps, out_dir / "window_contact_sheet.png")
     log.info("rendered %s in %.1f s", anim, time.perf_counter() - t0)
     return [f"## Rendering: {held_out}, {w.start:.0f}-{w.end:.0f} s, condition `{condition}`", "",

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import json
 import time
+from dataclasses import dataclass
 from pathlib import Path
 
 import pandas as pd
@@ -12,7 +13,16 @@ from ..data import ensure_synthetic_corpus, make_synthetic_corpus
 from ..errors import ConfigError
 
 
+@dataclass(frozen=True)
+class MakeCorpusSettings:
+    """``conf/task/make_corpus.yaml``."""
+
+    name: str = "make_corpus"
+    force: bool = False                 # write the corpus again even when the cached one matches
+
+
 def run(cfg, out_dir: Path) -> dict:
+    from ..config import task_settings
     from .common import params_of
 
     params = params_of(cfg)
@@ -21,7 +31,7 @@ def run(cfg, out_dir: Path) -> dict:
         raise ConfigError(f"make_corpus needs a synthetic corpus config, got kind={c.kind!r}")
     t0 = time.perf_counter()
     name = c.name or "synthetic_default"
-    if cfg.task.get("force", False):
+    if task_settings(cfg).force:
         root = Path(c.root) if c.root else Path(params.cache_dir) / name
         root = make_synthetic_corpus(root, c.generator)
     else:

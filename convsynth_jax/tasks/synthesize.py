@@ -21,7 +21,9 @@ from __future__ import annotations
 
 import logging
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Dict, Optional
 
 import numpy as np
 import pandas as pd
@@ -40,19 +42,43 @@ def _given_graphs(given, ann, system):
     out = {}
     for char, path in given.items():
         g = load_graph(path)
-        motions = {}
+        motions, labels = {}, {}
         for cn in g.clip_names:
             s_name, role = cn.rsplit("_", 1)
             if s_name not in ann or role not in ann[s_name]:
                 raise ConfigError(f"graph {path}: clip {cn!r} is not a recording of the configured corpus")
-            motions[cn] = ann[s_name][role].motion
-        out[char] = GraphModel(g, motions, 0.0)
+            a = ann[s_name][role]
+            motions[cn], labels[cn] = a.motion, (a.own, a.partner)
+        out[char] = GraphModel(g, motions, 0.0, labels)
     system.prepare(out)
     return out
 
 
+@dataclass(frozen=True)
+class InputFiles:
+    """New speech for one role of ``task=synthesize``: a WAV and its word-level transcript."""
+
+    audio: str
+    transcript: str
+
+
+@dataclass(frozen=True)
+class SynthesizeSettings:
+    """``conf/task/synthesize.yaml``."""
+
+    name: str = "synthesize"
+    fold: int = 0                       # the session by index (when ``session`` is None)
+    session: Optional[str] = None
+    start: float = 0.0                  # seconds
+    duration: float = 15.0              # seconds
+    condition: str = "all"              # one of the system's conditions
+    graphs: Dict[str, str] = field(default_factory=dict)  # motion graph: character -> graph file
+    inputs: Dict[str, InputFiles] = field(default_factory=dict)  # role -> {audio, transcript} replacing the session's
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..annotate.audio import annotate_audio
+    from ..config import task_settings
     from ..evaluation.loo import fit_fold, window_input
     from ..evaluation.windows import Window
     from ..io import load_audio, load_transcript, save_bvh, save_wav
@@ -62,19 +88,19 @@ def run(cfg, out_dir: Path) -> dict:
     from .common import annotated_corpus, cache_dir, make_configured_system, params_of
 
     t0 = time.perf_counter()
-    task = cfg.task
+    task = task_settings(cfg)
     params = params_of(cfg)
     system = make_configured_system(params)
-    condition = str(task.get("condition") or "all")
+    condition = task.condition or "all"
     system.condition_options(condition)
     corpus, ann = annotated_corpus(params)
     names = list(ann)
-    session = task.get("session") or names[int(task.get("fold", 0))]
+    session = task.session or names[task.fold]
     if session not in ann:
         raise ConfigError(f"no session {session!r}; sessions are {names}")
     fold = names.index(session)
     fps = params.fps
-    start, duration = float(task.get("start", 0.0)), float(task.get("duration", 15.0))
+    start, duration = task.start, task.duration
     held = ann[session]
     avail = min(a.motion.num_frames for a in held.values()) / fps
     if start < 0 or start + duration > avail + 1e-6:
@@ -82,7 +108,7 @@ def run(cfg, out_dir: Path) -> dict:
     w = Window(0, start, start + duration)
     f0, n = int(round(start * fps)), int(round(duration * fps))
     # input audio annotation per role: the session's, or files given in task.inputs
-    inputs = task.get("inputs") or {}
+    inputs = task.inputs
     segs, audio = {}, {}
     for role, a in held.items():
         spec = inputs.get(role) if inputs else None
@@ -96,7 +122,7 @@ def run(cfg, out_dir: Path) -> dict:
             audio[role] = p.load_audio() if p.audio_path else None
     roles = list(held)
     t_fit = time.perf_counter()
-    given = task.get("graphs") or {}
+    given = task.graphs
     fitted = _given_graphs(given, ann, system) if given else fit_fold(system, ann, session, condition, cache_dir(params))
     fit_seconds = time.perf_counter() - t_fit
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in ann.items() for r, a in d.items()}

@@ -5,7 +5,9 @@ SCC keeps under half of the states (also logged as a warning)."""
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List
 
 import pandas as pd
 
@@ -18,17 +20,27 @@ TABLE2_COLUMNS = ["character", "k", "threshold", "states_before_scc", "edges_bef
                   "edges_after_scc", "kept_state_fraction", "seconds", "scc_warning"]
 
 
+@dataclass(frozen=True)
+class Table2Settings:
+    """``conf/task/table2.yaml``."""
+
+    name: str = "table2"
+    ks: List[int] = field(default_factory=lambda: [2, 3, 4, 5])  # key-state granularities k
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..graph import build_database
     from ..graph.statistics import graph_statistics
     from .build_graph import character_clip_sets
+    from ..config import task_settings
     from .common import params_of
 
     params = params_of(cfg)
+    ks = task_settings(cfg).ks
     rows = []
     for char, clips in character_clip_sets(params).items():
         db = build_database(clips, params.features)
-        rows += graph_statistics(db, params.graph, cfg.task.get("ks", [2, 3, 4, 5]), char or "all").table2
+        rows += graph_statistics(db, params.graph, ks, char or "all").table2
     table = pd.DataFrame(rows)[TABLE2_COLUMNS]
     with atomic_path(out_dir / "table2.csv") as tmp:
         table.to_csv(tmp, index=False)

@@ -5,7 +5,9 @@ bar chart."""
 from __future__ import annotations
 
 import logging
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import pandas as pd
 
@@ -44,11 +46,21 @@ def analyse(df: pd.DataFrame, path=None, alpha: float = 0.03) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+@dataclass(frozen=True)
+class UserStudySettings:
+    """``conf/task/user_study.yaml``."""
+
+    name: str = "user_study"
+    csv: Optional[str] = None           # the study's responses (None: the paper's, shipped)
+
+
 def run(cfg, out_dir: Path) -> dict:
     from ..figures import save_figure
     from ..figures.motion_graph import figure6_figure
 
-    src = Path(cfg.task.get("csv") or PAPER_CSV)
+    from ..config import task_settings
+
+    src = Path(task_settings(cfg).csv or PAPER_CSV)
     if not src.is_file():
         from ..errors import MissingFileError
 

@@ -17,20 +17,21 @@ import json
 import logging
 import tempfile
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any, Dict, List, Optional
 
 import numpy as np
 import pandas as pd
-from omegaconf import OmegaConf
 
-from ..annotate.motion import RIG_JOINTS
+from ..config import group_params, task_settings
 from ..errors import MissingFileError, WalkTalkError
 from ..io.bvh import save_bvh
+from ..rig import RIG_JOINTS
 from ..utils import atomic_path
 from ..walktalk.demo import DemoParams, Speaker, run_demo
 from ..walktalk.library import dof_limits, load_library, resolve_data_dir
 from ..walktalk.gaze import AAREvent
-from ..walktalk.params import params_from_dict
 
 REPO = Path(__file__).resolve().parents[2]
 log = logging.getLogger(__name__)
@@ -77,7 +78,7 @@ def _pick_loops(lcs, n):
     return [lcs[k] for k in order[best:best + n]]
 
 
-def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
+def _synthesized_source(t: WalkTalkDemoSettings, speakers: list, lib, p, own_times: bool):
     """Per speaker, the gestures cut from its character's synthesized BVH (``task.synthesized_dir``,
     the output folder of ``task=synthesize``; ``task.synthesized_characters`` one character per
     speaker, default the folder's BVHs sorted) as GestureContexts; with ``own_times`` each speaker's peaks
@@ -88,22 +89,22 @@ def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
     from ..walktalk.pipeline import gesture_context
     from ..walktalk.conversation_gestures import synthesized_gestures
 
-    folder = _resolve(str(t.get("synthesized_dir") or ""))
-    if not t.get("synthesized_dir") or not folder.is_dir():
+    folder = _resolve(t.synthesized_dir)
+    if not t.synthesized_dir or not folder.is_dir():
         raise MissingFileError("gesture_source=synthesized needs task.synthesized_dir, the output folder of "
                                "task=synthesize", folder)
-    chars = t.get("synthesized_characters") or sorted(f.stem for f in folder.glob("*.bvh"))
+    chars = t.synthesized_characters or sorted(f.stem for f in folder.glob("*.bvh"))
     if len(chars) < len(speakers):
         raise WalkTalkError(f"{len(speakers)} speakers but synthesized characters {list(chars)}", folder)
     files = {sp.name: folder / f"{c}.bvh" for sp, c in zip(speakers, chars)}
-    offsets = {s["name"]: float(s.get("offset_s", 0.0)) for s in t["speakers"]}
+    offsets = {s["name"]: float(s.get("offset_s", 0.0)) for s in t.speakers}
     template = lib.gestures[0].gesture.motion if lib.gestures else None
     if template is None:
         raise WalkTalkError("gesture_source=synthesized needs one standing gesture clip of the library as the "
                             "retargeting template", where="walktalk.gesture_globs")
     pad = round(p.splice.transition_pad_s * p.fps)
     by_speaker, out_speakers, info = {}, [], {}
-    duration = float(t["duration_s"])
+    duration = float(t.duration_s)
     for sp in speakers:
         path = _resolve(str(files[sp.name]))
         if not path.is_file():
@@ -120,15 +121,15 @@ def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
     return by_speaker, out_speakers, info
 
 
-def _video_path(t: dict, out_dir: Path) -> Path | None:
+def _video_path(t: WalkTalkDemoSettings, out_dir: Path) -> Path | None:
     """The video's path (``task.video_file``, relative to the output folder), checked writable
     before any work is done; None when ``task.video`` is off."""
-    if not t.get("video", True):
+    if not t.video:
         return None
-    if len(t["speakers"]) != 2:
-        raise WalkTalkError(f"the video carries two speakers' audio, got {len(t['speakers'])} speakers "
+    if len(t.speakers) != 2:
+        raise WalkTalkError(f"the video carries two speakers' audio, got {len(t.speakers)} speakers "
                             "(task.video=false writes the BVHs alone)", where="task.speakers")
-    path = Path(str(t.get("video_file") or "walktalk_demo.mp4"))
+    path = Path(t.video_file or "walktalk_demo.mp4")
     path = path if path.is_absolute() else out_dir / path
     if path.suffix.lower() != ".mp4":
         raise WalkTalkError(f"the video is written as MP4, got {path.name!r}", path, "task.video_file")
@@ -209,42 +210,68 @@ def write_demo_video(motions_by_gait: dict, events: pd.DataFrame, names: list[st
         raise WalkTalkError(f"writing the demo video failed: {e}", path) from None
 
 
+
+@dataclass(frozen=True)
+class WalkTalkDemoSettings:
+    """``conf/task/walktalk_demo.yaml``."""
+
+    name: str = "walktalk_demo"
+    gaits: List[str] = field(default_factory=lambda: ["walk", "jog"])  # one pair of characters per gait
+    duration_s: float = 60.0
+    spacing_cm: float = 100.0           # lateral distance between the two walkers (ours)
+    min_gap_s: float = 0.2              # least gap between consecutive gestures of a character (ours)
+    aar: str = "inferred"               # inferred | random | scripted | statistics
+    scripted_aar: List[Dict[str, Any]] = field(default_factory=list)  # aar=scripted: [{addresser, addressee, t_begin, t_full, t_release, t_end}]
+    method: str = "stylized+synced"
+    include_multi_peak: bool = True     # also use multi-peak gestures (never realigned)
+    loop_candidates: int = 6            # loops per gait to choose the closest-speed pair from
+    max_gestures: Optional[int] = 60    # gesture clips loaded, spread across kinds (None = all)
+    gesture_source: str = "library"     # library | synthesized
+    synthesized_dir: str = ""           # the output folder of task=synthesize
+    synthesized_characters: Optional[List[str]] = None  # one character per speaker (None: the folder's BVHs, sorted)
+    synthesized_timing: str = "own"     # own | speech
+    speakers: List[Dict[str, Any]] = field(default_factory=list)  # {name, wav, transcript, offset_s} (or peaks_tsv)
+    video: bool = True                  # also write the rendered video with both speakers' speech
+    video_file: str = "walktalk_demo.mp4"   # relative to the output folder
+    video_fps: float = 10.0             # frames drawn per second of motion (the motion is 30 fps)
+    video_dpi: int = 80
+
+
 def run(cfg, out_dir: Path) -> dict:
-    t = OmegaConf.to_container(cfg.task, resolve=True)
+    t = task_settings(cfg)
     video_path = _video_path(t, out_dir)
-    p = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
-    dp = DemoParams(duration_s=float(t["duration_s"]), spacing_cm=float(t["spacing_cm"]),
-                    min_gap_s=float(t["min_gap_s"]), aar=str(t["aar"]), method=str(t["method"]),
-                    include_multi_peak=bool(t["include_multi_peak"]))
-    source = str(t.get("gesture_source", "library"))
+    p = group_params(cfg, "walktalk")
+    dp = DemoParams(duration_s=t.duration_s, spacing_cm=t.spacing_cm, min_gap_s=t.min_gap_s, aar=t.aar,
+                    method=t.method, include_multi_peak=t.include_multi_peak)
+    source = t.gesture_source
     if source not in ("library", "synthesized"):
         raise WalkTalkError(f"gesture_source must be library or synthesized, got {source!r}", where="task.gesture_source")
-    timing = str(t.get("synthesized_timing", "own"))
+    timing = t.synthesized_timing
     if timing not in ("own", "speech"):
         raise WalkTalkError(f"synthesized_timing must be own or speech, got {timing!r}", where="task.synthesized_timing")
     own_times = source == "synthesized" and timing == "own"
     t0 = time.perf_counter()
     speakers = [Speaker(s["name"], () if own_times else speech_peaks(s, cfg), str(s.get("wav") or s.get("peaks_tsv")))
-                for s in t["speakers"]]
+                for s in t.speakers]
     t1 = time.perf_counter()
     data_dir = resolve_data_dir(p, REPO)
-    lib = load_library(p, data_dir, int(t["loop_candidates"]), 1 if source == "synthesized" else t.get("max_gestures"))
+    lib = load_library(p, data_dir, t.loop_candidates, 1 if source == "synthesized" else t.max_gestures)
     gestures, synth_info = lib.gestures, {}
     if source == "synthesized":
         gestures, speakers, synth_info = _synthesized_source(t, speakers, lib, p, own_times)
-    scripted = [AAREvent(**e) for e in (t.get("scripted_aar") or [])]
+    scripted = [AAREvent(**e) for e in t.scripted_aar]
     audio = {}
     if video_path is not None:   # read before any work, so a missing recording stops the run here
-        for spec, sp in zip(t["speakers"], speakers):
+        for spec, sp in zip(t.speakers, speakers):
             char = Path(synth_info[sp.name]["file"]).stem if sp.name in synth_info else None
-            audio[sp.name] = _speaker_audio(spec, t.get("synthesized_dir") if own_times else None, char)
+            audio[sp.name] = _speaker_audio(spec, t.synthesized_dir if own_times else None, char)
             if audio[sp.name] is None:
                 log.warning("speaker %s has no speech recording (wav): silent in the video", sp.name)
     t2 = time.perf_counter()
     rows, aar_rows, files, by_gait = [], [], [], {}
     rng = np.random.default_rng(p.seed)
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
-    for gait in t["gaits"]:
+    for gait in t.gaits:
         lcs = lib.loops.get(gait) or []
         if not lcs:
             raise WalkTalkError(f"no {gait} loop found", data_dir)
@@ -271,9 +298,8 @@ def run(cfg, out_dir: Path) -> dict:
 
         names = [sp.name for sp in speakers]
         wav = write_stereo(out_dir / "walktalk_speech.wav", audio[names[0]], audio[names[1]], dp.duration_s,
-                           offsets_s=[float(s.get("offset_s", 0.0)) for s in t["speakers"]])
-        video = write_demo_video(by_gait, events, names, p.fps, video_path, wav, float(t.get("video_fps", 10.0)),
-                                 int(t.get("video_dpi", 80)))
+                           offsets_s=[float(s.get("offset_s", 0.0)) for s in t.speakers])
+        video = write_demo_video(by_gait, events, names, p.fps, video_path, wav, t.video_fps, t.video_dpi)
     t4 = time.perf_counter()
     single = events[events["single_peak"]] if len(events) else events
     return {"data_dir": str(data_dir), "files": files, "gestures_spliced": len(events),

@@ -5,34 +5,47 @@ methods (naive, stylized, stylized+synced). Writes ``walktalk_eval.csv`` (one ro
 from __future__ import annotations
 
 import time
+from dataclasses import dataclass, field
 from pathlib import Path
+from typing import List, Optional
 
 import numpy as np
 import pandas as pd
-from omegaconf import OmegaConf
 
+from ..config import group_params, task_settings
 from ..utils import atomic_path
 from ..walktalk.evaluate import EvalParams, run_evaluation, summarize, torso_radius
 from ..walktalk.library import dof_limits, load_library, resolve_data_dir
 from ..walktalk.limit_metrics import in_sample_violations, limit_readings, source_readings
-from ..walktalk.params import params_from_dict
 
 REPO = Path(__file__).resolve().parents[2]
 
 
-def eval_params(task_cfg) -> EvalParams:
-    t = OmegaConf.to_container(task_cfg, resolve=True)
-    return EvalParams(loops_per_gait=int(t["loops_per_gait"]), methods=tuple(t["methods"]),
-                      torso_radius_cm=None if t.get("torso_radius_cm") is None else float(t["torso_radius_cm"]),
-                      torso_radius_quantile=float(t.get("torso_radius_quantile", 0.0)),
-                      max_gestures=None if t.get("max_gestures") is None else int(t["max_gestures"]),
-                      limit_percentiles=tuple(t["limit_percentiles"]),
-                      limit_tolerance_deg=float(t["limit_tolerance_deg"]))
+def eval_params(t: WalkTalkEvalSettings) -> EvalParams:
+    return EvalParams(loops_per_gait=t.loops_per_gait, methods=tuple(t.methods), torso_radius_cm=t.torso_radius_cm,
+                      torso_radius_quantile=t.torso_radius_quantile, max_gestures=t.max_gestures,
+                      limit_percentiles=tuple(t.limit_percentiles), limit_tolerance_deg=t.limit_tolerance_deg)
+
+
+@dataclass(frozen=True)
+class WalkTalkEvalSettings:
+    """``conf/task/walktalk_eval.yaml``."""
+
+    name: str = "walktalk_eval"
+    loops_per_gait: int = 3
+    methods: List[str] = field(default_factory=lambda: ["naive", "stylized", "stylized+synced"])
+    torso_radius_cm: Optional[float] = None  # None: calibrated (ours)
+    torso_radius_quantile: float = 0.0  # calibrated radius: this quantile of the recorded hands' distances (ours)
+    max_gestures: Optional[int] = None  # None = every single-peak gesture clip
+    limit_percentiles: List[float] = field(default_factory=lambda: [0.5, 99.5])
+    limit_tolerance_deg: float = 0.5    # limits widened by this (ours)
+    figures: bool = True
 
 
 def run(cfg, out_dir: Path) -> dict:
-    p = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
-    ep = eval_params(cfg.task)
+    task = task_settings(cfg)
+    p = group_params(cfg, "walktalk")
+    ep = eval_params(task)
     data_dir = resolve_data_dir(p, REPO)
     t0 = time.perf_counter()
     lib = load_library(p, data_dir, ep.loops_per_gait, ep.max_gestures, single_peak_only=True)
@@ -47,7 +60,7 @@ def run(cfg, out_dir: Path) -> dict:
     with atomic_path(out_dir / "walktalk_eval_summary.csv") as tmp:
         pd.DataFrame(summary).to_csv(tmp, index=False)
     figures = []
-    if cfg.task.get("figures", True) and len(df):
+    if task.figures and len(df):
         figures = _figures(df, lib, p, out_dir)
     return {"data_dir": str(data_dir), "gestures": len(lib.gestures),
             "loops": {g: [f"{Path(lc.loop.source).name}[{lc.loop.start}:{lc.loop.start + lc.loop.num_frames}]"

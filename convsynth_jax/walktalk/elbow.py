@@ -18,10 +18,9 @@ from .splice import JointLimits
 
 
 class LoopBend(NamedTuple):
-    """A loop's elbow bend of one side over the loop (degrees): mean and std; ``loop`` the context
-    it was measured on (:func:`lc_bend` checks it, ids can be reused)."""
+    """A loop's elbow bend of one side over the loop (degrees): mean and std (kept by the loop
+    context in ``LoopContext.elbow_bend``, :func:`lc_bend`)."""
 
-    loop: LoopContext
     mean: float
     std: float
 
@@ -41,16 +40,13 @@ def elbow_bend(pos: np.ndarray, body: Body, side: str) -> np.ndarray:
     return np.degrees(np.arccos(np.clip(c, -1, 1)))
 
 
-_BEND_CACHE: dict = {}
-
-
 def lc_bend(lc: LoopContext, side: str, sd: bool = False) -> float:
-    """The loop's elbow bend (degrees) of ``side``: its mean over the loop, or (``sd``) its std."""
-    key = (id(lc), side)
-    hit = _BEND_CACHE.get(key)
-    if hit is None or hit.loop is not lc:   # an id can be reused once its loop is freed: check identity
+    """The loop's elbow bend (degrees) of ``side``: its mean over the loop, or (``sd``) its std
+    (computed once per context and side, kept by the context in ``lc.elbow_bend``)."""
+    hit = lc.elbow_bend.get(side)
+    if hit is None:
         b = elbow_bend(forward_kinematics_np(lc.loop.motion), lc.body, side)
-        hit = _BEND_CACHE[key] = LoopBend(lc, float(b.mean()), float(b.std()))
+        hit = lc.elbow_bend[side] = LoopBend(float(b.mean()), float(b.std()))
     return hit.std if sd else hit.mean
 
 

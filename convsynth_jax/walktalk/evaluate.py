@@ -187,13 +187,13 @@ def run_evaluation(lib: Library, p: WalkTalkParams, ep: EvalParams, progress: bo
         fg, pk = g.motion.num_frames, g.phases.peaks[0]
         gjerk = float(wrist_jerk(forward_kinematics_np(g.motion), lib.body, g.sides, fps).max())
         for gait, lcs in lib.loops.items():
-            for lc in lcs:
+            for li, lc in enumerate(lcs):
                 n = lc.loop.num_frames
                 T = fg + 2 * (n + s_frames + 10)
                 lo, hi = pk + s_frames + 1, T - (fg - pk) - 1
                 n0 = int(rng.integers(lo, hi))
                 u = (n0 + 0.5) / fps + p.splice.lead_s
-                key = (id(lc), g.sides)
+                key = (gait, li, g.sides)
                 if key not in src_cache:
                     src_cache[key] = loop_source_jerk(lc, g.sides)
                 src = max(src_cache[key], gjerk)

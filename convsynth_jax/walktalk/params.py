@@ -2,12 +2,12 @@
 
 The defaults here mirror ``conf/walktalk/default.yaml`` (a test composes the config and compares).
 Values the paper gives are marked (paper); every other default is ours and says so in the YAML.
-Library functions take these objects, never a DictConfig; tasks build them once with
-:func:`params_from_dict`.
+Library functions take these objects; tasks build them once from the ``walktalk`` group with
+:func:`convsynth_jax.schema.build_params` (``convsynth_jax.config.group_params``).
 """
 from __future__ import annotations
 
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field
 
 from ..errors import WalkTalkError
 
@@ -146,24 +146,3 @@ class WalkTalkParams:
     phases: PhaseParams = PhaseParams()
     splice: SpliceParams = SpliceParams()
     gaze: GazeParams = GazeParams()
-
-
-def _build(cls, d: dict | None):
-    d = dict(d or {})
-    names = {f.name for f in fields(cls)}
-    unknown = sorted(set(d) - names)
-    if unknown:
-        raise WalkTalkError(f"unknown keys {unknown} for {cls.__name__}", where="walktalk")
-    for k, v in list(d.items()):
-        if isinstance(v, list):
-            d[k] = tuple(tuple(x) if isinstance(x, list) else x for x in v)
-    return cls(**d)
-
-
-def params_from_dict(d: dict) -> WalkTalkParams:
-    """Build :class:`WalkTalkParams` from a plain dict (``OmegaConf.to_container(cfg.walktalk)``)."""
-    d = dict(d)
-    nested = {"gait": GaitParams, "phases": PhaseParams, "splice": SpliceParams, "gaze": GazeParams}
-    kw = {k: _build(cls, d.pop(k, None)) for k, cls in nested.items()}
-    top = _build(WalkTalkParams, d)
-    return WalkTalkParams(**{**{f.name: getattr(top, f.name) for f in fields(WalkTalkParams)}, **kw})

@@ -5,7 +5,7 @@ compared in the evaluation: ``naive`` (raw gesture DOFs spliced with Eq. 2 at th
 from __future__ import annotations
 
 import dataclasses
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -62,6 +62,9 @@ class LoopContext:
     # (A, 3) per-DOF smallest std over the loaded loops of this loop's gait (``band_std=gait_min``,
     # ours; set by :func:`share_gait_band`); None = the loop's own
     gait_min_std: np.ndarray | None = None
+    # side -> (mean, std) elbow bend in degrees over the loop, filled on first use by
+    # walktalk.elbow.lc_bend (a cache held by the context it describes)
+    elbow_bend: dict = field(default_factory=dict, init=False, repr=False, compare=False)
 
 
 @dataclass(frozen=True)

@@ -18,7 +18,7 @@ import pandas as pd  # noqa: E402
 
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.collect import write_collected  # noqa: E402
-from convsynth_jax.evaluation.loo import run_fold  # noqa: E402
+from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold  # noqa: E402
 from convsynth_jax.systems.base import make_system  # noqa: E402
 from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
 
@@ -36,13 +36,14 @@ if __name__ == "__main__":
     t_corpus, t_ann = 0.0, time.perf_counter() - t0
     cache = cache_dir(params)
     frames = []
+    thresholds = recording_threshold_table(ann, params.annotate)
     n = args.folds or len(corpus.sessions)
     for fold in range(n):
         models: dict = {}
         for cond in system.conditions:
             tf = time.perf_counter()
             frames.append(run_fold(system, ann, fold, cond, params, cache_dir=cache, models=models,
-                                   with_audio=system.needs_audio))
+                                   with_audio=system.needs_audio, thresholds=thresholds))
             print(f"fold {fold} {cond}: {time.perf_counter() - tf:.1f} s", flush=True)
     cases = pd.concat(frames, ignore_index=True)
     out = Path(args.out)

@@ -30,17 +30,19 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
     # compares corpora planted with nearby probabilities: its measure must not jump with the draws)
     st = {k: np.random.default_rng(rng.integers(2 ** 63))
           for k in ("attributes", "PC", "LR", "HP", "separate", "replant", "spontaneous")}
-    pcs = [s for s in segs if s.role == role and s.kind == "PC"]
-    lrs = [s for s in segs if s.role == role and s.kind == "LR"]
-    hps = [s for s in segs if s.role == partner and s.kind == "HP"]
+    # candidate segments by their index in ``segs``
+    pcs = [i for i, s in enumerate(segs) if s.role == role and s.kind == "PC"]
+    lrs = [i for i, s in enumerate(segs) if s.role == role and s.kind == "LR"]
+    hps = [i for i, s in enumerate(segs) if s.role == partner and s.kind == "HP"]
     a = st["attributes"]
-    g_attr = {id(s): (a.uniform(0.75, 1.25), {k: (a.normal(0, 0.05), a.uniform(-8, 14)) for k in ("LH", "RH")})
-              for s in pcs}
-    n_attr = {id(s): (a.uniform(0.1, 0.3), a.normal(0, 0.04), a.uniform(0.8, 1.2), int(a.integers(1, 4)))
-              for s in lrs + hps}
+    g_attr = {i: (a.uniform(0.75, 1.25), {k: (a.normal(0, 0.05), a.uniform(-8, 14)) for k in ("LH", "RH")})
+              for i in pcs}
+    n_attr = {i: (a.uniform(0.1, 0.3), a.normal(0, 0.04), a.uniform(0.8, 1.2), int(a.integers(1, 4)))
+              for i in lrs + hps}
 
-    def gesture(kind, seg):
-        amp, hands = g_attr[id(seg)]
+    def gesture(kind, i):
+        seg = segs[i]
+        amp, hands = g_attr[i]
         jitter, spread = hands[kind]
         dur = float(np.clip(seg.end - seg.start, 0.6, 1.5))
         peak = seg.peak + jitter
@@ -49,8 +51,9 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
         return {"kind": kind, "start": start, "peak": peak, "end": end, "amp": amp,
                 "spread": spread, "source": seg.kind, "cause_start": seg.start}
 
-    def nod(seg):
-        extra, jitter, amp, cycles = n_attr[id(seg)]
+    def nod(i):
+        seg = segs[i]
+        extra, jitter, amp, cycles = n_attr[i]
         dur = float(np.clip(seg.end - seg.start + extra, 0.45, 1.0))
         mid = 0.5 * (seg.start + seg.end) + jitter
         return {"kind": "Nod", "start": mid - dur / 2, "peak": mid, "end": mid + dur / 2,
@@ -64,18 +67,18 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
     pc_cat = _categories(st["PC"], len(pcs), [p_both, p_lh_only, p_rh_only], quota, off.get("PC", 0))
     lr_nod = _categories(st["LR"], len(lrs), [ch["p_lr_nod"]], quota, off.get("LR", 0)) == 0
     hp_nod = _categories(st["HP"], len(hps), [ch["p_ph_nod"]], quota, off.get("HP", 0)) == 0
-    causes = {id(s): c for s, c in zip(pcs, pc_cat)}
-    causes.update({id(s): 0 if n else -1 for s, n in zip(lrs, lr_nod)})
-    causes.update({id(s): 0 if n else -1 for s, n in zip(hps, hp_nod)})
-    for seg in segs:
-        cat = causes.get(id(seg), -1)
+    causes = dict(zip(pcs, pc_cat))
+    causes.update({i: 0 if n else -1 for i, n in zip(lrs, lr_nod)})
+    causes.update({i: 0 if n else -1 for i, n in zip(hps, hp_nod)})
+    for i, seg in enumerate(segs):
+        cat = causes.get(i, -1)
         if seg.kind == "PC" and seg.role == role:
             if cat in (0, 1):
-                events.append(gesture("LH", seg))
+                events.append(gesture("LH", i))
             if cat in (0, 2):
-                events.append(gesture("RH", seg))
+                events.append(gesture("RH", i))
         elif cat == 0:
-            events.append(nod(seg))
+            events.append(nod(i))
 
     def settle(evs):
         evs = _separate(evs, cfg["min_event_gap"], cfg["coarticulation_gap"], cfg["coarticulation_hold"],
@@ -88,7 +91,7 @@ def _plant_events(rng, segs: list[Segment], role: str, partner: str, cfg: dict,
             added = False
             for kind, pool, target in (("LR", lrs, int(lr_nod.sum())), ("HP", hps, int(hp_nod.sum()))):
                 have = {e["cause_start"] for e in events if e["kind"] == "Nod" and e["source"] == kind}
-                free = [sg for sg in pool if sg.start not in have]
+                free = [i for i in pool if segs[i].start not in have]
                 need = min(target - len(have), len(free))
                 if need > 0:
                     events += [nod(free[i]) for i in st["replant"].choice(len(free), need, replace=False)]

@@ -302,14 +302,22 @@ def _batch_scans(initial, transitions, log_lik, constraints, lengths, resets, pr
     return (ll, jnp.exp(log_alpha), g, terms), jnp.any(risk_f) | jnp.any(risk_b)
 
 
-def _batch_smoother(initial, transitions, log_lik, constraints, lengths, resets, products: str = "adaptive"):
+EXACT_BELOW = 1024      # B x K x K below which a scan step takes the exact products (small models, one row)
+
+
+def _batch_smoother(initial, transitions, log_lik, constraints, lengths, resets, products: str = "auto"):
     """Both scans over a batch of B rows at once (each scan step takes the frame of every row) in log
     space, the sums over the previous / next state by :func:`_fast_log_products`, exactly in log space
     at a frame where those are at risk. initial: (C, K); transitions: (C, K, K) (zeros: structural);
     log_lik: (B, T, K); constraints: (B, T); lengths: (B,); resets: (B, T) bool or None (frame 0
-    only); products: see :func:`_log_products` ("exact" is the all-log-space kernel of old).
+    only); products: see :func:`_log_products` ("exact" is the all-log-space kernel of old); "auto":
+    "exact" when a step holds fewer than EXACT_BELOW terms B x K x K (there the K x K exponentials cost
+    less than the fixed cost of the fast step's extra operations), "adaptive" otherwise.
     Returns (log_likelihood (B,), filtered (B, T, K), smoothed (B, T, K), :class:`TransitionTerms`
     (B, T, ...))."""
+    if products == "auto":
+        B, _, K = log_lik.shape
+        products = "exact" if B * K * K < EXACT_BELOW else "adaptive"
     return _batch_scans(initial, transitions, log_lik, constraints, lengths, resets, products)[0]
 
 

@@ -42,12 +42,12 @@ def gaussian_log_density(x, means, covariances):
     """log N(x_t; mu_k, Sigma_k). x: (T, d); means: (K, d); covariances: (K, d, d) -> (T, K).
 
     The Mahalanobis terms as one matrix product over frames: (x - mu)^T P (x - mu) with P = Sigma^-1
-    expands into the products x_i x_j (T, d*d) against P (K, d*d), minus 2 x^T P mu, plus mu^T P mu,
+    expands into the products x_i x_j, i <= j (T, d(d+1)/2) against P (off-diagonal entries twice),
+    minus 2 x^T P mu, plus mu^T P mu,
     so no (K, T, d) array is formed (that array's memory traffic was most of the E-step on the CPU).
     Everything is centred first on the mean of the state means, which keeps the expansion's terms
     near the size of the result (checked against the float64 reference, also in float32)."""
     d = x.shape[-1]
-    K = means.shape[0]
     centre = jnp.mean(means, axis=0)
     xc = x - centre
     mc = means - centre
@@ -57,8 +57,10 @@ def gaussian_log_density(x, means, covariances):
     prec = jnp.einsum("kji,kjl->kil", inv_chol, inv_chol)                     # (K, d, d) = Sigma^-1
     prec_mean = jnp.einsum("kij,kj->ki", prec, mc)                            # (K, d)
     const = jnp.einsum("ki,ki->k", prec_mean, mc)                             # (K,)
-    outer = (xc[:, :, None] * xc[:, None, :]).reshape(x.shape[0], d * d)      # (T, d*d)
-    maha = outer @ prec.reshape(K, d * d).T - 2.0 * (xc @ prec_mean.T) + const[None, :]   # (T, K)
+    iu, ju = np.triu_indices(d)                                               # the d(d+1)/2 distinct products
+    outer = xc[:, iu] * xc[:, ju]                                             # (T, d(d+1)/2)
+    w = jnp.where(iu == ju, 1.0, 2.0).astype(prec.dtype)                      # off-diagonal terms twice
+    maha = outer @ (prec[:, iu, ju] * w).T - 2.0 * (xc @ prec_mean.T) + const[None, :]   # (T, K)
     maha = jnp.maximum(maha, 0.0)                                             # round-off below 0
     logdet = 2.0 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=1, axis2=2)), axis=-1)  # (K,)
     return -0.5 * (maha + logdet[None, :] + d * jnp.log(2.0 * jnp.pi))
@@ -452,7 +454,9 @@ def batch_statistics(x, constraints, lengths, resets, shift, means, covariances,
     xc = (x - shift).reshape(B * T, D)
     counts = jnp.sum(g, axis=0)
     first = g.T @ xc
-    second = (g.T @ (xc[:, :, None] * xc[:, None, :]).reshape(B * T, D * D)).reshape(K, D, D)
+    iu, ju = np.triu_indices(D)
+    tri = g.T @ (xc[:, iu] * xc[:, ju])                                       # (K, D(D+1)/2): i <= j only
+    second = jnp.zeros((K, D, D), x.dtype).at[:, iu, ju].set(tri).at[:, ju, iu].set(tri)
     starts = (resets * valid).reshape(B * T)
     onehot = (constraints.reshape(B * T)[:, None] == jnp.arange(C)[None, :]).astype(x.dtype) * starts[:, None]
     init = onehot.T @ g                                                       # (C, K) over sequence starts

@@ -433,7 +433,7 @@ def test_fast_products_fall_back_across_a_structural_zero():
     import jax
     import jax.numpy as jnp
 
-    from convsynth_jax.cdbn.hmm import _batch_smoother, _fast_log_products, expected_transitions
+    from convsynth_jax.cdbn.hmm import _batch_smoother, _fast_log_products, _fast_matrices, expected_transitions
 
     A = np.array([[[0.5, 0.5, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]]])
     initial = np.array([[0.5, 0, 0.5, 0]])
@@ -444,7 +444,8 @@ def test_fast_products_fall_back_across_a_structural_zero():
     want = [ref.forward_backward(initial, A, le, c) for le, c in zip(les, cons)]
     ll, cc, lengths, resets = _packed_rows(les, cons, 4, 3)
     f32 = lambda a: jnp.asarray(a, jnp.float32)
-    _, at_risk = _fast_log_products(f32([[0.0, -np.inf, -300.0, -np.inf]]), f32(A), jnp.zeros(1, jnp.int32), False)
+    _, at_risk = _fast_log_products(f32([[0.0, -np.inf, -300.0, -np.inf]]), _fast_matrices(f32(A), False),
+                                    jnp.zeros(1, jnp.int32), False)
     assert bool(at_risk[0])
     got = {}
     for products in ("adaptive", "fast", "exact"):

@@ -4,10 +4,13 @@ style), the expected transition counts are summed after them, in parallel over f
 
 The constraint sequence c_t selects the transition matrix at every frame (Eq. 5:
 a^k_ij = P(q_t = j | q_{t-1} = i, C_t = k)) and the initial distribution at the first frame.
-Everything runs in log space (log-sum-exp over the previous state at every frame): structural zeros
-of the transition matrices are -inf and stay exact, and no frame underflows even when the emissions
-of every reachable state are thousands of nats below an unreachable one (a scaled float32
-recursion, tried first, failed exactly there on concatenated held-out turns). The forward message is
+The messages are carried in log space: structural zeros of the transition matrices are -inf and stay
+exact, and no frame underflows even when the emissions of every reachable state are thousands of
+nats below an unreachable one (a scaled float32 recursion, tried first, failed exactly there on
+concatenated held-out turns). The sum over the previous (next) state is, in the smoother of a
+batch, one scaled product in linear space with a bound on what it leaves out, and the exact
+log-sum-exp at the frames where that bound could matter (:func:`_fast_log_products`); the filter and
+Viterbi take the log-sum-exp (max) at every frame. The forward message is
 renormalized per frame (the normalizers sum to the log-likelihood); the backward message is scaled
 per frame so that sum_i alpha_{t-1,i} beta_{t-1,i} = 1 (it is defined up to a per-frame factor; this
 one keeps the states that alpha can reach near 0 even when unreachable ones, such as the inert
@@ -15,6 +18,9 @@ padding states, have far larger beta), and that factor normalizes the expected t
 
 Primitives work on one sequence of ``T`` frames of which the first ``length`` are valid (the rest
 is padding, so that batches of sequences share one compiled shape); batch them with ``jax.vmap``.
+The smoother is written for a batch (:func:`_batch_smoother`: each scan step takes one frame of
+every row, so that a frame at risk switches the whole batch to the exact step with one ``lax.cond``,
+which ``vmap`` would turn into computing both branches); :func:`_smoother` is its batch of one.
 """
 from __future__ import annotations
 
@@ -185,7 +191,7 @@ def expected_transitions(terms: TransitionTerms, transitions, fast_span: float =
     return lax.fori_loop(0, (n_slow + M - 1) // M, block, xi)
 
 
-MESSAGE_CUT = 60.0      # log units: states this far below the best are left out of the fast products
+MESSAGE_CUT = 40.0      # log units: states this far below the best (and smaller a_ij) are left out of the fast products
 MESSAGE_MARGIN = 20.0   # log units: what they could add must stay below e^-MARGIN of every entry
 
 
@@ -196,16 +202,34 @@ def _select_constraint(per_c, constraints):
     return jnp.take_along_axis(per_c, constraints[:, None, None], axis=1)[:, 0]
 
 
-def _fast_log_products(log_v, transitions, constraints, transpose: bool):
+class FastMatrices(NamedTuple):
+    """The transition matrices as the fast products use them: big (C, K, K) the entries >= e^-CUT
+    (the rest 0); bound (C, 2K, K) forward / (C, K, 2K) backward: [a; 1(0 < a < e^-CUT)] stacked
+    along the summed index, for the bound on what the products leave out."""
+
+    big: jnp.ndarray
+    bound: jnp.ndarray
+
+
+def _fast_matrices(transitions, transpose: bool) -> FastMatrices:
+    small = jnp.exp(-MESSAGE_CUT).astype(transitions.dtype)
+    big = jnp.where(transitions >= small, transitions, 0.0)
+    tiny = ((transitions > 0) & (transitions < small)).astype(transitions.dtype)
+    return FastMatrices(big, jnp.concatenate([transitions, tiny], axis=2 if transpose else 1))
+
+
+def _fast_log_products(log_v, mats: FastMatrices, constraints, transpose: bool):
     """Log-space matrix-vector products of a batch by one scaled product in linear space:
     out_bj = log sum_i exp(log_v_bi) a^{c_b}_ij (forward; transpose: out_bi = log sum_j a^{c_b}_ij
-    exp(log_v_bj), backward). log_v: (B, K); transitions: (C, K, K); constraints: (B,) ->
-    (out (B, K), at_risk (B,) bool).
+    exp(log_v_bj), backward). log_v: (B, K); mats: :func:`_fast_matrices` of transitions (C, K, K)
+    (zeros: structural); constraints: (B,) -> (out (B, K), at_risk (B,) bool).
 
-    Each row is scaled by its largest entry m_b; entries more than MESSAGE_CUT below it are left out
-    (their exponentials would under- or nearly underflow in float32). What they would have added to
-    out_bj is at most e^{m_b - CUT} r_bj, r_bj = sum over the left-out i of a_ij (one more product of
-    the same shape, stacked with the first). A row is at risk when that bound reaches e^-MARGIN of an
+    Each row is scaled by its largest entry m_b; entries more than MESSAGE_CUT (40) below it are left
+    out, and so are transition probabilities below e^-CUT, so that no product that is kept falls
+    below e^-80 (float32 underflows at e^-87). Each term left out is below e^{m_b - CUT}, so what they
+    would have added to out_bj is at most e^{m_b - CUT} r_bj, r_bj = sum over the left-out entries i
+    of a_ij plus the number of kept entries i with 0 < a_ij < e^-CUT (one more product, with [left
+    out, kept] against [a; 1(tiny a)]). A row is at risk when that bound reaches e^-MARGIN of an
     entry (e.g. a structural-zero pattern that routes all the mass of a frame through a state e^-300
     below the best); the caller then takes the exact log-space step for that frame. Otherwise every
     entry is within e^-MARGIN (relative) of the exact sum, below float32 round-off."""
@@ -215,13 +239,11 @@ def _fast_log_products(log_v, transitions, constraints, transpose: bool):
     keep = rel >= -MESSAGE_CUT
     w = jnp.where(keep, jnp.exp(jnp.where(keep, rel, 0.0)), 0.0)                 # (B, K) in [e^-CUT, 1]
     left_out = (jnp.isfinite(log_v) & ~keep).astype(w.dtype)
-    both = jnp.stack([w, left_out])                                              # (2, B, K)
-    spec = "sbj,cij->sbci" if transpose else "sbi,cij->sbcj"
-    prod = jnp.einsum(spec, both, transitions)                                   # (2, B, C, K)
-    lin = _select_constraint(prod[0], constraints)
-    reach = _select_constraint(prod[1], constraints)
-    bound = reach * np.exp(-MESSAGE_CUT + MESSAGE_MARGIN)
-    at_risk = jnp.any(bound > lin, axis=1)
+    marks = jnp.concatenate([left_out, keep.astype(w.dtype)], axis=1)            # (B, 2K)
+    spec = "bj,cij->bci" if transpose else "bi,cij->bcj"
+    lin = _select_constraint(jnp.einsum(spec, w, mats.big), constraints)
+    reach = _select_constraint(jnp.einsum(spec, marks, mats.bound), constraints)
+    at_risk = jnp.any(reach * np.exp(-MESSAGE_CUT + MESSAGE_MARGIN) > lin, axis=1)
     return m + jnp.log(lin), at_risk
 
 
@@ -233,14 +255,14 @@ def _exact_log_products(log_v, log_transitions, constraints, transpose: bool):
     return _lse(log_v[:, :, None] + la, axis=1)
 
 
-def _log_products(log_v, transitions, log_transitions, constraints, needed, transpose: bool, products: str):
+def _log_products(log_v, mats, log_transitions, constraints, needed, transpose: bool, products: str):
     """The products of one frame and whether any row whose product is ``needed`` (B,) bool was at
     risk. ``products``: "fast" (:func:`_fast_log_products` only), "exact" (:func:`_exact_log_products`
     only) or "adaptive" (the exact ones for the whole batch at a frame where a needed row is at risk,
     the fast ones elsewhere)."""
     if products == "exact":
         return _exact_log_products(log_v, log_transitions, constraints, transpose), jnp.zeros((), bool)
-    fast, at_risk = _fast_log_products(log_v, transitions, constraints, transpose)
+    fast, at_risk = _fast_log_products(log_v, mats, constraints, transpose)
     risk = jnp.any(at_risk & needed)
     if products == "fast":
         return fast, risk
@@ -248,10 +270,10 @@ def _log_products(log_v, transitions, log_transitions, constraints, needed, tran
     return out, risk
 
 
-def _batch_forward_step(carry, inp, log_initial, transitions, log_transitions, products):
+def _batch_forward_step(carry, inp, log_initial, mats, log_transitions, products):
     log_alpha_prev, ll = carry                                                   # (B, K), (B,)
     loglik_t, c_t, valid_t, first_t = inp                                        # (B, K), (B,), (B,), (B,)
-    pred, risk = _log_products(log_alpha_prev, transitions, log_transitions, c_t, valid_t & ~first_t, False, products)
+    pred, risk = _log_products(log_alpha_prev, mats, log_transitions, c_t, valid_t & ~first_t, False, products)
     log_pred = jnp.where(first_t[:, None], log_initial[c_t], pred)
     v = log_pred + loglik_t
     norm = _lse(v, axis=1)
@@ -260,13 +282,13 @@ def _batch_forward_step(carry, inp, log_initial, transitions, log_transitions, p
     return (log_alpha, ll), (log_alpha, risk)
 
 
-def _batch_backward_step(log_beta, inp, transitions, log_transitions, products):
+def _batch_backward_step(log_beta, inp, mats, log_transitions, products):
     loglik_t, c_t, into_t, log_alpha_prev, log_alpha_t = inp   # into_t: a transition into t exists (valid, not a start)
     # states that alpha_t cannot reach (exact zeros, e.g. inert padding states) are left out: for every
     # state i that alpha_{t-1} reaches, a_ij b_j = 0 for them, and their beta (often far larger than
     # the reachable states', which would set the scale of the fast product) multiplies alpha_t = 0
     v = jnp.where(jnp.isfinite(log_alpha_t), loglik_t + log_beta, -jnp.inf)
-    ub, risk = _log_products(v, transitions, log_transitions, c_t, into_t, True, products)
+    ub, risk = _log_products(v, mats, log_transitions, c_t, into_t, True, products)
     norm = _lse(log_alpha_prev + ub, axis=1)       # sum_ij alpha_{t-1,i} a_ij b_j beta_j: the transition's normalizer
     norm = jnp.where(into_t & jnp.isfinite(norm), norm, 0.0)
     log_beta_prev = jnp.where(into_t[:, None], ub - norm[:, None], 0.0)   # sum_i alpha_{t-1,i} beta_{t-1,i} = 1
@@ -282,12 +304,13 @@ def _batch_scans(initial, transitions, log_lik, constraints, lengths, resets, pr
     valid = t[None, :] < lengths[:, None]
     log_a = jnp.log(transitions)
     tm = lambda a: jnp.swapaxes(a, 0, 1)                                         # (B, T, ...) <-> (T, B, ...)
-    fwd = partial(_batch_forward_step, log_initial=jnp.log(initial), transitions=transitions, log_transitions=log_a,
-                  products=products)
+    fwd = partial(_batch_forward_step, log_initial=jnp.log(initial), mats=_fast_matrices(transitions, False),
+                  log_transitions=log_a, products=products)
     (_, ll), (log_alpha, risk_f) = lax.scan(fwd, (jnp.zeros((B, K), dt), jnp.zeros(B, dt)),
                                             (tm(log_lik), tm(constraints), tm(valid), tm(starts)))  # (T, B, K)
     into = valid & ~starts
-    bwd = partial(_batch_backward_step, transitions=transitions, log_transitions=log_a, products=products)
+    bwd = partial(_batch_backward_step, mats=_fast_matrices(transitions, True), log_transitions=log_a,
+                  products=products)
     _, (log_betas, log_norms, risk_b) = lax.scan(bwd, jnp.zeros((B, K), dt),
                                                  (tm(log_lik)[1:], tm(constraints)[1:], tm(into)[1:], log_alpha[:-1], log_alpha[1:]),
                                                  reverse=True)

@@ -353,3 +353,111 @@ def test_expected_transitions_across_a_structural_zero_float32():
     assert np.all(got[A == 0] == 0.0)
     fast_only = np.asarray(expected_transitions(terms, jnp.asarray(A, jnp.float32), fast_span=np.inf), np.float64)
     assert not np.allclose(fast_only, want, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
+
+
+def _packed_rows(log_liks, cons, T, rows):
+    """Sequences packed back to back into ``rows`` rows of T frames: (log_lik, constraints, lengths,
+    resets); padding frames get arbitrary emissions."""
+    K = log_liks[0].shape[1]
+    ll = np.full((rows, T, K), 7.0)
+    cc = np.zeros((rows, T), np.int32)
+    resets = np.zeros((rows, T), bool)
+    resets[:, 0] = True
+    lengths = np.zeros(rows, np.int32)
+    r = 0
+    for le, c in zip(log_liks, cons):
+        if lengths[r] + len(le) > T:
+            r += 1
+        a = lengths[r]
+        ll[r, a:a + len(le)], cc[r, a:a + len(le)], resets[r, a] = le, c, True
+        lengths[r] += len(le)
+    return ll, cc, lengths, resets
+
+
+@pytest.mark.parametrize("x64", [False, True])
+@pytest.mark.parametrize("products", ["adaptive", "exact"])
+def test_batch_smoother_matches_reference(products, x64):
+    """The batch smoother's fast scaled products (exact log-space steps at the frames at risk) and its
+    exact log-space products against the float64 reference: a sparse 5-state model with 3 constraints
+    padded with 3 inert states whose emissions are the best of all, sequences packed into rows with
+    resets, one row of padding only; log-likelihoods, filtered and smoothed posteriors and the
+    expected transitions (summed after the scans) per sequence."""
+    import contextlib
+
+    import jax
+    import jax.numpy as jnp
+
+    from convsynth_jax.cdbn.hmm import _batch_smoother, expected_transitions, pad_states
+
+    rng = np.random.default_rng(11)
+    model = random_model(rng, K=5, C=3)
+    seqs, cons = zip(*[sample(rng, model, T) for T in (70, 25, 40, 9, 1, 55)])
+    les = [ref.log_emissions(x, model.means, model.covariances, range(4)) for x in seqs]
+    _, _, initial, trans = pad_states(model.means, model.covariances, model.initial, model.transitions)
+    inert = [np.concatenate([le, np.full((len(le), 3), le.max() + 50.0)], axis=1) for le in les]
+    ll, cc, lengths, resets = _packed_rows(inert, cons, 96, 4)
+    with enable_x64() if x64 else contextlib.nullcontext():
+        dt = jnp.float64 if x64 else jnp.float32
+        lls, filt, smooth, terms = _batch_smoother(jnp.asarray(initial, dt), jnp.asarray(trans, dt), jnp.asarray(ll, dt),
+                                                   jnp.asarray(cc), jnp.asarray(lengths), jnp.asarray(resets),
+                                                   products=products)
+        xi = jax.vmap(expected_transitions, in_axes=(0, None))(terms, jnp.asarray(trans, dt))
+        lls, filt, smooth, xi = (np.asarray(a, np.float64) for a in (lls, filt, smooth, xi))
+    patol = ref.POSTERIOR_ATOL if x64 else ref.POSTERIOR_FLOAT32_ATOL
+    lrtol = ref.LOGLIK_RTOL if x64 else ref.LOGLIK_FLOAT32_RTOL
+    row_ll, row_xi = np.zeros(4), np.zeros((4, 3, 5, 5))
+    r, a = 0, 0
+    for le, c in zip(les, cons):
+        if a + len(le) > 96:
+            r, a = r + 1, 0
+        want_ll, f, s, x = ref.forward_backward(model.initial, model.transitions, le, c)
+        np.testing.assert_allclose(filt[r, a:a + len(le), :5], f, atol=patol)
+        np.testing.assert_allclose(smooth[r, a:a + len(le), :5], s, atol=patol)
+        assert np.all(smooth[r, a:a + len(le), 5:] == 0.0)
+        row_ll[r] += want_ll
+        row_xi[r] += x
+        a += len(le)
+    np.testing.assert_allclose(lls, row_ll, rtol=lrtol)
+    assert lls[3] == 0.0 and np.all(xi[3] == 0.0)
+    np.testing.assert_allclose(xi[:, :, :5, :5], row_xi, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
+    assert np.all(xi[:, trans == 0] == 0.0)
+
+
+def test_fast_products_fall_back_across_a_structural_zero():
+    """alpha_{t-1} on state 0 and the next emission best on state 3, reachable only through 2 -> 3 with
+    alpha_{t-1,2} = e^-300 relative (or 0 -> 1 with b_1 = e^-300): the fast scaled product leaves state
+    2 out, so the frame is at risk and takes the exact log-space step. The adaptive smoother equals the
+    float64 reference in float32 (log-likelihoods, expected transitions) and the all-exact kernel's
+    posteriors (float32 round-off of terms of size 300 exceeds the posterior tolerance for both); the
+    fast products alone (no check) lose the 2 -> 3 route."""
+    import jax
+    import jax.numpy as jnp
+
+    from convsynth_jax.cdbn.hmm import _batch_smoother, _fast_log_products, _fast_matrices, expected_transitions
+
+    A = np.array([[[0.5, 0.5, 0, 0], [0, 1.0, 0, 0], [0, 0, 0.5, 0.5], [0, 0, 0, 1.0]]])
+    initial = np.array([[0.5, 0, 0.5, 0]])
+    f0 = [0.0, -1000.0, -300.0, -1000.0]
+    f1 = [-1000.0, -300.0, -1000.0, 0.0]
+    les = [np.array([f0, f1]), np.array([f0, f1, f1]), np.array([f0, f0, f1, f1])]
+    cons = [np.zeros(len(le), np.int32) for le in les]
+    want = [ref.forward_backward(initial, A, le, c) for le, c in zip(les, cons)]
+    ll, cc, lengths, resets = _packed_rows(les, cons, 4, 3)
+    f32 = lambda a: jnp.asarray(a, jnp.float32)
+    _, at_risk = _fast_log_products(f32([[0.0, -np.inf, -300.0, -np.inf]]), _fast_matrices(f32(A), False),
+                                    jnp.zeros(1, jnp.int32), False)
+    assert bool(at_risk[0])
+    got = {}
+    for products in ("adaptive", "fast", "exact"):
+        lls, _, smooth, terms = _batch_smoother(f32(initial), f32(A), f32(ll), jnp.asarray(cc), jnp.asarray(lengths),
+                                                jnp.asarray(resets), products=products)
+        xi = jax.vmap(expected_transitions, in_axes=(0, None))(terms, f32(A))
+        got[products] = [np.asarray(a, np.float64) for a in (lls, smooth, xi)]
+    lls, smooth, xi = got["adaptive"]
+    for r, (w_ll, _, s, x) in enumerate(want):
+        assert np.isclose(lls[r], w_ll, rtol=ref.LOGLIK_FLOAT32_RTOL)
+        np.testing.assert_allclose(smooth[r, :len(s)], got["exact"][1][r, :len(s)], atol=ref.POSTERIOR_FLOAT32_ATOL)
+        np.testing.assert_allclose(smooth[r, :len(s)], s, atol=50 * ref.POSTERIOR_FLOAT32_ATOL)
+        np.testing.assert_allclose(xi[r], x, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
+    lls_fast = got["fast"][0]
+    assert not np.allclose(lls_fast, [w[0] for w in want], rtol=ref.LOGLIK_FLOAT32_RTOL)

@@ -4,10 +4,13 @@ style), the expected transition counts are summed after them, in parallel over f
 
 The constraint sequence c_t selects the transition matrix at every frame (Eq. 5:
 a^k_ij = P(q_t = j | q_{t-1} = i, C_t = k)) and the initial distribution at the first frame.
-Everything runs in log space (log-sum-exp over the previous state at every frame): structural zeros
-of the transition matrices are -inf and stay exact, and no frame underflows even when the emissions
-of every reachable state are thousands of nats below an unreachable one (a scaled float32
-recursion, tried first, failed exactly there on concatenated held-out turns). The forward message is
+The messages are carried in log space: structural zeros of the transition matrices are -inf and stay
+exact, and no frame underflows even when the emissions of every reachable state are thousands of
+nats below an unreachable one (a scaled float32 recursion, tried first, failed exactly there on
+concatenated held-out turns). The sum over the previous (next) state is, in the smoother of a
+batch, one scaled product in linear space with a bound on what it leaves out, and the exact
+log-sum-exp at the frames where that bound could matter (:func:`_fast_log_products`); the filter and
+Viterbi take the log-sum-exp (max) at every frame. The forward message is
 renormalized per frame (the normalizers sum to the log-likelihood); the backward message is scaled
 per frame so that sum_i alpha_{t-1,i} beta_{t-1,i} = 1 (it is defined up to a per-frame factor; this
 one keeps the states that alpha can reach near 0 even when unreachable ones, such as the inert
@@ -15,6 +18,9 @@ padding states, have far larger beta), and that factor normalizes the expected t
 
 Primitives work on one sequence of ``T`` frames of which the first ``length`` are valid (the rest
 is padding, so that batches of sequences share one compiled shape); batch them with ``jax.vmap``.
+The smoother is written for a batch (:func:`_batch_smoother`: each scan step takes one frame of
+every row, so that a frame at risk switches the whole batch to the exact step with one ``lax.cond``,
+which ``vmap`` would turn into computing both branches); :func:`_smoother` is its batch of one.
 """
 from __future__ import annotations
 
@@ -42,12 +48,12 @@ def gaussian_log_density(x, means, covariances):
     """log N(x_t; mu_k, Sigma_k). x: (T, d); means: (K, d); covariances: (K, d, d) -> (T, K).
 
     The Mahalanobis terms as one matrix product over frames: (x - mu)^T P (x - mu) with P = Sigma^-1
-    expands into the products x_i x_j (T, d*d) against P (K, d*d), minus 2 x^T P mu, plus mu^T P mu,
+    expands into the products x_i x_j, i <= j (T, d(d+1)/2) against P (off-diagonal entries twice),
+    minus 2 x^T P mu, plus mu^T P mu,
     so no (K, T, d) array is formed (that array's memory traffic was most of the E-step on the CPU).
     Everything is centred first on the mean of the state means, which keeps the expansion's terms
     near the size of the result (checked against the float64 reference, also in float32)."""
     d = x.shape[-1]
-    K = means.shape[0]
     centre = jnp.mean(means, axis=0)
     xc = x - centre
     mc = means - centre
@@ -57,8 +63,10 @@ def gaussian_log_density(x, means, covariances):
     prec = jnp.einsum("kji,kjl->kil", inv_chol, inv_chol)                     # (K, d, d) = Sigma^-1
     prec_mean = jnp.einsum("kij,kj->ki", prec, mc)                            # (K, d)
     const = jnp.einsum("ki,ki->k", prec_mean, mc)                             # (K,)
-    outer = (xc[:, :, None] * xc[:, None, :]).reshape(x.shape[0], d * d)      # (T, d*d)
-    maha = outer @ prec.reshape(K, d * d).T - 2.0 * (xc @ prec_mean.T) + const[None, :]   # (T, K)
+    iu, ju = np.triu_indices(d)                                               # the d(d+1)/2 distinct products
+    outer = xc[:, iu] * xc[:, ju]                                             # (T, d(d+1)/2)
+    w = jnp.where(iu == ju, 1.0, 2.0).astype(prec.dtype)                      # off-diagonal terms twice
+    maha = outer @ (prec[:, iu, ju] * w).T - 2.0 * (xc @ prec_mean.T) + const[None, :]   # (T, K)
     maha = jnp.maximum(maha, 0.0)                                             # round-off below 0
     logdet = 2.0 * jnp.sum(jnp.log(jnp.diagonal(chol, axis1=1, axis2=2)), axis=-1)  # (K,)
     return -0.5 * (maha + logdet[None, :] + d * jnp.log(2.0 * jnp.pi))
@@ -106,15 +114,6 @@ def hmm_filter(initial, transitions, log_lik, constraints, length, resets=None):
     (_, ll), log_alpha = lax.scan(step, (jnp.zeros(K, log_lik.dtype), jnp.zeros((), log_lik.dtype)),
                                   (log_lik, constraints, t < length, _starts(T, resets)))
     return ll, jnp.exp(log_alpha), log_alpha
-
-
-def _backward_step(log_beta, inp, log_transitions):
-    loglik_t, c_t, into_t, log_alpha_prev = inp   # into_t: a transition into frame t exists (valid, not a start)
-    ub = _lse(log_transitions[c_t] + (loglik_t + log_beta)[None, :], axis=1)   # beta_{t-1,i} = sum_j a_ij b_j beta_j
-    norm = _lse(log_alpha_prev + ub, axis=0)          # sum_ij alpha_{t-1,i} a_ij b_j beta_j: the transition's normalizer
-    norm = jnp.where(into_t & jnp.isfinite(norm), norm, 0.0)
-    log_beta_prev = jnp.where(into_t, ub - norm, 0.0)   # scaled so that sum_i alpha_{t-1,i} beta_{t-1,i} = 1
-    return log_beta_prev, (log_beta_prev, norm)
 
 
 class TransitionTerms(NamedTuple):
@@ -192,24 +191,168 @@ def expected_transitions(terms: TransitionTerms, transitions, fast_span: float =
     return lax.fori_loop(0, (n_slow + M - 1) // M, block, xi)
 
 
-def _smoother(initial, transitions, log_lik, constraints, length, resets):
-    """Both scans of one sequence (shapes as :func:`hmm_filter`). Returns (log_likelihood, filtered
-    (T, K), smoothed (T, K), :class:`TransitionTerms` of its T frames (frame 0: into = False))."""
-    T, K = log_lik.shape
-    ll, alpha, log_alpha = hmm_filter(initial, transitions, log_lik, constraints, length, resets)
-    into = (jnp.arange(T) < length) & ~_starts(T, resets)
-    step = partial(_backward_step, log_transitions=jnp.log(transitions))
-    _, (log_betas, log_norms) = lax.scan(step, jnp.zeros(K, log_lik.dtype),
-                                         (log_lik[1:], constraints[1:], into[1:], log_alpha[:-1]), reverse=True)
-    log_beta = jnp.concatenate([log_betas, jnp.zeros((1, K), log_lik.dtype)], axis=0)   # (T, K), scaled
+MESSAGE_CUT = 40.0      # log units: states this far below the best (and smaller a_ij) are left out of the fast products
+MESSAGE_MARGIN = 20.0   # log units: what they could add must stay below e^-MARGIN of every entry
+
+
+def _select_constraint(per_c, constraints):
+    """(B, C, K) -> (B, K): row b's entry for its constraint c_b."""
+    if per_c.shape[1] == 1:
+        return per_c[:, 0]
+    return jnp.take_along_axis(per_c, constraints[:, None, None], axis=1)[:, 0]
+
+
+class FastMatrices(NamedTuple):
+    """The transition matrices as the fast products use them: big (C, K, K) the entries >= e^-CUT
+    (the rest 0); bound (C, 2K, K) forward / (C, K, 2K) backward: [a; 1(0 < a < e^-CUT)] stacked
+    along the summed index, for the bound on what the products leave out."""
+
+    big: jnp.ndarray
+    bound: jnp.ndarray
+
+
+def _fast_matrices(transitions, transpose: bool) -> FastMatrices:
+    small = jnp.exp(-MESSAGE_CUT).astype(transitions.dtype)
+    big = jnp.where(transitions >= small, transitions, 0.0)
+    tiny = ((transitions > 0) & (transitions < small)).astype(transitions.dtype)
+    return FastMatrices(big, jnp.concatenate([transitions, tiny], axis=2 if transpose else 1))
+
+
+def _fast_log_products(log_v, mats: FastMatrices, constraints, transpose: bool):
+    """Log-space matrix-vector products of a batch by one scaled product in linear space:
+    out_bj = log sum_i exp(log_v_bi) a^{c_b}_ij (forward; transpose: out_bi = log sum_j a^{c_b}_ij
+    exp(log_v_bj), backward). log_v: (B, K); mats: :func:`_fast_matrices` of transitions (C, K, K)
+    (zeros: structural); constraints: (B,) -> (out (B, K), at_risk (B,) bool).
+
+    Each row is scaled by its largest entry m_b; entries more than MESSAGE_CUT (40) below it are left
+    out, and so are transition probabilities below e^-CUT, so that no product that is kept falls
+    below e^-80 (float32 underflows at e^-87). Each term left out is below e^{m_b - CUT}, so what they
+    would have added to out_bj is at most e^{m_b - CUT} r_bj, r_bj = sum over the left-out entries i
+    of a_ij plus the number of kept entries i with 0 < a_ij < e^-CUT (one more product, with [left
+    out, kept] against [a; 1(tiny a)]). A row is at risk when that bound reaches e^-MARGIN of an
+    entry (e.g. a structural-zero pattern that routes all the mass of a frame through a state e^-300
+    below the best); the caller then takes the exact log-space step for that frame. Otherwise every
+    entry is within e^-MARGIN (relative) of the exact sum, below float32 round-off."""
+    m = jnp.max(log_v, axis=1, keepdims=True)
+    m = jnp.where(jnp.isfinite(m), m, 0.0)
+    rel = log_v - m
+    keep = rel >= -MESSAGE_CUT
+    w = jnp.where(keep, jnp.exp(jnp.where(keep, rel, 0.0)), 0.0)                 # (B, K) in [e^-CUT, 1]
+    left_out = (jnp.isfinite(log_v) & ~keep).astype(w.dtype)
+    marks = jnp.concatenate([left_out, keep.astype(w.dtype)], axis=1)            # (B, 2K)
+    spec = "bj,cij->bci" if transpose else "bi,cij->bcj"
+    lin = _select_constraint(jnp.einsum(spec, w, mats.big), constraints)
+    reach = _select_constraint(jnp.einsum(spec, marks, mats.bound), constraints)
+    at_risk = jnp.any(reach * np.exp(-MESSAGE_CUT + MESSAGE_MARGIN) > lin, axis=1)
+    return m + jnp.log(lin), at_risk
+
+
+def _exact_log_products(log_v, log_transitions, constraints, transpose: bool):
+    """The same products exactly, by log-sum-exp over K x K terms per row (the slow path)."""
+    la = log_transitions[constraints]                                            # (B, K, K)
+    if transpose:
+        return _lse(la + log_v[:, None, :], axis=2)
+    return _lse(log_v[:, :, None] + la, axis=1)
+
+
+def _log_products(log_v, mats, log_transitions, constraints, needed, transpose: bool, products: str):
+    """The products of one frame and whether any row whose product is ``needed`` (B,) bool was at
+    risk. ``products``: "fast" (:func:`_fast_log_products` only), "exact" (:func:`_exact_log_products`
+    only) or "adaptive" (the exact ones for the whole batch at a frame where a needed row is at risk,
+    the fast ones elsewhere)."""
+    if products == "exact":
+        return _exact_log_products(log_v, log_transitions, constraints, transpose), jnp.zeros((), bool)
+    fast, at_risk = _fast_log_products(log_v, mats, constraints, transpose)
+    risk = jnp.any(at_risk & needed)
+    if products == "fast":
+        return fast, risk
+    out = lax.cond(risk, lambda: _exact_log_products(log_v, log_transitions, constraints, transpose), lambda: fast)
+    return out, risk
+
+
+def _batch_forward_step(carry, inp, log_initial, mats, log_transitions, products):
+    log_alpha_prev, ll = carry                                                   # (B, K), (B,)
+    loglik_t, c_t, valid_t, first_t = inp                                        # (B, K), (B,), (B,), (B,)
+    pred, risk = _log_products(log_alpha_prev, mats, log_transitions, c_t, valid_t & ~first_t, False, products)
+    log_pred = jnp.where(first_t[:, None], log_initial[c_t], pred)
+    v = log_pred + loglik_t
+    norm = _lse(v, axis=1)
+    log_alpha = jnp.where(valid_t[:, None], v - norm[:, None], log_alpha_prev)
+    ll = jnp.where(valid_t, ll + norm, ll)
+    return (log_alpha, ll), (log_alpha, risk)
+
+
+def _batch_backward_step(log_beta, inp, mats, log_transitions, products):
+    loglik_t, c_t, into_t, log_alpha_prev, log_alpha_t = inp   # into_t: a transition into t exists (valid, not a start)
+    # states that alpha_t cannot reach (exact zeros, e.g. inert padding states) are left out: for every
+    # state i that alpha_{t-1} reaches, a_ij b_j = 0 for them, and their beta (often far larger than
+    # the reachable states', which would set the scale of the fast product) multiplies alpha_t = 0
+    v = jnp.where(jnp.isfinite(log_alpha_t), loglik_t + log_beta, -jnp.inf)
+    ub, risk = _log_products(v, mats, log_transitions, c_t, into_t, True, products)
+    norm = _lse(log_alpha_prev + ub, axis=1)       # sum_ij alpha_{t-1,i} a_ij b_j beta_j: the transition's normalizer
+    norm = jnp.where(into_t & jnp.isfinite(norm), norm, 0.0)
+    log_beta_prev = jnp.where(into_t[:, None], ub - norm[:, None], 0.0)   # sum_i alpha_{t-1,i} beta_{t-1,i} = 1
+    return log_beta_prev, (log_beta_prev, norm, risk)
+
+
+def _batch_scans(initial, transitions, log_lik, constraints, lengths, resets, products: str):
+    """:func:`_batch_smoother` with one kind of products; also returns whether any frame was at risk."""
+    B, T, K = log_lik.shape
+    dt = log_lik.dtype
+    t = jnp.arange(T)
+    starts = jnp.broadcast_to(t == 0, (B, T)) if resets is None else resets
+    valid = t[None, :] < lengths[:, None]
+    log_a = jnp.log(transitions)
+    tm = lambda a: jnp.swapaxes(a, 0, 1)                                         # (B, T, ...) <-> (T, B, ...)
+    fwd = partial(_batch_forward_step, log_initial=jnp.log(initial), mats=_fast_matrices(transitions, False),
+                  log_transitions=log_a, products=products)
+    (_, ll), (log_alpha, risk_f) = lax.scan(fwd, (jnp.zeros((B, K), dt), jnp.zeros(B, dt)),
+                                            (tm(log_lik), tm(constraints), tm(valid), tm(starts)))  # (T, B, K)
+    into = valid & ~starts
+    bwd = partial(_batch_backward_step, mats=_fast_matrices(transitions, True), log_transitions=log_a,
+                  products=products)
+    _, (log_betas, log_norms, risk_b) = lax.scan(bwd, jnp.zeros((B, K), dt),
+                                                 (tm(log_lik)[1:], tm(constraints)[1:], tm(into)[1:], log_alpha[:-1], log_alpha[1:]),
+                                                 reverse=True)
+    log_alpha = tm(log_alpha)                                                    # (B, T, K)
+    log_beta = jnp.concatenate([tm(log_betas), jnp.zeros((B, 1, K), dt)], axis=1)   # (B, T, K), scaled
     lg = log_alpha + log_beta
-    norm = _lse(lg, axis=1)                                                     # (T,)
-    log_gamma = lg - norm[:, None]
+    norm = _lse(lg, axis=2)
+    log_gamma = lg - norm[..., None]
     g = jnp.exp(log_gamma)
-    g = jnp.where(jnp.isfinite(g), g, 0.0)                    # empty (length 0) sequences
-    log_norm = jnp.concatenate([jnp.zeros(1, log_lik.dtype), log_norms])      # (T,) of the transition into t
-    log_alpha_prev = jnp.concatenate([log_alpha[:1], log_alpha[:-1]], axis=0)
-    return ll, alpha, g, TransitionTerms(log_alpha_prev, log_lik + log_beta, log_norm, log_gamma, constraints, into)
+    g = jnp.where(jnp.isfinite(g), g, 0.0)                    # empty (length 0) rows
+    log_norm = jnp.concatenate([jnp.zeros((B, 1), dt), tm(log_norms)], axis=1)   # (B, T) of the transition into t
+    log_alpha_prev = jnp.concatenate([log_alpha[:, :1], log_alpha[:, :-1]], axis=1)
+    terms = TransitionTerms(log_alpha_prev, log_lik + log_beta, log_norm, log_gamma, constraints, into)
+    return (ll, jnp.exp(log_alpha), g, terms), jnp.any(risk_f) | jnp.any(risk_b)
+
+
+EXACT_BELOW = 1024      # B x K x K below which a scan step takes the exact products (small models, one row)
+
+
+def _batch_smoother(initial, transitions, log_lik, constraints, lengths, resets, products: str = "auto"):
+    """Both scans over a batch of B rows at once (each scan step takes the frame of every row) in log
+    space, the sums over the previous / next state by :func:`_fast_log_products`, exactly in log space
+    at a frame where those are at risk. initial: (C, K); transitions: (C, K, K) (zeros: structural);
+    log_lik: (B, T, K); constraints: (B, T); lengths: (B,); resets: (B, T) bool or None (frame 0
+    only); products: see :func:`_log_products` ("exact" is the all-log-space kernel of old); "auto":
+    "exact" when a step holds fewer than EXACT_BELOW terms B x K x K (there the K x K exponentials cost
+    less than the fixed cost of the fast step's extra operations), "adaptive" otherwise.
+    Returns (log_likelihood (B,), filtered (B, T, K), smoothed (B, T, K), :class:`TransitionTerms`
+    (B, T, ...))."""
+    if products == "auto":
+        B, _, K = log_lik.shape
+        products = "exact" if B * K * K < EXACT_BELOW else "adaptive"
+    return _batch_scans(initial, transitions, log_lik, constraints, lengths, resets, products)[0]
+
+
+def _smoother(initial, transitions, log_lik, constraints, length, resets):
+    """Both scans of one sequence (shapes as :func:`hmm_filter`): :func:`_batch_smoother` on a batch
+    of one. Returns (log_likelihood, filtered (T, K), smoothed (T, K), :class:`TransitionTerms` of its
+    T frames (frame 0: into = False))."""
+    out = _batch_smoother(initial, transitions, log_lik[None], constraints[None], jnp.asarray(length)[None],
+                          None if resets is None else resets[None])
+    return jax.tree_util.tree_map(lambda a: a[0], out)
 
 
 def hmm_posterior(initial, transitions, log_lik, constraints, length, resets=None) -> Posterior:
@@ -289,19 +432,17 @@ def batch_smoothed(x, constraints, lengths, means, covariances, initial, transit
     """Smoothed posteriors (B, T, K) of a padded batch: both scans, without the expected transition
     counts (synthesis needs gamma only). Shapes as :func:`batch_posterior`."""
     ll = _batch_emissions(x, means, covariances, dims)
-    return jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, None))(initial, transitions, ll, constraints, lengths,
-                                                                     None)[2]
+    return _batch_smoother(initial, transitions, ll, constraints, lengths, None)[2]
 
 
 @partial(jax.jit, static_argnames=("dims",))
 def batch_posterior(x, constraints, lengths, means, covariances, initial, transitions, dims: tuple, resets=None):
     """Smoother over a padded batch. x: (B, T, D); constraints: (B, T); lengths: (B,); resets: (B, T)
-    bool or None (see :func:`hmm_filter`)."""
+    bool or None (see :func:`hmm_filter`). Returns a :class:`Posterior` with a leading batch axis."""
     ll = _batch_emissions(x, means, covariances, dims)
-    if resets is None:
-        return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0))(initial, transitions, ll, constraints, lengths)
-    return jax.vmap(hmm_posterior, in_axes=(None, None, 0, 0, 0, 0))(initial, transitions, ll, constraints, lengths,
-                                                                      resets)
+    lls, alpha, g, terms = _batch_smoother(initial, transitions, ll, constraints, lengths, resets)
+    xi = jax.vmap(expected_transitions, in_axes=(0, None))(terms, transitions)
+    return Posterior(lls, alpha, g, xi)
 
 
 @partial(jax.jit, static_argnames=("dims",))
@@ -325,8 +466,7 @@ def batch_statistics(x, constraints, lengths, resets, shift, means, covariances,
     initial counts (C, K) by first constraint, xi_sum (C, K, K)). ``shift`` (D,) centres the data
     (a global mean) so that float32 sums keep their precision."""
     ll = _batch_emissions(x, means, covariances, dims)
-    lls, _, smoothed, terms = jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, 0))(initial, transitions, ll,
-                                                                                    constraints, lengths, resets)
+    lls, _, smoothed, terms = _batch_smoother(initial, transitions, ll, constraints, lengths, resets)
     B, T, D = x.shape
     K = means.shape[0]
     C = initial.shape[0]
@@ -337,7 +477,9 @@ def batch_statistics(x, constraints, lengths, resets, shift, means, covariances,
     xc = (x - shift).reshape(B * T, D)
     counts = jnp.sum(g, axis=0)
     first = g.T @ xc
-    second = (g.T @ (xc[:, :, None] * xc[:, None, :]).reshape(B * T, D * D)).reshape(K, D, D)
+    iu, ju = np.triu_indices(D)
+    tri = g.T @ (xc[:, iu] * xc[:, ju])                                       # (K, D(D+1)/2): i <= j only
+    second = jnp.zeros((K, D, D), x.dtype).at[:, iu, ju].set(tri).at[:, ju, iu].set(tri)
     starts = (resets * valid).reshape(B * T)
     onehot = (constraints.reshape(B * T)[:, None] == jnp.arange(C)[None, :]).astype(x.dtype) * starts[:, None]
     init = onehot.T @ g                                                       # (C, K) over sequence starts

@@ -11,6 +11,8 @@ LOGLIK_RTOL = 1e-9         # JAX log-likelihood (float64) vs reference
 MONOTONE_ATOL = 1e-9       # EM per-frame log-likelihood may not fall by more than this (float64)
 XI_FLOAT32_RTOL = 1e-5     # float32 expected transition counts vs reference (relative ...
 XI_FLOAT32_ATOL = 1e-5     # ... and absolute, per count)
+POSTERIOR_FLOAT32_ATOL = 1e-5   # float32 smoother vs reference
+LOGLIK_FLOAT32_RTOL = 1e-6      # float32 log-likelihood vs reference
 
 
 def log_gauss(x, mean, cov):

@@ -13,7 +13,7 @@ def test_cache_is_not_reused_after_the_corpus_files_change(tmp_path, monkeypatch
     corpus = open_corpus(p)
     calls = []
 
-    def fake_annotate(corpus, params, fps, progress=True):
+    def fake_annotate(corpus, params, fps, progress=True, workers=None):
         calls.append(1)
         return {"n": len(calls)}
 

@@ -51,11 +51,11 @@ def test_every_task_has_typed_settings():
 
 def test_the_whole_config_is_typed():
     p = to_params(compose(["corpus=synthetic_tiny"]))
-    from convsynth_jax.cdbn.params import CDBNParams, EvalParams
+    from convsynth_jax.cdbn.params import CDBNEvalParams, CDBNParams
     from convsynth_jax.kernel_cache import JaxCacheParams
     from convsynth_jax.walktalk.params import WalkTalkParams
 
-    assert isinstance(p.cdbn, CDBNParams) and isinstance(p.cdbn.eval, EvalParams)
+    assert isinstance(p.cdbn, CDBNParams) and isinstance(p.cdbn.eval, CDBNEvalParams)
     assert isinstance(p.walktalk, WalkTalkParams) and isinstance(p.jax_cache, JaxCacheParams)
     assert p.cdbn.eval.jdbn_grid == (4, 7, 10) and p.cdbn.train.seed == p.seed   # lists -> tuples, ${seed} resolved
     assert p.jax_cache.dir.endswith("jax_cache") and p.loo.max_windows is None

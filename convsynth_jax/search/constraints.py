@@ -64,6 +64,7 @@ rule from the path's source frames and the database segments, without this encod
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -75,6 +76,20 @@ from .params import SearchParams
 FREE = -1
 NO_PEAK = -(1 << 20)   # PaperArrays.own_peak where the input segment has no F0 peak
 MATCHING_MODES = ("paper", "labels")
+
+
+class EntryWindows(NamedTuple):
+    """One channel's entry windows of ``search.matching=paper`` at each frame (T,) (or one frame's
+    values): :class:`PaperArrays` and the kernels' padded inputs."""
+    kind: object        # label code of the window covering the frame, FREE for none
+    start: object       # the window's input segment (frames on the output timeline)
+    end: object
+    peak: object        # NO_PEAK for none
+    free: object        # bool: entries of any kind allowed
+    reset: object       # bool: a window opens (its flag is cleared)
+    check: object       # bool: a window closes (its flag must be set)
+    end_tol: object     # int32: the end tolerance (tol, + the retiming slack)
+    peak_tol: object    # int32: the peak tolerance
 
 
 @dataclass
@@ -107,16 +122,17 @@ class PaperArrays:
 
     par_tol: int = 0           # the partner windows' end tolerance (tol)
 
-    def own(self):
-        """(kind, start, end, peak, free, reset, check, end tolerance, peak tolerance), each (T,)."""
-        return (self.own_kind, self.own_start, self.own_end, self.own_peak, self.own_free, self.own_reset,
-                self.own_check, self.own_end_tol, self.own_peak_tol)
+    def own(self) -> EntryWindows:
+        """The own channel's windows, each (T,)."""
+        return EntryWindows(self.own_kind, self.own_start, self.own_end, self.own_peak, self.own_free,
+                            self.own_reset, self.own_check, self.own_end_tol, self.own_peak_tol)
 
-    def partner(self):
+    def partner(self) -> EntryWindows:
+        """The partner channel's windows, each (T,) (no peak; both tolerances tol)."""
         nopk = np.full_like(self.par_start, NO_PEAK)
         tol = np.full_like(self.par_start, self.par_tol)
-        return (self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset, self.par_check,
-                tol, tol)
+        return EntryWindows(self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset,
+                            self.par_check, tol, tol)
 
 
 @dataclass

@@ -20,8 +20,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..rotations import (quat_conjugate_np, quat_multiply_np, quat_slerp_np, rotate_about_y_np, yaw_angle_np,
-                         yaw_to_quat_np)
+from ..rotations import (joint_turn_deg_np, quat_conjugate_np, quat_multiply_np, quat_slerp_np, rotate_about_y_np,
+                         yaw_angle_np, yaw_to_quat_np)
 from ..errors import ConfigError
 from ..skeleton import Motion
 
@@ -107,10 +107,7 @@ def continuation_end(rotations: np.ndarray, frame: int, max_step_deg: float, hor
     stop = min(n - 1, int(frame) + int(horizon))
     if max_step_deg <= 0 or stop <= frame:
         return stop
-    q = np.asarray(rotations[frame:stop + 1, 1:], np.float64)
-    dots = np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0)       # (steps, J - 1)
-    turn = np.rad2deg(2.0 * np.arccos(dots)).max(axis=-1)
-    big = np.flatnonzero(turn > max_step_deg)
+    big = np.flatnonzero(joint_turn_deg_np(rotations[frame:stop + 1]) > max_step_deg)
     return int(frame) + int(big[0]) if big.size else stop
 
 

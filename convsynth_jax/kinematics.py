@@ -1,7 +1,11 @@
-"""Forward kinematics and the root-relative pose features of the paper's transition cost.
+"""Forward kinematics, the root-relative pose features of the paper's transition cost, and time
+derivatives of positions (velocities, jerk): the project's one home for each.
 
-Shapes: F frames, J joints. Kernels are jitted with the skeleton topology (parents) static, the
-frame axis is vectorized, and the joint loop is unrolled at trace time (J is small).
+Shapes: F frames, J joints. One recursion (:func:`_chain`) serves the jitted kernel (:func:`fk_kernel`,
+float32 by default, one FK call for many clips in :func:`padded_global_transforms`) and the float64
+NumPy path (:func:`global_transforms_np`, no compilation per clip length). Kernels are jitted with the
+skeleton topology (parents) static, the frame axis is vectorized, and the joint loop is unrolled at
+trace time (J is small).
 """
 from __future__ import annotations
 
@@ -12,8 +16,26 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 
-from .rotations import quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix, yaw_quat
+from .rotations import quat_conjugate, quat_multiply, quat_rotate, quat_to_matrix, quat_to_matrix_np, yaw_quat
 from .skeleton import Motion
+
+
+def _chain(mats, translations, parents: tuple[int, ...], xp):
+    """The forward-kinematics recursion, parent before child: global rotation matrices
+    g_j = g_parent(j) @ R_j and positions p_j = p_parent(j) + g_parent(j) t_j, as two lists of J
+    arrays ((F, 3, 3) and (F, 3)). mats: (F, J, 3, 3) local rotation matrices; translations:
+    (F, J, 3). ``xp`` is ``jax.numpy`` (the jitted kernel) or ``numpy`` (the float64 path): one
+    recursion, two array libraries."""
+    g_mats = [None] * len(parents)
+    g_pos = [None] * len(parents)
+    for j, p in enumerate(parents):
+        if p < 0:
+            g_mats[j] = mats[:, j]
+            g_pos[j] = translations[:, j]
+        else:
+            g_mats[j] = g_mats[p] @ mats[:, j]
+            g_pos[j] = g_pos[p] + xp.einsum("fab,fb->fa", g_mats[p], translations[:, j])
+    return g_mats, g_pos
 
 
 @partial(jax.jit, static_argnames=("parents",))
@@ -24,15 +46,7 @@ def fk_kernel(rotations, translations, parents: tuple[int, ...]):
     parents: static tuple, parent precedes child. Returns (positions (F, J, 3), rotations (F, J, 4)).
     """
     mats = quat_to_matrix(rotations)  # (F, J, 3, 3)
-    g_mats = [None] * len(parents)
-    g_pos = [None] * len(parents)
-    for j, p in enumerate(parents):
-        if p < 0:
-            g_mats[j] = mats[:, j]
-            g_pos[j] = translations[:, j]
-        else:
-            g_mats[j] = g_mats[p] @ mats[:, j]
-            g_pos[j] = g_pos[p] + jnp.einsum("fab,fb->fa", g_mats[p], translations[:, j])
+    _, g_pos = _chain(mats, translations, parents, jnp)
     positions = jnp.stack(g_pos, axis=1)
     # Global quaternions via the product chain (exact, no matrix->quat round trip).
     g_q = [None] * len(parents)
@@ -52,6 +66,54 @@ def global_transforms(motion: Motion, dtype=jnp.float32):
     rot = jnp.asarray(motion.rotations, dtype=dtype)
     trans = jnp.asarray(motion.translations, dtype=dtype)
     return fk_kernel(rot, trans, tuple(motion.skeleton.parents))
+
+
+def global_transforms_np(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
+    """Global joint positions (F, J, 3) and rotation matrices (F, J, 3, 3), float64 NumPy.
+
+    The same recursion as :func:`fk_kernel`, unjitted: the jitted kernel compiles once per clip
+    length (seconds on a small CPU), so code that touches hundreds of clip lengths (Walk the Talk's
+    splicing and evaluation) takes this path; a test checks it against the kernel.
+    """
+    mats = quat_to_matrix_np(motion.rotations)
+    tr = np.asarray(motion.translations, dtype=np.float64)
+    g_mats, g_pos = _chain(mats, tr, tuple(motion.skeleton.parents), np)
+    return np.stack(g_pos, axis=1), np.stack(g_mats, axis=1)
+
+
+def forward_kinematics_np(motion: Motion) -> np.ndarray:
+    """Global joint positions (F, J, 3), float64 NumPy (see :func:`global_transforms_np`)."""
+    mats = quat_to_matrix_np(motion.rotations)
+    tr = np.asarray(motion.translations, dtype=np.float64)
+    return np.stack(_chain(mats, tr, tuple(motion.skeleton.parents), np)[1], axis=1)
+
+
+def padded_global_transforms(motions):
+    """Global joint positions and rotations of many clips of one skeleton with one forward-kinematics
+    call, through its stored executable (kernel_cache.py: a second run skips tracing the joint chain).
+    The frames, concatenated, are padded with copies of the last one to a power of two so the kernel
+    compiles for few shapes. Returns (positions (P, J, 3), rotations (P, J, 4)) device float32 arrays
+    and the real frame count n <= P."""
+    from . import kernel_cache
+
+    n = sum(m.rotations.shape[0] for m in motions)
+    size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
+    # one padded float32 buffer each, filled clip by clip (the same values as concatenating, casting
+    # and padding with copies of the last frame, without the intermediate copies)
+    rot = np.empty((size,) + motions[0].rotations.shape[1:], np.float32)
+    tr = np.empty((size,) + motions[0].translations.shape[1:], np.float32)
+    start = 0
+    for m in motions:
+        stop = start + m.rotations.shape[0]
+        rot[start:stop] = m.rotations
+        tr[start:stop] = m.translations
+        start = stop
+    if 0 < n < size:
+        rot[n:] = rot[n - 1]
+        tr[n:] = tr[n - 1]
+    pos, grot = kernel_cache.call(fk_kernel, "fk", (jax.device_put(rot), jax.device_put(tr)),
+                                  {"parents": tuple(motions[0].skeleton.parents)})
+    return pos, grot, n
 
 
 @partial(jax.jit, static_argnames=("up_axis", "remove_yaw"))
@@ -77,6 +139,22 @@ def finite_difference(x, fps: float):
     return d * fps
 
 
+def forward_difference(x, fps: float, order: int = 1) -> np.ndarray:
+    """order-th forward-difference derivative along axis 0, float64 NumPy, in units per
+    second**order: (F, ...) -> (F - order, ...). Row i spans frames i..i+order."""
+    x = np.asarray(x, dtype=np.float64)
+    for _ in range(order):
+        x = np.diff(x, axis=0) * fps
+    return x
+
+
+def jerk(positions, fps: float) -> np.ndarray:
+    """Jerk, the third time derivative of positions: (F, ...) -> (F - 3, ...) float64, units per
+    second**3; row i spans frames i..i+3. The project's one definition (motion-quality metrics,
+    Walk the Talk's wrist jerk)."""
+    return forward_difference(positions, fps, 3)
+
+
 class PoseFeatures(NamedTuple):
     """Root-relative pose features of every frame (Eq. 3-4 inputs).
 
@@ -97,9 +175,32 @@ def pose_features(motion: Motion, up_axis: int = 1, remove_yaw: bool = True, dty
     return PoseFeatures(rel, vel, pos)
 
 
+def batched_pose_features(motions, up_axis: int = 1, remove_yaw: bool = True):
+    """Root-relative positions and velocities of many clips of one skeleton with one FK call
+    (:func:`padded_global_transforms`). Velocities are differenced within each clip. Returns float32
+    (N, J, 3) arrays."""
+    from . import kernel_cache
+
+    pos, grot, n = padded_global_transforms(motions)
+    rel = np.asarray(kernel_cache.call(root_relative_kernel, "root_relative", (pos, grot),
+                                       {"up_axis": up_axis, "remove_yaw": remove_yaw}))[:n]
+    vel = np.empty_like(rel)
+    start = 0
+    for m in motions:
+        stop = start + m.num_frames
+        x = rel[start:stop]
+        if len(x) < 2:
+            vel[start:stop] = 0
+        else:
+            vel[start:stop] = np.gradient(x, axis=0) * m.fps
+        start = stop
+    return rel.astype(np.float32), vel.astype(np.float32)
+
+
 def joint_weights(motion_or_skeleton, finger_pattern=None, overrides=None) -> np.ndarray:
     """Eq. 4 joint weights w_b: 1 by default, 0 for finger joints (detected by name)."""
-    from .skeleton import DEFAULT_FINGER_PATTERN, Skeleton
+    from .rig import FINGER_PATTERN
+    from .skeleton import Skeleton
 
     skel = motion_or_skeleton if isinstance(motion_or_skeleton, Skeleton) else motion_or_skeleton.skeleton
-    return skel.joint_weights(DEFAULT_FINGER_PATTERN if finger_pattern is None else finger_pattern, overrides)
+    return skel.joint_weights(FINGER_PATTERN if finger_pattern is None else finger_pattern, overrides)

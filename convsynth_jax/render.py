@@ -25,6 +25,7 @@ from matplotlib.collections import LineCollection
 from matplotlib.figure import Figure
 
 from .errors import ConvSynthError, MissingFileError
+from .figures.save import save_figure
 from .utils import atomic_path
 
 log = logging.getLogger(__name__)
@@ -101,12 +102,15 @@ def _near_transition(track: Track, f: int) -> bool:
 class _Scene:
     """The figure: one axis per panel above a timeline axis; ``draw(f)`` poses every body at frame f."""
 
-    def __init__(self, panels, timelines, fps: float, width: float = 4.0, dpi: int = 80, clock: bool = True):
+    def __init__(self, panels, timelines, fps: float, width: float = 4.0, dpi: int = 80, clock: bool = True,
+                 ground_axis: int | None = None):
         if not panels or not all(p.tracks for p in panels):
             raise ConvSynthError("nothing to render: every panel needs at least one body")
+        if ground_axis not in (None, 0, 2):
+            raise ConvSynthError(f"ground_axis must be 0 (X), 2 (Z) or None (chosen from the roots), got {ground_axis!r}")
         self.panels, self.fps, self.clock = list(panels), float(fps), clock
         self.n = _num_frames(self.panels)
-        self.h = _axes_of(self.panels)
+        self.h = _axes_of(self.panels) if ground_axis is None else ground_axis
         xlim, ylim = _limits(self.panels, self.h)
         aspect = (ylim[1] - ylim[0]) / max(xlim[1] - xlim[0], 1e-6)
         rows = max(1, len(timelines)) + sum(bool(t.transitions) for p in panels[:1] for t in p.tracks)
@@ -311,16 +315,19 @@ def ffmpeg_exe() -> str:
 
 
 def render_video(panels, timelines, fps: float, path: str | Path, audio: str | Path | None = None,
-                 render_fps: float = 10.0, dpi: int = 80, width: float = 3.2, clock: bool = False) -> Path:
+                 render_fps: float = 10.0, dpi: int = 80, width: float = 3.2, clock: bool = False,
+                 ground_axis: int | None = None) -> Path:
     """An H.264 MP4 of ``panels`` (every ``round(fps / render_fps)``-th frame, blitted on an Agg canvas
     and piped to the ffmpeg binary of ``imageio-ffmpeg``, so no system ffmpeg is needed), with the WAV
     ``audio`` (if given) muxed in as an AAC track starting at frame 0. ``clock``: draw the frame number
     and time above the panels (off by default: about 4 ms a frame; the timeline's cursor shows the time;
-    on, frames are drawn by matplotlib, :func:`_rgb_frames`; off, by :func:`_raster_frames`)."""
+    on, frames are drawn by matplotlib, :func:`_rgb_frames`; off, by :func:`_raster_frames`).
+    ``ground_axis``: the horizontal axis of the view, 0 = X or 2 = Z (None: the axis along which the
+    roots spread the most, :func:`_axes_of`)."""
     import imageio_ffmpeg
 
     path = Path(path)
-    scene = _Scene(panels, timelines, fps, width=width, dpi=dpi, clock=clock)
+    scene = _Scene(panels, timelines, fps, width=width, dpi=dpi, clock=clock, ground_axis=ground_axis)
     step = max(1, int(round(fps / render_fps)))
     frames = list(range(0, scene.n, step))
     gen = (_rgb_frames if clock else _raster_frames)(scene, frames)
@@ -404,11 +411,7 @@ def contact_sheet(panels, timelines, fps: float, path: str | Path, num: int = 6,
     tl.set_xlim(0, dur)
     tl.tick_params(axis="x", labelsize=6)
     tl.set_xlabel("time (s)", fontsize=7)
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path) as tmp:
-        fig.savefig(tmp, format="png", dpi=dpi)
-    return path
+    return save_figure(fig, path, dpi=dpi)
 
 
 def bvh_files(path: str | Path) -> list[Path]:

@@ -184,6 +184,15 @@ def quat_to_euler_deg_np(q, order: str) -> np.ndarray:
     return e.reshape(q.shape[:-1] + (3,))
 
 
+def quat_to_matrix_np(q) -> np.ndarray:
+    """(..., 4) (w, x, y, z) -> (..., 3, 3), float64 NumPy (:func:`quat_to_matrix`'s formula)."""
+    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
+    return np.stack([
+        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
+        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
+        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
+
+
 def quat_multiply_np(a, b) -> np.ndarray:
     """Hamilton product a * b of (..., 4) quaternions (NumPy, broadcasting)."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)

@@ -13,8 +13,7 @@ from typing import Sequence
 import jax
 import numpy as np
 
-# Finger joints get weight 0 in the paper's transition cost (Eq. 4).
-DEFAULT_FINGER_PATTERN = r"(finger|thumb|index|middle|ring|pinky|little|hand_?(thumb|index|middle|ring|pinky))"
+from .rig import FINGER_PATTERN
 
 
 @dataclass(frozen=True)
@@ -62,7 +61,7 @@ class Skeleton:
     def children(self, j: int) -> list[int]:
         return [k for k, p in enumerate(self.parents) if p == j]
 
-    def joint_weights(self, finger_pattern: str | None = DEFAULT_FINGER_PATTERN,
+    def joint_weights(self, finger_pattern: str | None = FINGER_PATTERN,
                       overrides: dict[str, float] | None = None, finger_weight: float = 0.0) -> np.ndarray:
         """Per-joint weights w_b of Eq. 4: 1 by default, ``finger_weight`` (the paper: 0) for joints
         matching ``finger_pattern``; ``overrides`` (joint name -> weight) last."""

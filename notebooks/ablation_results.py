@@ -23,7 +23,7 @@ import pandas as pd
 from _paths import results_dir
 
 from convsynth_jax.evaluation import summaries
-from convsynth_jax.figures import ablation_figure, success_rate_figure
+from convsynth_jax.figures.motion_graph import ablation_figure, success_rate_figure
 
 src = results_dir() / "cases.csv"
 if not src.exists():

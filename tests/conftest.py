@@ -11,6 +11,9 @@ REPO = Path(__file__).resolve().parent.parent
 TEST_DATA = Path(__file__).resolve().parent / "data"
 SHARED = Path(os.environ.get("CONVSYNTH_SHARED", REPO.parent / "shared")).resolve()
 SHARED_DATA = SHARED / "data"
+# pytest-xdist already keeps every core busy: per-session work runs in the test's own process unless a
+# test asks for worker processes (tests/test_parallel.py).
+os.environ.setdefault("CONVSYNTH_WORKERS", "1")
 
 
 def shared_path(*parts: str) -> Path:
@@ -32,27 +35,56 @@ def speech_dir() -> Path:
 
 
 @pytest.fixture(scope="session")
-def tiny_corpus_dir(tmp_path_factory) -> Path:
-    """A tiny synthetic dyadic corpus generated once per test session."""
-    from convsynth_jax.config import compose
-    from convsynth_jax.data import make_synthetic_corpus
+def _shared_dir(tmp_path_factory) -> Path:
+    """A folder shared by every pytest-xdist worker of this run (this run's own temporary folder
+    without xdist): the expensive session set-ups below are built in it once, not once per worker."""
+    base = tmp_path_factory.getbasetemp()
+    return base.parent if os.environ.get("PYTEST_XDIST_WORKER") else base
 
-    cfg = compose(["corpus=synthetic_tiny"])
-    out = tmp_path_factory.mktemp("tiny_corpus")
-    return Path(make_synthetic_corpus(out / "synthetic_tiny", cfg.corpus.generator))
+
+def _build_once(shared: Path, name: str, build) -> Path:
+    """``shared/name``, built by ``build(path)`` by the first worker that gets here; the others wait
+    for it under a file lock and reuse it. A build that fails leaves no marker, so the next worker
+    tries again (and fails the same way, with its own traceback)."""
+    from filelock import FileLock
+
+    target = shared / name
+    with FileLock(str(shared / f"{name}.lock")):
+        if not (shared / f"{name}.done").exists():
+            if target.exists():
+                import shutil
+
+                shutil.rmtree(target)
+            target.mkdir(parents=True)
+            build(target)
+            (shared / f"{name}.done").touch()
+    return target
 
 
 @pytest.fixture(scope="session")
-def _tiny_annotation_cache(tiny_corpus_dir, tmp_path_factory) -> Path:
+def tiny_corpus_dir(_shared_dir) -> Path:
+    """A tiny synthetic dyadic corpus generated once per test run (shared by the xdist workers)."""
+    from convsynth_jax.config import compose
+    from convsynth_jax.data import make_synthetic_corpus
+
+    def build(out: Path) -> None:
+        make_synthetic_corpus(out / "synthetic_tiny", compose(["corpus=synthetic_tiny"]).corpus.generator)
+
+    return _build_once(_shared_dir, "tiny_corpus", build) / "synthetic_tiny"
+
+
+@pytest.fixture(scope="session")
+def _tiny_annotation_cache(tiny_corpus_dir, _shared_dir) -> Path:
     """A cache folder holding the tiny corpus's annotation (default parameters, 30 fps), computed once
-    per test session; ``tiny_cache_dir`` copies it into fresh cache folders."""
+    per test run; ``tiny_cache_dir`` copies it into fresh cache folders."""
     from convsynth_jax.annotate.cache import annotate_corpus_cached
     from convsynth_jax.annotate.params import AnnotateParams
     from convsynth_jax.io import load_corpus
 
-    cache = tmp_path_factory.mktemp("tiny_annotation_cache")
-    annotate_corpus_cached(load_corpus(tiny_corpus_dir), AnnotateParams(), 30.0, cache, progress=False)
-    return cache
+    def build(cache: Path) -> None:
+        annotate_corpus_cached(load_corpus(tiny_corpus_dir), AnnotateParams(), 30.0, cache, progress=False)
+
+    return _build_once(_shared_dir, "tiny_annotation_cache", build)
 
 
 @pytest.fixture(scope="session")
@@ -83,12 +115,18 @@ def tiny_cache_dir(_tiny_annotation_cache, tmp_path_factory):
 
 
 @pytest.fixture(scope="session")
-def main_run(tiny_corpus_dir, tiny_cache_dir, tmp_path_factory):
+def main_run(tiny_corpus_dir, tiny_cache_dir, _shared_dir):
     """One run of the main job on the tiny corpus (two leave-one-out windows, Table 2 for k = 2, 3),
-    shared by the report and notebook tests: (output folder, summary)."""
+    shared by the report and notebook tests (and the xdist workers; read it, never write into it):
+    (output folder, summary)."""
+    import json
+
     from convsynth_jax.config import compose, run_task
 
-    out = tmp_path_factory.mktemp("main")
-    s = run_task(compose(["corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}", f"cache_dir={tiny_cache_dir('main_cache')}",
-                          "progress=false", "loo.max_windows=2", "task.paper_ks=[2,3]"]), out)
-    return out, s
+    def build(out: Path) -> None:
+        run_task(compose(["corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
+                          f"cache_dir={tiny_cache_dir('main_cache')}", "progress=false", "loo.max_windows=2",
+                          "task.paper_ks=[2,3]"]), out)
+
+    out = _build_once(_shared_dir, "main_run", build)
+    return out, json.loads((out / "summary.json").read_text())

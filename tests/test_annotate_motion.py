@@ -5,11 +5,12 @@ import pandas as pd
 import pytest
 from scipy.spatial.transform import Rotation
 
-from convsynth_jax.annotate.motion import (Window, candidate_windows, detect_in_window, find_joints, idle_threshold,
-                                           joint_speeds, segment_motion, segment_windows)
+from convsynth_jax.annotate.motion import (FrameWindow, candidate_windows, detect_in_window, idle_threshold, joint_speeds,
+                                           segment_motion, segment_windows)
 from convsynth_jax.data.skeleton_seated import INDEX, seated_skeleton
 from convsynth_jax.annotate.params import AnnotateParams
 from convsynth_jax.errors import ConfigError
+from convsynth_jax.rig import find_joints
 from convsynth_jax.skeleton import Motion
 
 AP = AnnotateParams()
@@ -27,32 +28,32 @@ def test_eq1_idle_threshold_by_hand():
 def test_eq2_window_threshold_start_peak_end_by_hand():
     v = np.array([2.0, 4.0, 12.0, 22.0, 2.0, 30.0, 1.0])
     # window frames 1..4: theta_W = 2 + 0.1 * (22 - 2) = 4.0 -> frames 2, 3 above; peak at 3
-    assert detect_in_window(v, Window(1, 5), theta_s=5.0) == (2, 3, 4)
+    assert detect_in_window(v, FrameWindow(1, 5), theta_s=5.0) == (2, 3, 4)
     # frames 0..1 never exceed the clip threshold theta_S = 5 -> no movement
-    assert detect_in_window(v, Window(0, 2), theta_s=5.0) is None
+    assert detect_in_window(v, FrameWindow(0, 2), theta_s=5.0) is None
     # alpha_W = 0.5 over frames 1..4: 2 + 0.5 * 20 = 12 -> only frame 3 is above (12 is not > 12)
-    assert detect_in_window(v, Window(1, 5), theta_s=5.0, alpha_w=0.5) == (3, 3, 4)
-    assert detect_in_window(v, Window(3, 3), theta_s=0.0) is None  # empty window
+    assert detect_in_window(v, FrameWindow(1, 5), theta_s=5.0, alpha_w=0.5) == (3, 3, 4)
+    assert detect_in_window(v, FrameWindow(3, 3), theta_s=0.0) is None  # empty window
 
 
 # --------------------------------------------------------------------------------------- Figure 3
 def test_figure3_windows_expand_and_trim_at_audio_neighbours():
     seg = pd.DataFrame({"start": [1.0, 2.2, 5.0, 29.5], "end": [2.0, 3.0, 5.5, 29.9]})
     w = candidate_windows(seg, num_frames=300, fps=10)
-    assert w[0] == Window(5, 22)    # [0.5, 2.5] -> next segment starts at 2.2
-    assert w[1] == Window(20, 34)   # [1.8, 3.4] -> previous segment ends at 2.0
-    assert w[2] == Window(47, 58)   # [4.75, 5.75], nothing in reach (floor/ceil to frames)
-    assert w[3] == Window(293, 300)  # [29.3, 30.1] clipped to the clip's 300 frames
+    assert w[0] == FrameWindow(5, 22)    # [0.5, 2.5] -> next segment starts at 2.2
+    assert w[1] == FrameWindow(20, 34)   # [1.8, 3.4] -> previous segment ends at 2.0
+    assert w[2] == FrameWindow(47, 58)   # [4.75, 5.75], nothing in reach (floor/ceil to frames)
+    assert w[3] == FrameWindow(293, 300)  # [29.3, 30.1] clipped to the clip's 300 frames
     # neighbours from another table (e.g. all segments of the channel while windows are for PCs only)
     w = candidate_windows(seg.iloc[[2]], 300, 10, neighbours=pd.DataFrame({"start": [4.9], "end": [5.1]}))
-    assert w == [Window(47, 58)]    # an overlapping neighbour is neither before nor after: no trimming
+    assert w == [FrameWindow(47, 58)]    # an overlapping neighbour is neither before nor after: no trimming
 
 
 def test_figure3_windows_trim_at_motion_segments():
     seg = pd.DataFrame({"start": [10.0], "end": [12.0]})  # expanded: [9, 13], centre 11
     motion = pd.DataFrame({"start": [8.0, 12.5, 20.0], "end": [9.6, 14.0, 21.0]})
-    assert candidate_windows(seg, 1000, 10, motion_segments=motion) == [Window(96, 125)]
-    assert candidate_windows(seg, 1000, 10) == [Window(90, 130)]
+    assert candidate_windows(seg, 1000, 10, motion_segments=motion) == [FrameWindow(96, 125)]
+    assert candidate_windows(seg, 1000, 10) == [FrameWindow(90, 130)]
 
 
 def test_segment_windows_trims_against_the_previous_movement():
@@ -62,10 +63,10 @@ def test_segment_windows_trims_against_the_previous_movement():
     # theta_S = 0 + 0.1 * 10 = 1; window [0, 20): theta_W = 1 -> frames 6..13 are above (1 is not)
     # second window [10, 30) overlaps the first movement: it restarts at frame 14, where the first
     # movement ended; theta_W = 0.8 there -> frames 25..29
-    found = segment_windows(v, [Window(0, 20), Window(10, 30)], theta_s=idle_threshold(v, 0.1), alpha_w=0.1)
+    found = segment_windows(v, [FrameWindow(0, 20), FrameWindow(10, 30)], theta_s=idle_threshold(v, 0.1), alpha_w=0.1)
     assert found[0] == (6, 9, 14)
     assert found[1] == (25, 27, 30)
-    untrimmed = segment_windows(v, [Window(0, 20), Window(10, 30)], idle_threshold(v, 0.1), 0.1, trim_motion=False)
+    untrimmed = segment_windows(v, [FrameWindow(0, 20), FrameWindow(10, 30)], idle_threshold(v, 0.1), 0.1, trim_motion=False)
     assert untrimmed[1][0] == 10  # would start inside the earlier movement
 
 
@@ -73,7 +74,7 @@ def test_trimming_uses_the_full_extent_of_a_movement_that_outlasts_its_window():
     v = np.zeros(40)
     v[5:18] = [2, 5, 8, 10, 8, 6, 5, 4, 3, 3, 2, 2, 0.5]  # a gesture outlasting its window [0, 12)
     v[25:30] = [2, 6, 8, 6, 2]                             # the next clause's own gesture
-    wins = [Window(0, 12), Window(12, 30)]
+    wins = [FrameWindow(0, 12), FrameWindow(12, 30)]
     theta_s = idle_threshold(v, 0.1)  # 1.0
     # window 1: theta_W = 1 -> frames 5..11, end cut at the window's end (frame 12)
     # paper-literal: window 2 [12, 30) starts with the tail (4, 3, 3, 2, 2 > theta_W 0.8) -> counted again

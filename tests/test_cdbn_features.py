@@ -13,7 +13,7 @@ from convsynth_jax.cdbn.features import (
     read_constraints,
     speech_features,
 )
-from convsynth_jax.cdbn.params import DBNModel, FeatureParams
+from convsynth_jax.cdbn.params import DBNModel, CDBNFeatureParams
 from convsynth_jax.errors import CDBNError, ConvSynthError
 from convsynth_jax.io.audio import Audio
 
@@ -35,7 +35,7 @@ def voice(seconds=3.0, f0=150.0, sr=16000, seed=0):
 
 def test_speech_features_shape_and_f0_track_planted_contour():
     audio, planted = voice()
-    x = speech_features(audio, FeatureParams(), num_frames=90, fps=30.0)
+    x = speech_features(audio, CDBNFeatureParams(), num_frames=90, fps=30.0)
     assert x.shape == (90, 6) and np.all(np.isfinite(x))
     # frames in the middle of voiced words: Praat F0 within 5% of the planted contour
     t = np.arange(90) / 30.0
@@ -52,7 +52,7 @@ def test_too_few_voiced_frames_suggests_lower_floor():
     rng = np.random.default_rng(0)
     noise = Audio((0.1 * rng.standard_normal(32000)).astype(np.float32), 16000, "noise.wav")
     with pytest.raises(CDBNError, match="lower F0 floor") as e:
-        speech_features(noise, FeatureParams(f0_floor=75.0))
+        speech_features(noise, CDBNFeatureParams(f0_floor=75.0))
     assert "noise.wav" in str(e.value)
 
 
@@ -61,8 +61,8 @@ def test_creaky_voice_needs_the_adaptive_floor(speech_dir):
 
     audio = load_audio(speech_dir / "cold_corpus.wav")
     with pytest.raises(CDBNError, match="lower F0 floor"):
-        speech_features(audio, FeatureParams(f0_floor=75.0))
-    x = speech_features(audio, FeatureParams(f0_floor="auto"))
+        speech_features(audio, CDBNFeatureParams(f0_floor=75.0))
+    x = speech_features(audio, CDBNFeatureParams(f0_floor="auto"))
     assert x.shape == (round(audio.duration * 30), 6) and np.all(np.isfinite(x))
 
 
@@ -127,7 +127,7 @@ def test_head_rotation_round_trip_and_keypoint_smoothing():
     np.testing.assert_allclose(head_rotation_from_quat(head_euler_to_quat(ang)), ang, atol=1e-9)
     # the Head joint carries the angles on top of the neck's rest rotation: features see neck * head
     mo = head_motion(ang, 30.0, "x")
-    feat = head_rotation(mo, FeatureParams(head_joints=("Head",)))
+    feat = head_rotation(mo, CDBNFeatureParams(head_joints=("Head",)))
     np.testing.assert_allclose(feat, ang, atol=1e-4)
     # smoothing keeps the key points exactly and stays close on a slow trajectory
     q = keypoint_smooth(ang, 30.0, 15.0)

@@ -15,7 +15,7 @@ from convsynth_jax.cdbn.hands import (
     keypoint_smooth_joints,
     swing_of,
 )
-from convsynth_jax.cdbn.params import FeatureParams, num_parameters
+from convsynth_jax.cdbn.params import CDBNFeatureParams, num_parameters
 from convsynth_jax.errors import CDBNError
 
 BANDAI = Path(__file__).resolve().parent / "data" / "dataset-2_raise-up-right-hand_normal_016.bvh"
@@ -38,9 +38,9 @@ def test_features_round_trip_on_the_real_bandai_rig():
     from convsynth_jax.io.bvh import load_bvh
 
     mo = load_bvh(BANDAI)
-    rig = arm_rig(mo.skeleton, FeatureParams())
+    rig = arm_rig(mo.skeleton, CDBNFeatureParams())
     assert [mo.skeleton.names[j] for j in rig.joints] == ["UpperArm_L", "LowerArm_L", "UpperArm_R", "LowerArm_R"]
-    a = arm_angles(mo, FeatureParams(), rig)
+    a = arm_angles(mo, CDBNFeatureParams(), rig)
     assert a.shape == (mo.num_frames, 10) and np.isfinite(a).all()
     q = arm_quaternions(a, rig)
     for k, j in enumerate(rig.joints):
@@ -62,7 +62,7 @@ def test_missing_arm_joint_is_a_project_error():
 
     mo = load_bvh(BANDAI)
     with pytest.raises(CDBNError, match="no joint named any of"):
-        arm_rig(mo.skeleton, FeatureParams(arm_joints=("Nope", "LowerArm_L", "UpperArm_R", "LowerArm_R")))
+        arm_rig(mo.skeleton, CDBNFeatureParams(arm_joints=("Nope", "LowerArm_L", "UpperArm_R", "LowerArm_R")))
 
 
 def test_keypoint_smoothing_keeps_key_frames_and_slerps_between():
@@ -94,7 +94,7 @@ def test_bandai_hand_turns_pair_real_motion_with_real_speech():
     from conftest import shared_path
 
     wav = shared_path("speech", "acoustic_corpus.wav")
-    turns, rig = bandai_hand_turns(BANDAI.parent, wav, FeatureParams())
+    turns, rig = bandai_hand_turns(BANDAI.parent, wav, CDBNFeatureParams())
     assert len(turns) >= 2 and rig.joints
     for t in turns:
         assert t.speech.shape == (len(t.motion), 6) and t.motion.shape[1] == 10

@@ -76,9 +76,9 @@ def test_fit_and_synthesize_a_window(annotated):
     assert np.all(np.isfinite(mo.rotations))
     # the head moves with speech; the body holds one pose
     from convsynth_jax.cdbn.features import head_rotation
-    from convsynth_jax.cdbn.params import FeatureParams
+    from convsynth_jax.cdbn.params import CDBNFeatureParams
 
-    head = head_rotation(mo, FeatureParams())
+    head = head_rotation(mo, CDBNFeatureParams())
     assert head.std(axis=0).max() > 0.05
     spine = mo.skeleton.names.index("Spine")
     assert np.allclose(mo.rotations[:, spine], mo.rotations[0, spine])
@@ -109,7 +109,7 @@ def test_fit_without_audio_is_a_project_error(annotated):
 def test_hand_stream_moves_the_arms(annotated):
     """cdbn.stream=hands (ours): the hand model of the paper (10-D arm/forearm angles) in system=cdbn."""
     from convsynth_jax.cdbn.hands import arm_angles
-    from convsynth_jax.cdbn.params import FeatureParams
+    from convsynth_jax.cdbn.params import CDBNFeatureParams
 
 
     cfg, ann = annotated
@@ -126,7 +126,7 @@ def test_hand_stream_moves_the_arms(annotated):
     assert res.success, res.failure
     mo = res.motion
     assert mo.num_frames == n and np.all(np.isfinite(mo.rotations))
-    arms = arm_angles(mo, FeatureParams())
+    arms = arm_angles(mo, CDBNFeatureParams())
     assert arms.std(axis=0).max() > 0.05
     head = mo.skeleton.names.index("Head")
     assert np.allclose(mo.rotations[:, head], mo.rotations[0, head])

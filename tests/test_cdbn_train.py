@@ -111,7 +111,7 @@ def test_too_few_frames_per_state():
 
 def test_transition_distances_train_to_convergence(monkeypatch):
     """Eq. 8 (Sec. VII-B) compares converged models: transition_distances must train both options with
-    EvalParams' distance_max_iter / distance_tol, not the cross-validation's max_iter (20), which left
+    CDBNEvalParams' distance_max_iter / distance_tol, not the cross-validation's max_iter (20), which left
     the shared model's fast states moving (0.13-0.18 instead of 0.016 on the nod/shake corpus). Also
     checks the common-rows variant on known matrices. Fails on the old code (no train override, the
     CDBN of the first test fold reused)."""
@@ -136,7 +136,7 @@ def test_transition_distances_train_to_convergence(monkeypatch):
         return TrainedModel(m, owners if kind == "cdbn" else np.ones((K, 3), bool), [0.0] * 7, kind)
 
     monkeypatch.setattr(experiment, "fit", fake_fit)
-    ep = experiment.EvalParams(distance_max_iter=123, distance_tol=1e-5)
+    ep = experiment.CDBNEvalParams(distance_max_iter=123, distance_tol=1e-5)
     d = experiment.transition_distances([], CDBNParams(), 8, ep)
     assert sorted(k for k, _ in seen) == ["cdbn", "shared"]
     assert all(t is not None and t.max_iter == 123 and t.tol == 1e-5 for _, t in seen)
@@ -152,7 +152,7 @@ def test_transition_distances_warm_start_continues_the_given_cdbn(monkeypatch):
     trained; warm_start off trains both afresh. Fails on the old code (no ``warm`` argument)."""
     from convsynth_jax.cdbn import experiment
     from convsynth_jax.cdbn.cdbn import TrainedModel
-    from convsynth_jax.cdbn.em import FitResult
+    from convsynth_jax.cdbn.em import EMFit
     from convsynth_jax.cdbn.params import CDBNParams, DBNModel
 
     K = 3
@@ -170,18 +170,18 @@ def test_transition_distances_warm_start_continues_the_given_cdbn(monkeypatch):
         cont.append((model, params))
         t2 = model.transitions.copy()
         t2[2, 0] = [0.5, 0.25, 0.25]
-        return FitResult(model._replace(transitions=t2), [1.0] * 5, True, 5)
+        return EMFit(model._replace(transitions=t2), [1.0] * 5, True, 5)
 
     monkeypatch.setattr(experiment, "fit", fake_fit)
     monkeypatch.setattr(experiment, "fit_em", fake_fit_em)
     monkeypatch.setattr(experiment, "make_batch", lambda *a, **k: None)
-    ep = experiment.EvalParams(distance_max_iter=123, distance_tol=1e-5)
+    ep = experiment.CDBNEvalParams(distance_max_iter=123, distance_tol=1e-5)
     d = experiment.transition_distances([], CDBNParams(), 8, ep, warm=warm)
     assert seen == ["shared"]
     assert len(cont) == 1 and cont[0][0] is m and cont[0][1].max_iter == 123 and cont[0][1].tol == 1e-5
     assert d["sparse"] == pytest.approx(1 / 6)                   # from the continued model
     assert d["em_iterations"]["cdbn"] == 25 and d["warm_started"]
     seen.clear()
-    d = experiment.transition_distances([], CDBNParams(), 8, experiment.EvalParams(distance_warm_start=False),
+    d = experiment.transition_distances([], CDBNParams(), 8, experiment.CDBNEvalParams(distance_warm_start=False),
                                         warm=warm)
     assert sorted(seen) == ["cdbn", "shared"] and not d["warm_started"]

@@ -15,7 +15,7 @@ from convsynth_jax.config import default_params
 from convsynth_jax.errors import ConfigError
 from convsynth_jax.stats.cooccurrence import cooccurrence_table, hypothesis_matches
 from convsynth_jax.stats.params import StatsParams
-from convsynth_jax.stats.tests import paired_rate_test, wilson_interval
+from convsynth_jax.stats.hypothesis import paired_rate_test, wilson_interval
 
 AP = AnnotateParams()
 
@@ -296,7 +296,7 @@ def test_synthesized_and_ground_truth_windows_are_counted_alike(annotations, tin
 
 
 def test_figures_draw_wilson_error_bars():
-    from convsynth_jax.figures import ablation_figure, table1_figure
+    from convsynth_jax.figures.motion_graph import ablation_figure, table1_figure
 
     t = pd.DataFrame({"character": ["f", "f"], "hypothesis": ["PC-LH", "LR-Nod"], "rate": [0.5, 0.25],
                       "ci_low": [0.4, 0.1], "ci_high": [0.6, 0.45], "chance_method": ["away", "none"],

@@ -179,7 +179,7 @@ def test_user_study_task_own_csv_and_bad_input(tmp_path):
 
 
 def test_plotting_helpers_draw_the_data():
-    from convsynth_jax.figures import figure6_figure, table1_figure
+    from convsynth_jax.figures.motion_graph import figure6_figure, table1_figure
     from convsynth_jax.tasks.user_study import analyse
 
     t = analyse(pd.DataFrame({"comparison": ["A vs B", "C vs D"], "preferred_a": [70, 40], "total": [100, 100]}))

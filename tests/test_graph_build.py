@@ -8,7 +8,7 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial.transform import Rotation
 
 from convsynth_jax.annotate.types import FrameAudio
-from convsynth_jax.errors import GraphError, MissingFileError
+from convsynth_jax.errors import ConfigError, GraphError, MissingFileError
 from convsynth_jax.graph import build_database, build_graph, load_graph
 from convsynth_jax.graph.build import _cap_degree, _local_minima, auto_w_v, k_step_costs
 from convsynth_jax.graph.params import GraphParams
@@ -225,11 +225,11 @@ def test_real_bandai_clips_fast_equals_reference(bandai_dir):
 
 
 def test_batched_features_equal_per_clip_features():
-    from convsynth_jax.graph.database import batched_features
+    from convsynth_jax.kinematics import batched_pose_features
     from convsynth_jax.kinematics import pose_features
 
     clips = random_clips(11, 3, 47)
-    P, V = batched_features([c[1] for c in clips])
+    P, V = batched_pose_features([c[1] for c in clips])
     start = 0
     for _, m, _, _ in clips:
         f = pose_features(m)
@@ -275,3 +275,37 @@ def test_fitting_only_the_configured_distribution_gives_the_same_graph(db, graph
         np.testing.assert_array_equal(getattr(h, name), getattr(g, name))
     auto = build_graph(db, dataclasses.replace(GP, distribution="auto"))
     assert len(auto.meta["fit_table"]) == len(CANDIDATES)
+
+
+def test_graph_statistics_agree_across_the_three_tasks(db, graphs):
+    """graph/statistics.py: the Table 2 row is the graph's, the report's fit (from the graph) and the
+    figure4 task's fit of every candidate choose the same threshold for a k, and the graph given for
+    a k is used rather than rebuilt."""
+    import dataclasses
+    import json
+
+    from convsynth_jax.graph.statistics import graph_statistics
+
+    g = graphs[0]
+    ks = [GP.k, GP.k + 1]
+    built = graph_statistics(db, GP, ks, "c", graphs={GP.k: g})
+    fitted = graph_statistics(db, GP, ks, "c", build_graphs=False, fit_all=True)
+    row = built.table2[0]
+    assert row["k"] == GP.k and row["states_after_scc"] == g.num_states and row["edges_after_scc"] == g.num_edges
+    assert row["seconds"] == g.meta["seconds"]          # the given graph, not a rebuilt one
+    other = build_graph(db, dataclasses.replace(GP, k=GP.k + 1))
+    assert built.table2[1]["states_before_scc"] == other.meta["num_states_before_scc"]
+    for k in ks:
+        mine = [f for f in built.fits if f["k"] == k]
+        chosen = [f for f in fitted.fits if f["k"] == k and f["chosen"]]
+        assert len(mine) == 1 and len(chosen) == 1
+        assert mine[0]["distribution"] == chosen[0]["distribution"]
+        assert mine[0]["threshold"] == pytest.approx(chosen[0]["threshold"], rel=1e-9)
+        assert json.loads(mine[0]["params"]) == pytest.approx(json.loads(chosen[0]["params"]), rel=1e-9)
+        assert mine[0]["w_v"] == pytest.approx(chosen[0]["w_v"], rel=1e-12)
+        for st in (built, fitted):
+            h = [r for r in st.histograms if r["k"] == k]
+            assert len(h) == GP.fit_bins
+            assert sum(r["density"] * (r["bin_right"] - r["bin_left"]) for r in h) == pytest.approx(1.0)
+    with pytest.raises(ConfigError):
+        graph_statistics(db, GP, ks, build_graphs=False)

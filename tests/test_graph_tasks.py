@@ -94,7 +94,7 @@ def test_table2_and_figure4_agree_with_build_graph(bvh_root, tmp_path, caplog):
 
 
 def test_figure4_plot_is_pure_data_to_figure():
-    from convsynth_jax.figures import figure4_figure
+    from convsynth_jax.figures.motion_graph import figure4_figure
 
     edges = np.linspace(0, 10, 11)
     hist = pd.DataFrame({"character": "all", "k": 3, "bin_left": edges[:-1], "bin_right": edges[1:],

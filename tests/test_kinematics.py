@@ -88,3 +88,35 @@ def test_joint_weights_zero_fingers():
     names = np.array(s.names)
     assert set(names[w == 0]) == {n for n in names if any(k in n for k in ("Thumb", "Index", "Middle"))}
     assert s.joint_weights(overrides={"Head": 2.0})[s.index("Head")] == 2.0
+
+
+def test_numpy_fk_is_the_kernel_recursion_in_float64():
+    """kinematics.global_transforms_np (the float64 path Walk the Talk takes) against the jitted kernel
+    run in float64 and the slow reference: positions, and rotation matrices of the kernel's global
+    quaternions."""
+    from convsynth_jax.kinematics import forward_kinematics_np, global_transforms_np
+    from convsynth_jax.rotations import quat_to_matrix_np
+
+    m = random_motion(np.random.default_rng(3), frames=9, joints=7)
+    pos, mats = global_transforms_np(m)
+    assert pos.dtype == np.float64 and mats.shape == (9, 7, 3, 3)
+    np.testing.assert_array_equal(forward_kinematics_np(m), pos)
+    np.testing.assert_allclose(pos, fk_reference(m), atol=FK_FLOAT64)
+    with enable_x64():
+        kpos, kq = fk_kernel(jnp.asarray(m.rotations, jnp.float64), jnp.asarray(m.translations, jnp.float64),
+                             m.skeleton.parents)
+        np.testing.assert_allclose(pos, np.asarray(kpos), atol=FK_FLOAT64)
+        np.testing.assert_allclose(mats, quat_to_matrix_np(np.asarray(kq)), atol=1e-9)
+
+
+def test_jerk_is_the_third_forward_difference():
+    from convsynth_jax.evaluation.metrics import mean_jerk
+    from convsynth_jax.kinematics import forward_difference, jerk
+
+    x = np.random.default_rng(0).normal(size=(12, 4, 3))
+    j = jerk(x, 30.0)
+    slow = np.array([[(x[i + 3, k] - 3 * x[i + 2, k] + 3 * x[i + 1, k] - x[i, k]) * 30.0 ** 3 for k in range(4)]
+                     for i in range(9)])
+    np.testing.assert_allclose(j, slow, rtol=1e-10, atol=1e-6)
+    np.testing.assert_array_equal(j, forward_difference(x, 30.0, 3))
+    assert mean_jerk(x, 30.0) == float(np.linalg.norm(j, axis=-1).mean())

@@ -9,10 +9,10 @@ import pandas as pd
 import pytest
 from rigs import EXPECTED, RIG_TREES, rig_skeleton, write_rig_corpus
 
-from convsynth_jax.annotate.motion import find_joints
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.errors import ConfigError
 from convsynth_jax.io import load_bvh
+from convsynth_jax.rig import find_joints
 from convsynth_jax.skeleton import Skeleton
 
 ROLES = ("left_hand", "left_shoulder", "right_hand", "right_shoulder", "neck", "head")

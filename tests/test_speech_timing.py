@@ -9,8 +9,8 @@ from conftest import shared_path
 from scipy import stats
 
 from convsynth_jax.data import make_synthetic_corpus, resolve_config
-from convsynth_jax.data.speech_timing import (PAUSE_MIN, channel_timing, compare, corpus_timing, ks_distance,
-                                              speech_folder_timing, summarize, turn_gaps)
+from convsynth_jax.data.speech_timing import (PAUSE_MIN, channel_timing, compare, corpus_timing, distribution_summary,
+                                              ks_distance, speech_folder_timing, turn_gaps)
 from convsynth_jax.data.synthetic import config_hash
 from convsynth_jax.io import load_corpus
 
@@ -55,7 +55,7 @@ def test_ks_distance_and_summary_against_plain_computation():
     fa = np.array([(a <= x).mean() for x in grid])
     fb = np.array([(b <= x).mean() for x in grid])
     assert ks_distance(a, b) == pytest.approx(np.abs(fa - fb).max())
-    s = summarize(a)
+    s = distribution_summary(a)
     assert s["n"] == 40 and s["median"] == pytest.approx(np.median(a)) and s["max"] == a.max()
     assert np.isnan(ks_distance(a, []))
 

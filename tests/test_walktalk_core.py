@@ -10,7 +10,8 @@ import pytest
 from scipy.spatial.transform import Rotation, Slerp
 
 from convsynth_jax.errors import ConvSynthError, WalkTalkError
-from convsynth_jax.walktalk.body import check_same_skeleton, find_body, joint_positions
+from convsynth_jax.kinematics import forward_kinematics_np
+from convsynth_jax.walktalk.body import check_same_skeleton, find_body
 from convsynth_jax.walktalk.gestures import (
     Phases,
     check_standing,
@@ -43,7 +44,7 @@ from convsynth_jax.walktalk.splice import (
     stylize,
 )
 from convsynth_jax.walktalk.sync import align_kernel, align_peak, nominal_frame
-from convsynth_jax.walktalk.synthetic import synthetic_gesture, synthetic_jog
+from convsynth_jax.walktalk.planted_clips import synthetic_gesture, synthetic_jog
 
 TOL_Q = 2e-6   # float32 splice kernel vs float64 reference (quaternion components)
 
@@ -79,7 +80,7 @@ def test_loop_is_two_cycles_from_left_contact(jog, loop):
     # the synthetic clip is exactly periodic: tiling reproduces the source clip
     tiled = tile_loop(loop, 45)
     np.testing.assert_allclose(tiled.rotations, m.rotations[loop.start:loop.start + 45], atol=1e-12)
-    p_t, p_s = joint_positions(tiled), joint_positions(m.slice(loop.start, loop.start + 45))
+    p_t, p_s = forward_kinematics_np(tiled), forward_kinematics_np(m.slice(loop.start, loop.start + 45))
     np.testing.assert_allclose(p_t, p_s, atol=1e-9)
     np.testing.assert_array_equal(tile_contact(loop, 150)[60:120], loop.contact)
 
@@ -207,7 +208,7 @@ def test_splice_end_to_end_eq1_eq2(loop):
     # Eq. 1: lower body, torso (and the idle arm) are the locomotion's, feet identical
     np.testing.assert_allclose(r.motion.rotations[:, other], loco.rotations[:, other], atol=1e-7)
     np.testing.assert_allclose(r.motion.translations, loco.translations, atol=0)
-    pos, pos_l = joint_positions(r.motion), joint_positions(loco)
+    pos, pos_l = forward_kinematics_np(r.motion), forward_kinematics_np(loco)
     for key in ("foot_l", "foot_r", "toes_l", "toes_r"):
         np.testing.assert_allclose(pos[:, body.joints[key]], pos_l[:, body.joints[key]], atol=1e-4)
     # Eq. 2: outside the gesture the loop's arm, in the stroke the gesture's arm
@@ -339,7 +340,7 @@ def test_numpy_fk_matches_project_fk(jog):
     from convsynth_jax.kinematics import forward_kinematics
 
     m = jog[0].slice(0, 20)
-    np.testing.assert_allclose(joint_positions(m), np.asarray(forward_kinematics(m)), atol=1e-3)
+    np.testing.assert_allclose(forward_kinematics_np(m), np.asarray(forward_kinematics(m)), atol=1e-3)
 
 
 def test_quat_to_euler_matches_scipy_and_joint_euler(jog):
@@ -580,7 +581,7 @@ def test_seam_foot_slide_vectorized_vs_loop(jog):
 
     m = jog[0]
     body = find_body(m.skeleton)
-    pos = joint_positions(m)
+    pos = forward_kinematics_np(m)
     rng = np.random.default_rng(1)
     for n_loop in (7, 20, 31, 200):
         noisy = pos + rng.normal(0, 0.3, pos.shape)   # slides of different sizes near every seam

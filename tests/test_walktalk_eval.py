@@ -14,7 +14,8 @@ from omegaconf import OmegaConf
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.errors import ConfigError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh, save_bvh
-from convsynth_jax.walktalk.body import find_body, joint_positions
+from convsynth_jax.kinematics import forward_kinematics_np
+from convsynth_jax.walktalk.body import find_body
 from convsynth_jax.walktalk.gestures import make_gesture
 from convsynth_jax.walktalk.locomotion import extract_loop, seam_foot_slide, tile_loop
 from convsynth_jax.walktalk.params import WalkTalkParams, params_from_dict
@@ -71,9 +72,17 @@ def test_walktalk_eval_on_fixtures(tmp_path):
     assert len(df) == 2 * 2 * 3  # gestures x gaits x methods
     synced = df[df["method"] == "stylized+synced"]
     assert synced["peak_in_contact"].all()
+    assert synced["peak_in_contact_alt"].all()
     assert ((synced["shift_s"] <= 0) & (synced["shift_s"] >= -0.6)).all()
     assert (df["stroke_peak_s"] <= df["utterance_peak_s"]).all()
     assert (df["foot_slide_cm"] <= 2.0).all()
+    # the summary's rates are the rows' means; the loops' contact fractions per gait
+    rates = {(r["gait"], r["method"]): r for r in summary["per_gait_method"]}
+    for (gait, method), r in rates.items():
+        d = df[(df["method"] == method) & ((df["gait"] == gait) | (gait == "all"))]
+        assert r["peak_in_contact_rate"] == pytest.approx(d["peak_in_contact"].mean())
+        assert r["peak_in_contact_alt_rate"] == pytest.approx(d["peak_in_contact_alt"].mean())
+    assert 0.35 <= summary["loop_contact"]["walk"]["contact_frac_mean"] <= 0.65
     assert (df.loc[df["method"] != "naive", "dof_within_csigma"]).all()
     # the loop-alone baseline covers the same frames for the unsynchronized methods
     assert df["loop_violation_frac"].between(0, 1).all()
@@ -81,7 +90,7 @@ def test_walktalk_eval_on_fixtures(tmp_path):
     unsynced = df[df["method"] != "stylized+synced"]
     assert (unsynced.groupby(["gesture", "gait"])["loop_violation_frac"].nunique() == 1).all()
     for name in ("walktalk_eval_summary.csv", "walktalk_peak_phase.png", "walktalk_elbow.png",
-                 "walktalk_contact_sheet.png", "summary.json"):
+                 "walktalk_contact_sheet.png", "walktalk_gait_phases.png", "summary.json"):
         assert (tmp_path / name).stat().st_size > 0
     assert summary["splices"] == 12
     # both joint-limit readings, per gait x method, against the per-splice rows
@@ -113,7 +122,7 @@ def test_spliced_lower_body_equals_locomotion_on_real_fixture():
     loco = tile_loop(lc.loop, T)
     keep = [j for j in range(m.skeleton.num_joints) if j not in body.arm_r]
     np.testing.assert_allclose(r.motion.rotations[:, keep], loco.rotations[:, keep], atol=1e-6)
-    pa, pb = joint_positions(r.motion), joint_positions(loco)
+    pa, pb = forward_kinematics_np(r.motion), forward_kinematics_np(loco)
     for j in body.lower:
         np.testing.assert_allclose(pa[:, j], pb[:, j], atol=1e-3)
 
@@ -125,6 +134,7 @@ def test_eval_on_shared_data_subset(tmp_path, bandai_dir):
     df = pd.read_csv(tmp_path / "walktalk_eval.csv")
     synced = df[df["method"] == "stylized+synced"]
     assert synced["peak_in_contact"].mean() >= 0.95
+    assert synced["peak_in_contact_alt"].mean() >= 0.95
     assert ((synced["shift_s"] <= 0) & (synced["shift_s"] >= -0.6)).all()
     assert (df["foot_slide_cm"] <= 2.0).all()
 
@@ -184,7 +194,7 @@ def test_phase_csv_override_and_out_of_order(tmp_path):
     assert "phases.csv line 2" in str(e.value)
     csv.write_text(f"gesture,t_pb,t_pe,t_sb,t_se,t_rb,t_re,peaks\n{stem},0.1,0.3,0.4,1.0,1.1,1.6,0.5\n")
     run_task(cfg, tmp_path / "ok")
-    from convsynth_jax.walktalk.evaluate import load_library
+    from convsynth_jax.walktalk.library import load_library
 
     lib = load_library(params_from_dict({"phases_csv": str(csv), "splice": {"transition_pad_s": 0.0}}), FIXTURES, 1)
     g = next(gc.gesture for gc in lib.gestures if Path(gc.gesture.name).stem == stem)
@@ -198,7 +208,7 @@ def test_stylized_strokes_stay_within_joint_limits_on_fixtures():
     its limit (jog stylized violations 42% vs naive 5% on bandai2). The band is now also cut at
     the library's range of motion; the elbow bounce is rescaled into it as well. The paper's band
     alone (respect_joint_limits=False) still leaves the limits on the jog fixture."""
-    from convsynth_jax.walktalk.evaluate import dof_limits, load_library
+    from convsynth_jax.walktalk.library import dof_limits, load_library
     from convsynth_jax.walktalk.pipeline import splice_gesture
     from convsynth_jax.walktalk.splice import joint_euler
 
@@ -227,7 +237,8 @@ def test_in_sample_violation_floor_planted():
     """One DOF of the left arm spread evenly over 1000 frames, every other DOF constant: the
     0.5-99.5 percentile limits leave out 5 + 5 frames, so 1% of the left arm's frames (0.5% as the
     mean of both arms) violate in-sample; 0-100 percentiles leave none."""
-    from convsynth_jax.walktalk.evaluate import dof_limits, in_sample_violations, load_library
+    from convsynth_jax.walktalk.library import dof_limits, load_library
+    from convsynth_jax.walktalk.limit_metrics import in_sample_violations
 
     lib = load_library(WalkTalkParams(), FIXTURES, 1, single_peak_only=True)
     a = len(dof_limits(lib).joints)
@@ -254,7 +265,8 @@ def test_in_sample_violation_floor_planted():
 def test_elbow_tracking_follows_the_loop_on_fixtures():
     """Stylized strokes bend the elbow more on the jog loop (elbows ~90 deg) than on the walk loop;
     naive strokes are the same on both (the gesture's own elbow)."""
-    from convsynth_jax.walktalk.evaluate import elbow_tracking, elbow_tracking_summary, load_library
+    from convsynth_jax.walktalk.elbow import elbow_tracking, elbow_tracking_summary
+    from convsynth_jax.walktalk.library import load_library
 
     p = WalkTalkParams()
     lib = load_library(p, FIXTURES, 1, single_peak_only=True)
@@ -270,41 +282,13 @@ def test_elbow_tracking_follows_the_loop_on_fixtures():
     assert s[("all", "stylized")]["elbow_corr_pooled"] > 0.9
 
 
-def test_walking_contact_is_the_landing_front_foot_on_fixture():
-    """Defect: the swing ankle skims the floor within near_ground_cm at ~300 cm/s after passing the
-    stance leg, and those frames counted as walking contact (~80% of a walk was contact). Contact
-    is now the front foot down, or near the ground and landing (slower than near_ground_speed_cms):
-    ~60% on bandai2, and every contact frame has a slow front foot."""
-    from convsynth_jax.walktalk.locomotion import _horizontal_speed, detect_gait
-    from convsynth_jax.walktalk.params import GaitParams
-
-    p = GaitParams()
-    m = load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh")))
-    b = find_body(m.skeleton)
-    pos = joint_positions(m)
-    g = detect_gait(m, p, b, pos)
-    assert g.gait == "walk"
-    assert 0.5 <= g.contact.mean() <= 0.7, g.contact.mean()
-    heading = pos[-1, b.joints["hips"]] - pos[0, b.joints["hips"]]
-    heading[1] = 0.0
-    fl, fr = pos[:, b.joints["foot_l"]], pos[:, b.joints["foot_r"]]
-    front_l = (fl - fr) @ heading > 0
-    speed = np.where(front_l, _horizontal_speed(fl, m.fps), _horizontal_speed(fr, m.fps))
-    assert (speed[g.contact] < p.near_ground_speed_cms).all()
-    # flight frames exist between consecutive left and right strikes (one leg passing the other)
-    for s in g.strikes_l:
-        nxt = [r for r in g.strikes_r if r > s]
-        if nxt:
-            assert not g.contact[s:nxt[0]].all()
-
-
 def test_limit_cells_count_spliced_dofs_on_blended_frames():
     """The cell reading of the joint-limit metric (ours): DOF x frame cells of the gesturing arm over
     t_Pb < t < t_Re, exactly the frames whose Eq. 2 weight is > 0 (both eases), and only the
     gesturing hand in the torso test. Planted: limits that one DOF leaves on known frames, the idle
     hand kept inside the torso cylinder."""
-    from convsynth_jax.walktalk.evaluate import limit_cells, limit_violations
     from convsynth_jax.walktalk.gestures import Phases
+    from convsynth_jax.walktalk.limit_metrics import LimitCheck, ScoredSpan, limit_cells, limit_violations
     from convsynth_jax.walktalk.splice import JointLimits, joint_euler, splice_weights
 
     m = load_bvh(next(FIXTURES.glob("*raise-up-right-hand*.bvh")))
@@ -320,18 +304,23 @@ def test_limit_cells_count_spliced_dofs_on_blended_frames():
     hi = np.full((len(joints), 3), 10.0)
     hi[2, 0] = thr
     lim = JointLimits(joints, np.zeros((len(joints), 3)), lo, hi)
-    pos = joint_positions(m)
-    cells, torso = limit_cells(m, pos, ph, joints, ("r",), body, lim, 0.0)
+    pos = forward_kinematics_np(m)
+    span = ScoredSpan(m, pos, ph, joints, ("r",))
+    cells, torso = limit_cells(span, LimitCheck(body, lim, 0.0))
     inner = np.arange(ph.pb + 1, ph.re)
     want = np.zeros((len(inner), len(joints), 3), bool)
     want[:, 2, 0] = x[inner] > thr
     np.testing.assert_array_equal(cells, want)
     assert 0 < cells.mean() < 1.0 / (len(joints) * 3) and not torso.any()
     # the frame reading counts a frame when any DOF is out, on t_Pb..t_Re
-    dof_bad, _ = limit_violations(m, pos, ph, joints, body, lim, 0.0)
+    dof_bad, _ = limit_violations(span, LimitCheck(body, lim, 0.0))
+    # given the span's Euler angles over t_Pb..t_Re, the same
+    with_euler = span._replace(euler=e[ph.pb:ph.re + 1])
+    np.testing.assert_array_equal(limit_violations(with_euler, LimitCheck(body, lim, 0.0)).dof, dof_bad)
+    np.testing.assert_array_equal(limit_cells(with_euler, LimitCheck(body, lim, 0.0)).cells, cells)
     np.testing.assert_array_equal(dof_bad, x[ph.pb:ph.re + 1] > thr)
     # the torso test: a radius that swallows every hand counts the gesturing one only in the cells
-    _, torso = limit_cells(m, pos, ph, joints, ("r",), body, lim, 1e4)
+    _, torso = limit_cells(span, LimitCheck(body, lim, 1e4))
     assert torso.all() and len(torso) == len(inner)
 
 
@@ -339,7 +328,7 @@ def test_elbow_partial_corr_planted():
     """Planted loops whose mean bend and spread anti-correlate and strokes at mean + 2.5 spread (the
     saturated c-sigma rescale): the plain correlation with the mean is poor, the partial one given
     the spread is 1 with slope 1; a stroke that does not move (naive) counts as 0."""
-    from convsynth_jax.walktalk.evaluate import _per_gesture_corr, elbow_partial_corr
+    from convsynth_jax.walktalk.elbow import _per_gesture_corr, elbow_partial_corr
 
     rng = np.random.default_rng(2)
     mean = rng.normal(90, 7, 30)
@@ -362,18 +351,18 @@ def test_elbow_partial_corr_planted():
 def test_loop_bend_cache_is_not_fooled_by_a_reused_id(monkeypatch):
     """lc_bend caches by id(loop context); a freed context's id can come back for another loop (the
     bench builds several libraries in one process). Planted collision: every id is 1."""
-    from convsynth_jax.walktalk import evaluate
+    from convsynth_jax.walktalk import elbow
     from convsynth_jax.walktalk.params import GaitParams
     from convsynth_jax.walktalk.pipeline import loop_context
 
-    monkeypatch.setattr(evaluate, "_BEND_CACHE", {})
-    monkeypatch.setattr(evaluate, "id", lambda x: 1, raising=False)
+    monkeypatch.setattr(elbow, "_BEND_CACHE", {})
+    monkeypatch.setattr(elbow, "id", lambda x: 1, raising=False)
     walk = extract_loop(load_bvh(next(FIXTURES.glob("*_walk_normal_*.bvh"))), GaitParams())
     run = extract_loop(load_bvh(next(FIXTURES.glob("*_run_normal_*.bvh"))), GaitParams())
     a, b = loop_context(walk), loop_context(run)
-    bend_a, bend_b = evaluate.lc_bend(a, "r"), evaluate.lc_bend(b, "r")
+    bend_a, bend_b = elbow.lc_bend(a, "r"), elbow.lc_bend(b, "r")
     assert abs(bend_a - bend_b) > 20     # walking vs running elbows
-    assert evaluate.lc_bend(a, "r") == bend_a
+    assert elbow.lc_bend(a, "r") == bend_a
 
 
 def test_joint_limits_pool_every_clip_walk_turns_included(tmp_path):
@@ -382,7 +371,7 @@ def test_joint_limits_pool_every_clip_walk_turns_included(tmp_path):
     splices (walks, runs, gestures): walk-turns were left out. ``walktalk.limit_globs`` (default
     the walk-turns) adds them to the table only. Planted: a walk-turn copy of the walk fixture
     with the left forearm folded 100 deg more widens that DOF's limits; it is not used as a loop."""
-    from convsynth_jax.walktalk.evaluate import dof_limits, load_library
+    from convsynth_jax.walktalk.library import dof_limits, load_library
 
     for f in FIXTURES.glob("*.bvh"):
         shutil.copy(f, tmp_path / f.name)
@@ -414,16 +403,11 @@ def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
     The radius is now calibrated from the library's recordings (evaluate.torso_radius, quantile 0
     by default): no frame of any recorded clip is inside; a fixed radius is still an option, and a
     hand planted on the spine axis is still inside."""
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        dof_limits,
-        hand_torso_distance,
-        in_sample_violations,
-        limit_violations,
-        load_library,
-        torso_radius,
-    )
+    from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
     from convsynth_jax.walktalk.gestures import Phases
+    from convsynth_jax.walktalk.library import dof_limits, load_library
+    from convsynth_jax.walktalk.limit_metrics import LimitCheck, ScoredSpan, in_sample_violations, limit_violations
+    from convsynth_jax.walktalk.torso import hand_torso_distance
 
     for f in FIXTURES.glob("*.bvh"):
         shutil.copy(f, tmp_path / f.name)
@@ -443,18 +427,19 @@ def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
     got = in_sample_violations(lib, dof_limits(lib), radius)
     assert all(v["hand_in_torso_frac"] == 0.0 for v in got.values())
     m = load_bvh(excerpt, fps=30.0)
-    pos = joint_positions(m)
+    pos = forward_kinematics_np(m)
     ph = Phases(0, 4, 5, 12, 13, m.num_frames - 1, (8,))
     joints = lib.body.arm("r")
     lim = dof_limits(lib)
-    assert limit_violations(m, pos, ph, joints, lib.body, lim, 12.0)[1].any()
-    assert not limit_violations(m, pos, ph, joints, lib.body, lim, radius)[1].any()
+    span = ScoredSpan(m, pos, ph, joints, ("r",))
+    assert limit_violations(span, LimitCheck(lib.body, lim, 12.0)).torso.any()
+    assert not limit_violations(span, LimitCheck(lib.body, lim, radius)).torso.any()
     # a hand on the torso axis is inside at the calibrated radius
     planted = pos.copy()
     b = lib.body.joints
     planted[3, b["hand_l"]] = 0.5 * (pos[3, b["hips"]] + pos[3, b["neck"]])
     d = hand_torso_distance(planted, lib.body)
-    assert d[3, 0] < 1e-9 and limit_violations(m, planted, ph, joints, lib.body, lim, radius)[1][3]
+    assert d[3, 0] < 1e-9 and limit_violations(span._replace(positions=planted), LimitCheck(lib.body, lim, radius)).torso[3]
     with pytest.raises(ConfigError, match="torso_radius_quantile"):
         torso_radius(lib, EvalParams(torso_radius_quantile=1.5))
     with pytest.raises(ConfigError, match="torso_radius_cm"):
@@ -468,10 +453,11 @@ def test_torso_check_calibrated_so_recorded_clips_are_never_inside(tmp_path):
 
 
 def test_source_readings_against_a_frame_by_frame_reference():
-    """evaluate.source_readings scores the unmodified loops (one arm at a time, either hand in the
+    """limit_metrics.source_readings scores the unmodified loops (one arm at a time, either hand in the
     torso) and gestures (t_Pb..t_Re, the gesturing arm(s)) as the per-frame and cell readings score
     a splice; checked against a plain loop over frames, with a radius that puts some frames inside."""
-    from convsynth_jax.walktalk.evaluate import dof_limits, load_library, source_readings
+    from convsynth_jax.walktalk.library import dof_limits, load_library
+    from convsynth_jax.walktalk.limit_metrics import source_readings
 
     lib = load_library(WalkTalkParams(), FIXTURES, 1, single_peak_only=True)
     lim = dof_limits(lib)
@@ -493,7 +479,7 @@ def test_source_readings_against_a_frame_by_frame_reference():
     got = source_readings(lib, lim, radius)
     for gait, lcs in lib.loops.items():
         lc = lcs[0]
-        pos = joint_positions(lc.loop.motion)
+        pos = forward_kinematics_np(lc.loop.motion)
         frames, cells = [], []
         for s in ("l", "r"):
             rows = [lc.joints.index(j) for j in body.arm(s)]
@@ -506,7 +492,7 @@ def test_source_readings_against_a_frame_by_frame_reference():
     frames, cells = [], []
     for gc in lib.gestures:
         g = gc.gesture
-        pos = joint_positions(g.motion)
+        pos = forward_kinematics_np(g.motion)
         ph = g.phases
         frames.append(np.mean([out_of_limits(gc.euler[t], gc.joints).any() or inside(pos[t])
                                for t in range(ph.pb, ph.re + 1)]))
@@ -520,12 +506,12 @@ def test_source_readings_against_a_frame_by_frame_reference():
 
 
 def test_limit_readings_report_both_readings_against_naive():
-    """evaluate.limit_readings: per gait x method, the frame and the cell reading of the joint-limit
+    """limit_metrics.limit_readings: per gait x method, the frame and the cell reading of the joint-limit
     acceptance, each with the loop alone and naive, "<= naive" and "< 1%" decided per reading.
     Planted rows: jog stylized is under naive in both readings but over 1% per frame, while what it
     introduces over its own loop is under 1% (the excess reading); walk stylized is over naive per
     cell; the gait "all" is left out."""
-    from convsynth_jax.walktalk.evaluate import limit_readings
+    from convsynth_jax.walktalk.limit_metrics import limit_readings
 
     def row(gait, method, frame, cell, torso=0.0, new=0.0, new_cell=0.0):
         return {"gait": gait, "method": method, "violation_frac_mean": frame, "loop_violation_frac_mean": 0.2,
@@ -551,12 +537,13 @@ def test_limit_readings_report_both_readings_against_naive():
 
 
 def test_elbow_tracking_variants_and_loop_measures_on_fixtures():
-    """evaluate.elbow_tracking with ``variants`` (the bench's elbow diagnosis goes through it, not
+    """elbow.elbow_tracking with ``variants`` (the bench's elbow diagnosis goes through it, not
     a copy of the loop): one row per gesture x loop x variant named by the variant; the paper's
     band without the range-of-motion cut is within 1 deg of the default's stylized rows on the walk
     fixture (whose band barely meets the limits) and > 1 deg off on jog (cut at ~120 deg); ``loop_measures`` adds the bend of
     the mean pose and of the loop over the stroke's frames, close to the loop's mean bend."""
-    from convsynth_jax.walktalk.evaluate import elbow_tracking, load_library
+    from convsynth_jax.walktalk.elbow import elbow_tracking
+    from convsynth_jax.walktalk.library import load_library
 
     p = WalkTalkParams()
     lib = load_library(p, FIXTURES, 1, single_peak_only=True)
@@ -572,3 +559,24 @@ def test_elbow_tracking_variants_and_loop_measures_on_fixtures():
     assert (np.abs(w.xs("jog", level="gait")["default"] - w.xs("jog", level="gait")["paper band"]) > 1.0).all()
     assert (np.abs(df["loop_pose_bend"] - df["loop_bend"]) < 10).all()
     assert (np.abs(df["loop_phase_bend"] - df["loop_bend"]) < 25).all()
+
+
+def test_quality_preset_sets_our_splice_options_and_paper_keeps_the_papers():
+    """preset=quality turns on our three stylization options (docs/presets.md) and nothing else of
+    walktalk; preset=paper (the default) leaves every walktalk value at the paper's (the dataclass
+    defaults: one std per loop, the hard range-of-motion cut, one rescale factor per DOF)."""
+    def walktalk(*overrides):
+        return params_from_dict(OmegaConf.to_container(compose(["task=walktalk_eval", *overrides]).walktalk,
+                                                       resolve=True))
+
+    paper, default = walktalk("preset=paper"), walktalk()
+    assert _asdict(paper) == _asdict(default) == _asdict(WalkTalkParams())
+    assert (paper.splice.band_std, paper.splice.joint_limit_mode, paper.splice.rescale_coupling) == ("loop", "hard", 0.0)
+    quality = walktalk("preset=quality")
+    assert quality.splice.band_std == "gait_min" and quality.splice.joint_limit_mode == "soft"
+    assert 0.0 < quality.splice.rescale_coupling <= 1.0
+    back = dataclasses.replace(quality, splice=dataclasses.replace(quality.splice, band_std="loop", joint_limit_mode="hard",
+                                                                   rescale_coupling=0.0))
+    assert _asdict(back) == _asdict(paper)
+    # a key after the preset still wins
+    assert walktalk("preset=quality", "walktalk.splice.rescale_coupling=0.5").splice.rescale_coupling == 0.5

@@ -10,9 +10,9 @@ import pandas as pd
 import pytest
 
 from convsynth_jax.config import compose, run_task
-from convsynth_jax.errors import WalkTalkError
+from convsynth_jax.errors import MissingFileError, WalkTalkError
 from convsynth_jax.io.bvh import load_bvh
-from convsynth_jax.walktalk.body import quat_to_matrix_np
+from convsynth_jax.rotations import quat_to_matrix_np
 from convsynth_jax.walktalk.gaze import (
     AAREvent,
     apply_gaze,
@@ -21,7 +21,7 @@ from convsynth_jax.walktalk.gaze import (
     validate_events,
 )
 from convsynth_jax.walktalk.params import GazeParams
-from convsynth_jax.walktalk.synthetic import synthetic_jog
+from convsynth_jax.walktalk.planted_clips import synthetic_jog
 
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 
@@ -126,7 +126,7 @@ def test_demo_on_fixtures_with_peak_tsv(tmp_path):
     a = _tsv(tmp_path / "a.tsv", [2.0, 5.1, 8.3, 12.0])
     b = _tsv(tmp_path / "b.tsv", [3.5, 9.9, 14.2])
     cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", "task.duration_s=18",
-                   "task.loop_candidates=1", "task.max_gestures=null",
+                   "task.loop_candidates=1", "task.max_gestures=null", "task.video=false",  # video: below
                    f"task.speakers=[{{name: A, peaks_tsv: '{a}'}}, {{name: B, peaks_tsv: '{b}'}}]"])
     out = tmp_path / "out"
     summary = run_task(cfg, out)
@@ -157,11 +157,94 @@ def test_demo_utterance_outside_timeline_writes_nothing(tmp_path):
 
 def test_demo_with_real_speech(tmp_path, speech_dir, bandai_dir):
     cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={bandai_dir}", "task.gaits=[walk]",
-                   "task.max_gestures=30", "task.loop_candidates=4",
+                   "task.max_gestures=30", "task.loop_candidates=4", "task.video=false",  # video: below
                    (f"task.speakers=[{{name: A, wav: '{speech_dir / 'acoustic_corpus.wav'}', transcript: '{speech_dir / 'acoustic_corpus.TextGrid'}', offset_s: 1.0}},"
                    f"{{name: B, wav: '{speech_dir / 'cold_corpus.wav'}', transcript: '{speech_dir / 'cold_corpus.TextGrid'}', offset_s: 29.0}}]")])
     summary = run_task(cfg, tmp_path)
     assert summary["utterance_peaks"]["A"] > 3 and summary["gestures_spliced"] > 3
     ev = pd.read_csv(tmp_path / "walktalk_events.csv")
     assert ev.loc[ev["single_peak"], "contact_at_peak"].mean() >= 0.95
+    assert ev.loc[ev["single_peak"], "contact_alt_at_peak"].mean() >= 0.95
+    assert summary["single_peak_contact_rate_naive"] == pytest.approx(ev.loc[ev["single_peak"], "contact_at_nominal"].mean())
     assert set(ev["character"]) == {"A", "B"}
+
+
+def _demo_cfg(tmp_path, *extra):
+    a = _tsv(tmp_path / "a.tsv", [2.0, 5.1])
+    b = _tsv(tmp_path / "b.tsv", [3.5])
+    return compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", "task.duration_s=8", "task.gaits=[walk]",
+                    "task.loop_candidates=1", "task.video_fps=2", *extra,
+                    f"task.speakers=[{{name: A, peaks_tsv: '{a}', wav: '{tmp_path / 'nowhere.wav'}'}}, "
+                    f"{{name: B, peaks_tsv: '{b}'}}]"])
+
+
+def test_demo_video_missing_speech_names_the_file_and_writes_nothing(tmp_path):
+    """A speaker's speech recording that is not there stops the demo before anything is written."""
+    with pytest.raises(MissingFileError, match="nowhere.wav"):
+        run_task(_demo_cfg(tmp_path), tmp_path / "out")
+    assert not list((tmp_path / "out").iterdir())
+
+
+def test_demo_video_unwritable_path_is_a_clear_error(tmp_path):
+    """A video path that cannot be written (its folder is a file) is refused before any work, naming
+    the path; nothing is written."""
+    (tmp_path / "taken").write_text("a file, not a folder")
+    (tmp_path / "nowhere.wav").write_bytes(b"")   # never read: the path check comes first
+    with pytest.raises(WalkTalkError, match="cannot write the demo video") as e:
+        run_task(_demo_cfg(tmp_path, f"task.video_file={tmp_path / 'taken' / 'demo.mp4'}"), tmp_path / "out")
+    assert "taken/demo.mp4" in str(e.value)
+    assert not list((tmp_path / "out").iterdir())
+    with pytest.raises(WalkTalkError, match="MP4"):
+        run_task(_demo_cfg(tmp_path, "task.video_file=demo.gif"), tmp_path / "out")
+
+
+def test_speech_wav_places_each_recording_at_its_offset(tmp_path):
+    """The demo's speech track (tasks.converse.write_stereo with offsets): planted ramps, one starting
+    0.5 s in (silence before it), one whose first 0.25 s fall before the timeline (dropped), one
+    missing speaker (silent); B at another rate is resampled onto A's."""
+    from convsynth_jax.io.audio import Audio, load_audio
+    from convsynth_jax.tasks.converse import write_stereo
+
+    rate = 8000
+    a = Audio(np.linspace(-0.5, 0.5, rate).astype(np.float32), rate)
+    x = load_audio(write_stereo(tmp_path / "a.wav", a, None, 2.0, offsets_s=(0.5, 0.0))).samples
+    assert x.shape == (2 * rate, 2) and np.abs(x[:rate // 2]).max() == 0 and np.abs(x[:, 1]).max() == 0
+    np.testing.assert_allclose(x[rate // 2:rate // 2 + rate, 0], a.samples, atol=1e-4)
+    assert np.abs(x[rate // 2 + rate:, 0]).max() == 0
+    b = Audio(np.linspace(0.0, 0.4, 2 * rate).astype(np.float32), 2 * rate)   # 1 s at twice the rate
+    x = load_audio(write_stereo(tmp_path / "b.wav", a, b, 1.0, offsets_s=(-0.25, 0.0))).samples
+    np.testing.assert_allclose(x[:3 * rate // 4, 0], a.samples[rate // 4:], atol=1e-4)
+    assert np.abs(x[3 * rate // 4:, 0]).max() == 0
+    np.testing.assert_allclose(x[:, 1], np.interp(np.arange(rate) / rate, np.arange(2 * rate) / (2 * rate), b.samples),
+                               atol=1e-4)
+
+
+def test_demo_video_camera_follows_the_pair_and_looks_along_the_walk():
+    """Planted: two walkers 1 m apart along X, advancing along +Z at different speeds, each under a
+    static top joint left at the start (bandai2's joint_Root). The camera keeps the mean of their
+    hips at the origin on the ground (heights kept), draws the static joint at the hips, and the view
+    has X across (a pair drifting apart along Z would otherwise turn it into a side view)."""
+    from convsynth_jax.render import Panel, Timeline, Track, _Scene
+    from convsynth_jax.tasks.walktalk_demo import _follow_pair
+
+    t = np.arange(30, dtype=np.float64)
+    parents = (-1, 0, 1)   # static root -> hips -> head
+
+    def walker(x, speed):
+        pos = np.zeros((len(t), 3, 3))
+        pos[:, 0] = (x, 0.0, 0.0)
+        pos[:, 1] = np.stack([x + 2 * np.sin(t), 90 + np.cos(t), speed * t], axis=1)
+        pos[:, 2] = pos[:, 1] + (0.0, 60.0, 0.0)
+        return Track("w", pos, parents)
+
+    a, b = walker(-50.0, 40.0), walker(50.0, 48.0)
+    fa, fb = _follow_pair((a, b), [1, 1])
+    centre = (fa.positions[:, 1] + fb.positions[:, 1]) / 2
+    np.testing.assert_allclose(centre[:, [0, 2]], 0.0, atol=1e-9)
+    np.testing.assert_allclose(fa.positions[:, 1, 1], a.positions[:, 1, 1])          # heights kept
+    np.testing.assert_allclose(fb.positions[:, 1, 0] - fa.positions[:, 1, 0], 100.0)  # 1 m apart across
+    np.testing.assert_allclose(fa.positions[:, 0], fa.positions[:, 1])                # static root at the hips
+    np.testing.assert_allclose(fa.positions[:, 2] - fa.positions[:, 1], a.positions[:, 2] - a.positions[:, 1])
+    panels = [Panel("walk", (fa, fb))]
+    assert _Scene(panels, [Timeline("A")], 30.0).h == 2          # the drift along Z wins without the axis given
+    assert _Scene(panels, [Timeline("A")], 30.0, ground_axis=0).h == 0

@@ -1,11 +1,11 @@
-"""Walk the Talk finds its body parts through the shared rig table (annotate.motion.RIG_JOINTS):
+"""Walk the Talk finds its body parts through the shared rig table (convsynth_jax.rig.RIG_JOINTS):
 the joints chosen on SMPL-X, CMU, Mixamo, GENEA, BEAT and Bandai trees, and the part split."""
 from __future__ import annotations
 
 import pytest
 from rigs import RIG_TREES, rig_skeleton
 
-from convsynth_jax.annotate.motion import DEFAULT_JOINTS, RIG_JOINTS, find_joints
+from convsynth_jax.rig import DEFAULT_JOINTS, RIG_JOINTS, find_joints
 from convsynth_jax.errors import WalkTalkError
 from convsynth_jax.walktalk import body as body_mod
 from convsynth_jax.walktalk.body import ROLES, find_body
@@ -56,3 +56,19 @@ def test_missing_joints_listed_with_shared_roles():
     with pytest.raises(WalkTalkError, match=r"hand_l \(left_hand\)") as e:
         find_body(dataclasses.replace(skel, names=names), "cmu.bvh")
     assert "cmu.bvh" in str(e.value) and "LeftPaw" in str(e.value)
+
+
+@pytest.mark.parametrize("rig", sorted(RIG_TREES))
+def test_cdbn_finds_head_and_arms_through_the_rig_table(rig):
+    """The CDBN's head and arm joints are rig roles (cdbn.features), so its default finds them on every
+    rig the table knows, and they are the joints annotation and Walk the Talk take for those roles."""
+    from convsynth_jax.cdbn.features import head_joint_indices
+    from convsynth_jax.cdbn.hands import arm_rig
+    from convsynth_jax.cdbn.params import CDBNFeatureParams
+
+    skel = rig_skeleton(rig)
+    fp = CDBNFeatureParams()
+    six, b = find_joints(skel), find_body(skel, rig)
+    assert head_joint_indices(skel, fp.head_joints) == [six["neck"], six["head"]]
+    assert arm_rig(skel, fp).joints == (b.joints["upperarm_l"], b.joints["elbow_l"], b.joints["upperarm_r"],
+                                        b.joints["elbow_r"])

@@ -44,7 +44,7 @@ def corpus_fingerprint(corpus) -> str:
 
 
 def annotate_corpus_cached(corpus, params: AnnotateParams, fps: float, cache_dir: str | Path | None = None,
-                           progress: bool = True) -> dict:
+                           progress: bool = True, workers: int | None = None) -> dict:
     """session name -> role -> ParticipantAnnotation for ``corpus``, read from ``cache_dir`` when an
     annotation with the same corpus folder (and contents), parameters and frame rate is there, else computed and
     written there (atomically). An unreadable cache file is ignored and rebuilt."""
@@ -56,7 +56,7 @@ def annotate_corpus_cached(corpus, params: AnnotateParams, fps: float, cache_dir
                 return pickle.load(fh)
         except Exception as e:  # a stale or foreign cache is rebuilt, never trusted
             log.warning("ignoring unreadable annotation cache %s (%s)", cache, e)
-    result = annotate_corpus(corpus, params, fps, progress=progress)
+    result = annotate_corpus(corpus, params, fps, progress=progress, workers=workers)
     if cache is not None:
         with atomic_path(cache, suffix=".pkl") as tmp:
             with open(tmp, "wb") as fh:

@@ -4,7 +4,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from typing import Any, Dict, List, Optional
 
-JOINT_ROLES = ("left_hand", "left_shoulder", "right_hand", "right_shoulder", "neck", "head")
+from ..rig import DEFAULT_JOINTS
 
 
 @dataclass(frozen=True)
@@ -70,5 +70,6 @@ class AnnotateParams:
     # paper's literal end inside its window
     extend_trim: bool = True
     up_axis: int = 1                           # vertical axis for nods (Y up)
-    # Regexes (tried in order) naming the joints for hand and head speeds; None = built-in defaults
-    joints: Dict[str, Any] = field(default_factory=lambda: {k: None for k in JOINT_ROLES})
+    # Regexes (tried in order) naming the joints for hand and head speeds; None = the role's patterns
+    # in convsynth_jax/rig.py
+    joints: Dict[str, Any] = field(default_factory=lambda: {k: None for k in DEFAULT_JOINTS})

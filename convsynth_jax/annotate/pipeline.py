@@ -1,12 +1,14 @@
 """Corpus-level annotation: audio segments of both channels, motion events, per-frame audio status."""
 from __future__ import annotations
 
+import functools
 import logging
 from dataclasses import dataclass
 
 import pandas as pd
 from tqdm.auto import tqdm
 
+from ..parallel import ordered_map
 from ..skeleton import Motion
 from .audio import annotate_audio, word_corpus_for
 from .motion import joint_speeds, segment_motion
@@ -62,9 +64,15 @@ def annotate_session(session, params: AnnotateParams, fps: float, word_corpus: d
     return out
 
 
-def annotate_corpus(corpus, params: AnnotateParams, fps: float, progress: bool = True) -> dict:
+def annotate_corpus(corpus, params: AnnotateParams, fps: float, progress: bool = True,
+                    workers: int | None = None) -> dict:
     """session name -> role -> ParticipantAnnotation, for every session of ``corpus`` (e.g.
-    ``convsynth_jax.io.load_corpus(...)``), with a progress bar unless ``progress`` is false."""
+    ``convsynth_jax.io.load_corpus(...)``), with a progress bar unless ``progress`` is false; sessions
+    are annotated by ``workers`` processes (``convsynth_jax.parallel``; the result does not depend on
+    how many)."""
     words = word_corpus_for(params)
-    return {s.name: annotate_session(s, params, fps, words)
-            for s in tqdm(corpus.sessions, desc="annotating sessions", disable=not progress)}
+    sessions = list(corpus.sessions)
+    with tqdm(total=len(sessions), desc="annotating sessions", disable=not progress) as bar:
+        done = ordered_map(functools.partial(annotate_session, params=params, fps=fps, word_corpus=words),
+                           sessions, workers, on_done=bar.update)
+    return {s.name: a for s, a in zip(sessions, done)}

@@ -17,7 +17,7 @@ from .features import (
     read_constraints,
     speech_features,
 )
-from .params import FeatureParams
+from .params import CDBNFeatureParams
 
 
 class Turn(NamedTuple):
@@ -33,7 +33,7 @@ class Turn(NamedTuple):
         return np.concatenate([self.speech, self.motion], axis=1)
 
 
-def load_turn(wav: Path, bvh: Path, constraints_tsv: Path | None, names: tuple, params: FeatureParams,
+def load_turn(wav: Path, bvh: Path, constraints_tsv: Path | None, names: tuple, params: CDBNFeatureParams,
               subject: str = "", name: str = "") -> Turn:
     from ..io.audio import load_audio
     from ..io.bvh import load_bvh
@@ -77,7 +77,7 @@ def check_turns(turns: list[Turn], min_frames: int = 3) -> None:
         raise CDBNError("no turns")
 
 
-def load_semisynthetic_turns(root, names: tuple, params: FeatureParams) -> list[Turn]:
+def load_semisynthetic_turns(root, names: tuple, params: CDBNFeatureParams) -> list[Turn]:
     from .semisynthetic import load_semisynthetic_corpus
 
     return [load_turn(t["wav"], t["bvh"], t["constraints"], names, params, t["subject"], t["turn"])

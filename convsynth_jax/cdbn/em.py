@@ -207,7 +207,7 @@ def m_step(model: DBNModel, st: Stats, params: TrainParams, warn: bool = True, f
 
 
 @dataclass
-class FitResult:
+class EMFit:
     model: DBNModel
     log_likelihoods: list          # per-frame log-likelihood after each E-step (non-decreasing)
     converged: bool
@@ -215,7 +215,7 @@ class FitResult:
 
 
 def fit_em(model: DBNModel, batch: Batch, params: TrainParams, max_iter: int | None = None,
-           progress: bool = False) -> FitResult:
+           progress: bool = False) -> EMFit:
     """EM from ``model`` until the per-frame log-likelihood gains less than ``params.tol``."""
     n = batch.num_frames
     K = model.num_states
@@ -240,4 +240,4 @@ def fit_em(model: DBNModel, batch: Batch, params: TrainParams, max_iter: int | N
         uniq = sorted(set(floored))
         warnings.warn(f"singular or near-singular covariances floored at eigenvalue {params.covariance_floor} "
                       f"during EM: {', '.join(uniq[:6])}{' ...' if len(uniq) > 6 else ''}", RuntimeWarning, stacklevel=2)
-    return FitResult(model, lls, converged, len(lls))
+    return EMFit(model, lls, converged, len(lls))

@@ -33,7 +33,7 @@ log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
-class EvalParams:
+class CDBNEvalParams:
     folds: int = 10
     jdbn_grid: tuple = (4, 7, 10)
     cdbn_grid: tuple = (3, 4, 6)
@@ -161,7 +161,7 @@ def hand_gesture_features(angles: np.ndarray, fps: float) -> np.ndarray:
     return np.concatenate([np.asarray(angles).mean(0) / 30.0, np.log(band_sd(angles, fps) + 1e-3)])
 
 
-def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams, progress=None, rig=None) -> dict:
+def run_cdbn_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: CDBNEvalParams, progress=None, rig=None) -> dict:
     """Everything of the summary except file writing. Returns a dict with tables, per-turn rows,
     the fold-1 models and held-out turns. ``rig`` (an ArmRig): the turns carry the hand stream (hand
     smoothing, hand gesture features)."""
@@ -259,7 +259,7 @@ def run_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: EvalParams
             "fold1": folds_out, "test_folds": test_folds, "phase_seconds": phases}
 
 
-def transition_distances(turns: list[Turn], p: CDBNParams, n: int, ep: EvalParams | None = None,
+def transition_distances(turns: list[Turn], p: CDBNParams, n: int, ep: CDBNEvalParams | None = None,
                          warm: TrainedModel | None = None) -> dict:
     """Eq. 8 between the nod and shake transition matrices: shared-state model (option 1 of Sec. VII-B)
     vs sparse CDBN (option 2), both trained with EM run to convergence (``ep.distance_max_iter``,
@@ -268,7 +268,7 @@ def transition_distances(turns: list[Turn], p: CDBNParams, n: int, ep: EvalParam
     move into the shared state under one constraint), and each model's EM iteration count.
     ``warm``: a CDBN already trained on ``turns`` with N = ``n`` (the cross-validation's); with
     ``ep.distance_warm_start`` the sparse model continues EM from it to convergence."""
-    ep = ep or EvalParams()
+    ep = ep or CDBNEvalParams()
     names = p.constraints
     a, b = names.index("nod"), names.index("shake")
     tp = TrainParams(**{**p.train.__dict__, "max_iter": ep.distance_max_iter, "tol": ep.distance_tol})

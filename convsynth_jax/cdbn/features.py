@@ -8,8 +8,8 @@ periods of the floor (75 Hz -> the paper's 40 ms); ``f0_floor='auto'`` adapts fl
 the speaker (two passes, De Looze & Hirst: 0.72 q35 / 1.9 q65 of a 60-700 Hz pass). Energy is the
 log RMS (dB) of 40 ms Hann windows. Derivatives are central differences per second. The 60 fps
 prosody is linearly interpolated onto the motion frame times (the paper up-samples to 120 fps; our
-corpora run at 30 fps). Head rotation: the composed local rotation of ``head_joints`` (Neck then
-Head) as intrinsic Z-X-Y Euler angles in degrees, reported as (pitch = X, yaw = Y, roll = Z).
+corpora run at 30 fps). Head rotation: the composed local rotation of ``head_joints`` (the neck then
+the head, found by role through convsynth_jax.rig) as intrinsic Z-X-Y Euler angles in degrees, reported as (pitch = X, yaw = Y, roll = Z).
 """
 from __future__ import annotations
 
@@ -21,7 +21,8 @@ import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from ..errors import CDBNError
-from .params import FeatureParams
+from ..rig import resolve_joint
+from .params import CDBNFeatureParams
 
 SPEECH_NAMES = ("f0", "energy", "d_f0", "d_energy", "dd_f0", "dd_energy")
 MOTION_NAMES = ("head_pitch", "head_yaw", "head_roll")
@@ -63,7 +64,7 @@ def _pitch(x, sr, step, floor, ceiling):
     return np.asarray(p.xs(), np.float64), f0
 
 
-def f0_track(audio, params: FeatureParams, path: str | Path | None = None) -> tuple[np.ndarray, np.ndarray, float]:
+def prosody_f0_track(audio, params: CDBNFeatureParams, path: str | Path | None = None) -> tuple[np.ndarray, np.ndarray, float]:
     """(times, f0 with NaN where unvoiced, floor used) at ``params.hop``."""
     x, sr = _mono(audio)
     if params.f0_floor == "auto":
@@ -100,7 +101,7 @@ def interpolate_unvoiced(f0: np.ndarray) -> np.ndarray:
     return np.interp(t, t[v], f0[v])
 
 
-def speech_features(audio, params: FeatureParams, num_frames: int | None = None, fps: float | None = None,
+def speech_features(audio, params: CDBNFeatureParams, num_frames: int | None = None, fps: float | None = None,
                     path: str | Path | None = None) -> np.ndarray:
     """Raw (un-normalized) prosody (F, 6): F0, energy, their first and second derivatives, at the
     model frame rate (``num_frames`` frames at ``fps``; default: the audio duration at params.fps)."""
@@ -109,7 +110,7 @@ def speech_features(audio, params: FeatureParams, num_frames: int | None = None,
     x, sr = _mono(audio)
     if len(x) < int(0.2 * sr):
         raise CDBNError(f"audio too short for prosody ({len(x) / sr:.3f} s)", where)
-    t, f0, floor = f0_track(audio, params, path)
+    t, f0, floor = prosody_f0_track(audio, params, path)
     voiced = np.isfinite(f0)
     if voiced.sum() < max(3, params.min_voiced_fraction * len(f0)):
         raise CDBNError(f"too few voiced frames for F0 ({int(voiced.sum())} of {len(f0)} at a {floor:.0f} Hz floor); "
@@ -134,15 +135,26 @@ def check_finite(x: np.ndarray, where: str, what: str) -> None:
                         f"({bad.size} frames in all)", where, f"frame {int(bad[0])}")
 
 
-def head_rotation(motion, params: FeatureParams) -> np.ndarray:
-    """(F, 3) head pitch, yaw, roll in degrees: the composed local rotations of ``params.head_joints``."""
-    skel = motion.skeleton
-    q = None
-    for name in params.head_joints:
-        j = skel.names.index(name) if name in skel.names else skel.find(f"^{name}$", name)
+def head_joint_indices(skel, head_joints, where: str = "") -> list[int]:
+    """Joint indices of ``head_joints`` (cdbn.features.head_joints): each a role of
+    :data:`convsynth_jax.rig.RIG_JOINTS`, an exact joint name, or a regex on the names; CDBNError
+    naming the entry and the joints when one is not found."""
+    out = []
+    for name in head_joints:
+        j = resolve_joint(skel, name)
+        if j is None:
+            j = skel.find(f"^{name}$", name)
         if j is None:
             raise CDBNError(f"skeleton has no joint matching {name!r} (cdbn.features.head_joints); "
-                            f"joints are {list(skel.names)}", motion.name)
+                            f"joints are {list(skel.names)}", where)
+        out.append(j)
+    return out
+
+
+def head_rotation(motion, params: CDBNFeatureParams) -> np.ndarray:
+    """(F, 3) head pitch, yaw, roll in degrees: the composed local rotations of ``params.head_joints``."""
+    q = None
+    for j in head_joint_indices(motion.skeleton, params.head_joints, motion.name):
         r = Rotation.from_quat(np.asarray(motion.rotations[:, j])[:, [1, 2, 3, 0]])
         q = r if q is None else q * r
     zxy = q.as_euler("ZXY", degrees=True)

@@ -20,13 +20,13 @@ from ..errors import CDBNError
 from .dataset import Turn
 from .features import speech_features
 from .hands import arm_angles, arm_rig
-from .params import FeatureParams
+from .params import CDBNFeatureParams
 
 DYADIC_CONSTRAINTS = ("idle", "PC", "LR", "HP")
 BANDAI_CONSTRAINTS = ("other", "raise", "wave")
 
 
-def dyadic_hand_turns(corpus, ann, fp: FeatureParams, turn_seconds: float = 10.0, max_sessions: int | None = None):
+def dyadic_hand_turns(corpus, ann, fp: CDBNFeatureParams, turn_seconds: float = 10.0, max_sessions: int | None = None):
     """(turns, rig) from an annotated corpus (session -> role -> annotation)."""
     from ..io.audio import load_audio
 
@@ -46,7 +46,7 @@ def dyadic_hand_turns(corpus, ann, fp: FeatureParams, turn_seconds: float = 10.0
     return turns, rig
 
 
-def bandai_hand_turns(bvh_dir, wav, fp: FeatureParams, rest_fraction: float = 0.15, max_clips: int | None = None,
+def bandai_hand_turns(bvh_dir, wav, fp: CDBNFeatureParams, rest_fraction: float = 0.15, max_clips: int | None = None,
                       seed: int = 0):
     """(turns, rig) from the raise/wave clips of a Bandai2 ``bvh`` folder, each paired with a random
     stretch of the prosody track of ``wav`` (analysed once, whole) of the clip's length; subject = the
@@ -81,19 +81,19 @@ def bandai_hand_turns(bvh_dir, wav, fp: FeatureParams, rest_fraction: float = 0.
 
 
 def hand_evaluation(turns, rig, names: tuple, eval_kw: dict, base=None) -> dict:
-    """The Sec. VIII protocol (run_evaluation) on hand turns: Table V analogue (states, parameters,
+    """The Sec. VIII protocol (run_cdbn_evaluation) on hand turns: Table V analogue (states, parameters,
     CCA_m, CCA_ms, KLD per model), gesture accuracy of the synthesized segments, validation curves."""
     import dataclasses
     import time
 
     from .dataset import normalize_by_subject
-    from .experiment import EvalParams, run_evaluation
+    from .experiment import CDBNEvalParams, run_cdbn_evaluation
     from .params import CDBNParams
 
     p = dataclasses.replace(base or CDBNParams(), constraints=tuple(names))
     zt, norms = normalize_by_subject(turns)
     t0 = time.perf_counter()
-    res = run_evaluation(zt, norms, p, EvalParams(**eval_kw), rig=rig)
+    res = run_cdbn_evaluation(zt, norms, p, CDBNEvalParams(**eval_kw), rig=rig)
     counts = np.bincount(np.concatenate([t.constraints for t in turns]), minlength=len(names))
     return {"turns": len(turns), "frames": int(sum(len(t.speech) for t in turns)),
             "frames_per_constraint": dict(zip(names, counts.tolist())), "eval": dict(eval_kw),

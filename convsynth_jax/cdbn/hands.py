@@ -10,8 +10,9 @@ Our reconstruction (the paper names the degrees of freedom, not their parametriz
   bone is the dropped degree of freedom; it does not move the wrist. On synthesis the twist is
   identity.
 Order of the 10 columns: left arm (3), left forearm (2), right arm (3), right forearm (2).
-Joint names come from ``FeatureParams.arm_joints``: four entries, each a ``|``-separated list of
-alternative exact names (the synthetic corpus's LeftArm/LeftForeArm/..., Bandai's UpperArm_L/...).
+Joints come from ``CDBNFeatureParams.arm_joints``: four entries, each a role of
+:data:`convsynth_jax.rig.RIG_JOINTS` (the default: both upper arms and forearms, on every rig the
+table knows) or a ``|``-separated list of alternative exact joint names.
 """
 from __future__ import annotations
 
@@ -21,6 +22,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from ..errors import CDBNError
+from ..rig import resolve_joint
 
 HAND_NAMES = ("l_arm_x", "l_arm_y", "l_arm_z", "l_forearm_u", "l_forearm_v",
               "r_arm_x", "r_arm_y", "r_arm_z", "r_forearm_u", "r_forearm_v")
@@ -50,11 +52,12 @@ def arm_rig(skeleton, params) -> ArmRig:
                         f"forearm), got {list(spec)}")
     idx = []
     for entry in spec:
-        found = [skeleton.names.index(n) for n in str(entry).split("|") if n in skeleton.names]
-        if not found:
-            raise CDBNError(f"skeleton has no joint named any of {str(entry).split('|')} (cdbn.features.arm_joints); "
-                            f"joints are {list(skeleton.names)}")
-        idx.append(found[0])
+        j = resolve_joint(skeleton, entry)
+        if j is None:
+            raise CDBNError(f"skeleton has no joint named any of {str(entry).split('|')} nor playing that role "
+                            f"(cdbn.features.arm_joints: roles of convsynth_jax.rig or joint names); joints are "
+                            f"{list(skeleton.names)}")
+        idx.append(j)
     axes, bases = [], []
     for fj in (idx[1], idx[3]):
         kids = skeleton.children(fj)

@@ -46,7 +46,7 @@ class DBNModel(NamedTuple):
 
 
 @dataclass(frozen=True)
-class FeatureParams:
+class CDBNFeatureParams:
     """Sec. IV-C. Prosody: F0 and energy + first and second derivatives (6-D) on 40 ms windows every
     ``hop`` s; unvoiced F0 interpolated; per-subject z-normalization. Motion: head rotation (3 DOF,
     degrees: pitch, yaw, roll of the head relative to the neck's parent chain)."""
@@ -56,11 +56,13 @@ class FeatureParams:
     f0_floor: float | str = "auto"        # Hz, or "auto": speaker-adaptive (two-pass, De Looze & Hirst)
     f0_ceiling: float = 600.0
     min_voiced_fraction: float = 0.10     # fewer voiced frames than this -> CDBNError (suggest a floor)
-    head_joints: tuple = ("Neck", "Head")  # joints whose rotations compose the head rotation
+    # joints whose rotations compose the head rotation: roles of convsynth_jax.rig.RIG_JOINTS or names
+    head_joints: tuple = ("neck", "head")
     fps: float = 30.0                     # model frame rate (motion and upsampled/downsampled speech)
-    # hand stream (cdbn/hands.py): left arm, left forearm, right arm, right forearm; "|" = alternatives
-    arm_joints: tuple = ("LeftArm|UpperArm_L", "LeftForeArm|LowerArm_L", "RightArm|UpperArm_R",
-                         "RightForeArm|LowerArm_R")
+    # hand stream (cdbn/hands.py): left upper arm, left forearm, right upper arm, right forearm, as
+    # roles of convsynth_jax.rig.RIG_JOINTS (its "shoulder" role is the upper-arm joint) or joint
+    # names ("|" = alternatives)
+    arm_joints: tuple = ("left_shoulder", "left_elbow", "right_shoulder", "right_elbow")
 
 
 @dataclass(frozen=True)
@@ -90,7 +92,7 @@ class ConstrainParams:
 
 
 @dataclass(frozen=True)
-class SynthParams:
+class CDBNSynthParams:
     """Sec. VI-B: posterior (smoother | viterbi | filter), key-point smoothing (15/s head)."""
 
     posterior: str = "smoother"
@@ -100,10 +102,10 @@ class SynthParams:
 
 @dataclass(frozen=True)
 class CDBNParams:
-    features: FeatureParams = field(default_factory=FeatureParams)
+    features: CDBNFeatureParams = field(default_factory=CDBNFeatureParams)
     train: TrainParams = field(default_factory=TrainParams)
     constrain: ConstrainParams = field(default_factory=ConstrainParams)
-    synth: SynthParams = field(default_factory=SynthParams)
+    synth: CDBNSynthParams = field(default_factory=CDBNSynthParams)
     jdbn_states: int = 7
     constraints: tuple = ("other", "nod", "shake")
     stream: str = "head"                     # head | hands (ours: which model system=cdbn trains)
@@ -138,10 +140,10 @@ def cdbn_params_from_config(c) -> CDBNParams:
         pass
     c = dict(c or {})
     sub = {k: c.pop(k, None) for k in ("features", "train", "constrain", "synth")}
-    p = CDBNParams(features=_build(FeatureParams, sub["features"], "cdbn.features"),
+    p = CDBNParams(features=_build(CDBNFeatureParams, sub["features"], "cdbn.features"),
                    train=_build(TrainParams, sub["train"], "cdbn.train"),
                    constrain=_build(ConstrainParams, sub["constrain"], "cdbn.constrain"),
-                   synth=_build(SynthParams, sub["synth"], "cdbn.synth"),
+                   synth=_build(CDBNSynthParams, sub["synth"], "cdbn.synth"),
                    jdbn_states=int(c.pop("jdbn_states", 7)),
                    constraints=tuple(c.pop("constraints", ("other", "nod", "shake"))),
                    stream=str(c.pop("stream", "head")),

@@ -16,7 +16,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from ..errors import CDBNError
-from .features import check_finite, head_euler_to_quat
+from .features import check_finite, head_euler_to_quat, head_joint_indices
 from .hmm import batch_filter, batch_smoothed, batch_viterbi, pad_states
 from .params import POSTERIORS, DBNModel
 
@@ -112,7 +112,7 @@ def synthesize_head(model: DBNModel, speech_z: np.ndarray, constraints: np.ndarr
     return expected_motion(model, g) * motion_sd + motion_mean, g
 
 
-def head_into_motion(template, composite: np.ndarray, head_joints: tuple = ("Neck", "Head"), name: str = ""):
+def head_into_motion(template, composite: np.ndarray, head_joints: tuple = ("neck", "head"), name: str = ""):
     """A full-skeleton Motion of len(composite) frames: every joint keeps the template's mean pose
     (first frame's translations, per-joint mean rotation), and the composed head rotation
     ``composite`` (F, 4) (w, x, y, z) is put on the last of ``head_joints`` after the fixed rotations of
@@ -128,7 +128,7 @@ def head_into_motion(template, composite: np.ndarray, head_joints: tuple = ("Nec
     for j in range(skel.num_joints):
         mean_rot[j] = Rotation.from_quat(rot[:, j][:, [1, 2, 3, 0]]).mean().as_quat()[[3, 0, 1, 2]]
     rots = np.broadcast_to(mean_rot, (F, skel.num_joints, 4)).copy()
-    idx = [skel.names.index(n) for n in head_joints]
+    idx = head_joint_indices(skel, head_joints, name or template.name)
     pre = Rotation.identity()
     for j in idx[:-1]:
         pre = pre * Rotation.from_quat(mean_rot[j][[1, 2, 3, 0]])

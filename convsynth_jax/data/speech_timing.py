@@ -161,7 +161,7 @@ def corpus_timing(corpus, params: AnnotateParams | None = None, sessions: int | 
     return out
 
 
-def summarize(x: np.ndarray) -> dict:
+def distribution_summary(x: np.ndarray) -> dict:
     """n, median, IQR (25th and 75th percentiles), 90th percentile, mean and max of ``x``."""
     x = np.asarray(x, np.float64)
     if x.size == 0:
@@ -182,7 +182,7 @@ def ks_distance(a: np.ndarray, b: np.ndarray) -> float:
 
 def compare(real: SpeechTiming, synthetic: SpeechTiming) -> dict:
     """Per distribution: the summaries of both and their KS distance; and both filler rates."""
-    out = {name: {"real": summarize(getattr(real, name)), "synthetic": summarize(getattr(synthetic, name)),
+    out = {name: {"real": distribution_summary(getattr(real, name)), "synthetic": distribution_summary(getattr(synthetic, name)),
                   "ks": ks_distance(getattr(real, name), getattr(synthetic, name))} for name in DISTRIBUTIONS}
     out["fillers_per_100_words"] = {"real": real.filler_rate, "synthetic": synthetic.filler_rate}
     return out

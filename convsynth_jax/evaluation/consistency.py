@@ -28,7 +28,7 @@ import pandas as pd
 from ..annotate.motion import HYPOTHESIS_SPEC, joint_speeds, recording_thresholds
 from ..annotate.types import HYPOTHESES
 from ..errors import ConfigError
-from ..stats.tests import wilson_interval
+from ..stats.hypothesis import wilson_interval
 from .loo import recording_threshold_table, session_windows, window_cooccurrence, window_input
 
 THRESHOLD_SCOPES = ("recording", "window")

@@ -190,7 +190,7 @@ _CLIP_ACC: dict = {}   # id(motion) -> (motion, per-frame acceleration): each tr
 def _clip_acceleration(motion) -> np.ndarray:
     """(F, J) root-relative acceleration magnitudes of a whole source clip (metrics.clip_acceleration),
     by the padded forward kinematics of graph construction (one compile per power of two), cached."""
-    from ..graph.database import padded_global_transforms
+    from ..kinematics import padded_global_transforms
     from . import metrics
 
     hit = _CLIP_ACC.get(id(motion))

@@ -6,24 +6,18 @@ from __future__ import annotations
 
 import numpy as np
 
-
-def derivative(x: np.ndarray, fps: float, order: int = 1) -> np.ndarray:
-    """order-th forward-difference derivative along axis 0, in units per second**order."""
-    x = np.asarray(x, dtype=np.float64)
-    for _ in range(order):
-        x = np.diff(x, axis=0) * fps
-    return x
+from ..kinematics import forward_difference, jerk
 
 
 def mean_acceleration(positions: np.ndarray, fps: float, weights: np.ndarray | None = None) -> float:
     """Mean (over frames, weighted over joints) magnitude of joint acceleration."""
-    a = np.linalg.norm(derivative(positions, fps, 2), axis=-1)  # (F-2, J)
+    a = np.linalg.norm(forward_difference(positions, fps, 2), axis=-1)  # (F-2, J)
     return _weighted_mean(a, weights)
 
 
 def mean_jerk(positions: np.ndarray, fps: float, weights: np.ndarray | None = None) -> float:
-    """Mean (over frames, weighted over joints) magnitude of joint jerk (third derivative)."""
-    j = np.linalg.norm(derivative(positions, fps, 3), axis=-1)
+    """Mean (over frames, weighted over joints) magnitude of joint jerk (``kinematics.jerk``)."""
+    j = np.linalg.norm(jerk(positions, fps), axis=-1)
     return _weighted_mean(j, weights)
 
 
@@ -38,9 +32,9 @@ def _weighted_mean(values: np.ndarray, weights: np.ndarray | None) -> float:
     return float((values.mean(axis=0) * w).sum() / w.sum())
 
 
-def joint_speeds(positions: np.ndarray, fps: float) -> np.ndarray:
-    """(F-1, J) joint speed magnitudes."""
-    return np.linalg.norm(derivative(positions, fps, 1), axis=-1)
+def speed_magnitudes(positions: np.ndarray, fps: float) -> np.ndarray:
+    """(F-1, J) joint speed magnitudes (forward differences of positions (F, J, 3))."""
+    return np.linalg.norm(forward_difference(positions, fps, 1), axis=-1)
 
 
 def hellinger_distance(p: np.ndarray, q: np.ndarray) -> float:
@@ -58,8 +52,8 @@ def hellinger_distance(p: np.ndarray, q: np.ndarray) -> float:
 def speed_histogram_distance(positions_a: np.ndarray, positions_b: np.ndarray, fps: float,
                              bins: int = 50, max_speed: float | None = None) -> float:
     """Hellinger distance between the joint-speed histograms of two motions (shared bins)."""
-    sa = joint_speeds(positions_a, fps).ravel()
-    sb = joint_speeds(positions_b, fps).ravel()
+    sa = speed_magnitudes(positions_a, fps).ravel()
+    sb = speed_magnitudes(positions_b, fps).ravel()
     hi = max_speed if max_speed is not None else float(np.percentile(np.concatenate([sa, sb]), 99.5))
     hi = max(hi, 1e-9)
     ha, _ = np.histogram(np.clip(sa, 0, hi), bins=bins, range=(0, hi))
@@ -91,7 +85,7 @@ def root_relative_acceleration(positions: np.ndarray, fps: float) -> np.ndarray:
     """(F-2, J) joint acceleration magnitudes of positions relative to the root joint (joint 0's
     position subtracted; heading not undone); row i is output frame i + 1 (central difference)."""
     p = np.asarray(positions, dtype=np.float64)
-    return np.linalg.norm(derivative(p - p[:, :1], fps, 2), axis=-1)
+    return np.linalg.norm(forward_difference(p - p[:, :1], fps, 2), axis=-1)
 
 
 SEAM_RADIUS = 3  # frames either side of a synthetic transition that count as its seam

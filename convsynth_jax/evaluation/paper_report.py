@@ -24,8 +24,8 @@ NOT_METRICS = {"fold", "window", "window_start", "window_end", "seed", "fit_seco
 
 def wilson(k, n, confidence: float = 0.95) -> tuple[np.ndarray, np.ndarray]:
     """Wilson score intervals of k successes in n trials, elementwise over arrays
-    (:func:`convsynth_jax.stats.tests.wilson_interval`; NaN where n is 0)."""
-    from ..stats.tests import wilson_interval
+    (:func:`convsynth_jax.stats.hypothesis.wilson_interval`; NaN where n is 0)."""
+    from ..stats.hypothesis import wilson_interval
 
     k, n = np.atleast_1d(np.asarray(k, np.float64)), np.atleast_1d(np.asarray(n, np.float64))
     ci = [wilson_interval(a, b, confidence) for a, b in zip(k, n)]
@@ -120,7 +120,7 @@ def user_study_retest(alpha: float = P.USER_STUDY_ALPHA) -> pd.DataFrame:
     a/n = 0.5 (``scipy.stats.binomtest``). The paper's reported chi2 and p are beside."""
     from scipy.stats import binomtest
 
-    from ..stats.tests import proportion_test
+    from ..stats.hypothesis import proportion_test
 
     rows = []
     for comp, v in P.USER_STUDY.items():

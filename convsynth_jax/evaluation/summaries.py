@@ -71,7 +71,7 @@ def cooccurrence_by_condition(cases: pd.DataFrame, confidence: float = 0.95) -> 
     chi-square: chi2, p_value) and, paired by window, a Wilcoxon signed-rank test of the per-window
     matched rates of the successful windows with audio segments of the hypothesis (n_pairs,
     p_wilcoxon). Hypotheses a system does not produce (NaN totals) are left out."""
-    from ..stats.tests import paired_rate_test, wilson_interval
+    from ..stats.hypothesis import paired_rate_test, wilson_interval
 
     rows = []
     keys = _group_keys(cases, "condition", "character")

@@ -1,18 +1,17 @@
-"""One function per paper artifact, each pure data -> matplotlib Figure (object-oriented API, no
-global pyplot state, no backend switching at import):
+"""Figures: one function per paper artifact, each pure data -> matplotlib Figure (object-oriented
+API, no global pyplot state, no backend switching at import), grouped per system:
 
-* Table 1 (co-occurrence vs chance): :func:`table1_figure`
-* Figure 4 (cost histograms, fitted curves, threshold): :func:`figure4_figure`
-* Figure 6 (user-study forced-choice shares): :func:`figure6_figure`
-* success rates per condition: :func:`success_rate_figure`; ablation (co-occurrence per
-  condition vs ground truth): :func:`ablation_figure`
+* :mod:`.motion_graph`: Table 1, Figure 4, Figure 6 (user study), success rates, the co-occurrence
+  ablation and the beside-the-paper charts of the main report (Yang et al.);
+* :mod:`.cdbn`: the CDBN evaluation (Sadoughi & Busso): Fig. 6 state ellipses, Fig. 9 model
+  selection curves, head trajectories;
+* :mod:`.walktalk`: the Walk the Talk evaluation: stroke peak vs gait phase, elbow bend, contact
+  sheet of one splice.
 
-Tables 2 and 3 are tables (``convsynth_jax.evaluation.summaries``). Tasks write the data, then
-call these; ``experiments/*.py`` redraw them from the written tables.
+A task writes the data as tables, calls the figure function, and writes the figure with
+:func:`save_figure` (the one save helper); ``experiments/paper/*.py`` redraw the figures from the
+written tables the same way. Tables 2 and 3 are tables (``convsynth_jax.evaluation.summaries``).
 """
-from .figure4 import figure4_figure
-from .figure6 import figure6_figure
-from .loo import ablation_figure, success_rate_figure
-from .table1 import table1_figure
+from .save import save_figure
 
-__all__ = ["ablation_figure", "figure4_figure", "figure6_figure", "success_rate_figure", "table1_figure"]
+__all__ = ["save_figure"]

@@ -10,6 +10,7 @@ import numpy as np
 
 from ..annotate.types import FrameAudio
 from ..errors import GraphError, MissingFileError
+from ..kinematics import batched_pose_features
 from ..rotations import joint_turn_deg_np
 from .params import FeatureParams
 
@@ -48,60 +49,6 @@ def _idle(n: int) -> FrameAudio:
     return FrameAudio(np.zeros(n, np.int8), np.full(n, -1, np.int32), np.full(n, -1, np.int32), np.full(n, -1, np.int32))
 
 
-def padded_global_transforms(motions):
-    """Global joint positions and rotations of many clips of one skeleton with one forward-kinematics
-    call, through its stored executable (kernel_cache.py: a second run skips tracing the joint chain).
-    The frames, concatenated, are padded with copies of the last one to a power of two so the kernel
-    compiles for few shapes. Returns (positions (P, J, 3), rotations (P, J, 4)) device float32 arrays
-    and the real frame count n <= P."""
-    import jax
-
-    from .. import kernel_cache
-    from ..kinematics import fk_kernel
-
-    n = sum(m.rotations.shape[0] for m in motions)
-    size = 1 << max(0, int(np.ceil(np.log2(max(n, 1)))))
-    # one padded float32 buffer each, filled clip by clip (the same values as concatenating, casting
-    # and padding with copies of the last frame, without the intermediate copies)
-    rot = np.empty((size,) + motions[0].rotations.shape[1:], np.float32)
-    tr = np.empty((size,) + motions[0].translations.shape[1:], np.float32)
-    start = 0
-    for m in motions:
-        stop = start + m.rotations.shape[0]
-        rot[start:stop] = m.rotations
-        tr[start:stop] = m.translations
-        start = stop
-    if 0 < n < size:
-        rot[n:] = rot[n - 1]
-        tr[n:] = tr[n - 1]
-    pos, grot = kernel_cache.call(fk_kernel, "fk", (jax.device_put(rot), jax.device_put(tr)),
-                                  {"parents": tuple(motions[0].skeleton.parents)})
-    return pos, grot, n
-
-
-def batched_features(motions, up_axis: int = 1, remove_yaw: bool = True):
-    """Root-relative positions and velocities of many clips of one skeleton with one FK call
-    (:func:`padded_global_transforms`). Velocities are differenced within each clip. Returns float32
-    (N, J, 3) arrays."""
-    from .. import kernel_cache
-    from ..kinematics import root_relative_kernel
-
-    pos, grot, n = padded_global_transforms(motions)
-    rel = np.asarray(kernel_cache.call(root_relative_kernel, "root_relative", (pos, grot),
-                                       {"up_axis": up_axis, "remove_yaw": remove_yaw}))[:n]
-    vel = np.empty_like(rel)
-    start = 0
-    for m in motions:
-        stop = start + m.num_frames
-        x = rel[start:stop]
-        if len(x) < 2:
-            vel[start:stop] = 0
-        else:
-            vel[start:stop] = np.gradient(x, axis=0) * m.fps
-        start = stop
-    return rel.astype(np.float32), vel.astype(np.float32)
-
-
 def build_database(clips, features: FeatureParams | None = None) -> MotionDatabase:
     """clips: iterable of (name, Motion, own FrameAudio or None, partner FrameAudio or None), all of
     one skeleton and frame rate. ``features`` None: the default FeatureParams."""
@@ -130,13 +77,13 @@ def build_database(clips, features: FeatureParams | None = None) -> MotionDataba
         raise GraphError("no clips to build a motion database from")
     overrides = dict(features.joint_weight_overrides or {})
     pattern = features.finger_pattern
-    from ..skeleton import DEFAULT_FINGER_PATTERN
+    from ..rig import FINGER_PATTERN
 
-    weights = skel.joint_weights(pattern or DEFAULT_FINGER_PATTERN, overrides, float(features.finger_weight))
+    weights = skel.joint_weights(pattern or FINGER_PATTERN, overrides, float(features.finger_weight))
     cat = lambda fs, k: np.concatenate([getattr(x, k) for x in fs])  # noqa: E731
     fa = lambda fs: FrameAudio(cat(fs, "label"), cat(fs, "seg_start"), cat(fs, "seg_end"), cat(fs, "seg_peak"))  # noqa: E731
     lengths = [len(c) for c in CL]
-    P, V = batched_features(motions, up, remove_yaw)
+    P, V = batched_pose_features(motions, up, remove_yaw)
     turn = np.concatenate([np.concatenate([[0.0], joint_turn_deg_np(m.rotations)]) for m in motions])
     return MotionDatabase(tuple(names), float(fps), P, V, weights,
                           np.concatenate(CL), np.concatenate(FR), np.concatenate([[0], np.cumsum(lengths)]),

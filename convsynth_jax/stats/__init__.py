@@ -1,4 +1,4 @@
 """Statistics: co-occurrence tables (``stats.cooccurrence``), contingency/permutation/proportion tests
-(``stats.tests``); distribution fits live in ``stats.fits`` (imported on demand, not here)."""
-from .tests import (ContingencyResult, CountError, ProportionTest, chi2_independence, permutation_test,  # noqa: F401
-                    prop_test, proportion_test)
+(``stats.hypothesis``); distribution fits live in ``stats.fits`` (imported on demand, not here)."""
+from .hypothesis import (ContingencyResult, CountError, ProportionTest, chi2_independence,  # noqa: F401
+                         permutation_test, prop_test, proportion_test)

@@ -29,12 +29,12 @@ import zlib
 import numpy as np
 import pandas as pd
 
-from ..annotate.motion import (HYPOTHESIS_SPEC, Window, candidate_windows, check_thresholds, detect_in_window,
+from ..annotate.motion import (HYPOTHESIS_SPEC, FrameWindow, candidate_windows, check_thresholds, detect_in_window,
                                joint_speeds, recording_thresholds, segment_windows)
 from ..annotate.params import AnnotateParams
 from ..annotate.types import HYPOTHESES
 from .params import StatsParams
-from .tests import chi2_independence, permutation_test, wilson_interval
+from .hypothesis import chi2_independence, permutation_test, wilson_interval
 
 log = logging.getLogger(__name__)
 
@@ -81,8 +81,8 @@ def window_counts(speeds: dict, own: pd.DataFrame, partner: pd.DataFrame, fps: f
             for h, f in matches_by_hypothesis(speeds, own, partner, fps, thresholds, annotate).items()}
 
 
-def away_windows(num_frames: int, windows: list[Window], blocked: pd.DataFrame, fps: float, rng: np.random.Generator,
-                 per_window: int = 1) -> list[Window]:
+def away_windows(num_frames: int, windows: list[FrameWindow], blocked: pd.DataFrame, fps: float, rng: np.random.Generator,
+                 per_window: int = 1) -> list[FrameWindow]:
     """``per_window`` random windows per window of ``windows`` (same length), placed where they
     overlap no segment of ``blocked`` (the channel's audio segments, padded by half their length).
     A window too long to fit anywhere is skipped (so the result may be shorter, or empty)."""
@@ -98,12 +98,12 @@ def away_windows(num_frames: int, windows: list[Window], blocked: pd.DataFrame, 
         starts = np.flatnonzero(cum[L:] - cum[:-L] == 0) if L <= n else np.zeros(0, int)
         if starts.size == 0:
             continue
-        out.extend(Window(int(a), int(a) + L) for a in rng.choice(starts, size=per_window))
+        out.extend(FrameWindow(int(a), int(a) + L) for a in rng.choice(starts, size=per_window))
     return out
 
 
-def shifted_windows(num_frames: int, windows: list[Window], rng: np.random.Generator,
-                    per_window: int = 1) -> list[Window]:
+def shifted_windows(num_frames: int, windows: list[FrameWindow], rng: np.random.Generator,
+                    per_window: int = 1) -> list[FrameWindow]:
     """Ours: ``per_window`` copies of each window moved to a random start of the same recording where
     the copy does not overlap the original (|shift| >= its length); speech may lie there, so this
     baseline exists for continuous speech. A window with no such place (the clip is shorter than
@@ -115,11 +115,11 @@ def shifted_windows(num_frames: int, windows: list[Window], rng: np.random.Gener
         starts = starts[np.abs(starts - w.start) >= L]
         if starts.size == 0:
             continue
-        out.extend(Window(int(a), int(a) + L) for a in rng.choice(starts, size=per_window))
+        out.extend(FrameWindow(int(a), int(a) + L) for a in rng.choice(starts, size=per_window))
     return out
 
 
-def chance_matches(speeds: dict, windows: list[Window], hypothesis: str, thresholds: dict,
+def chance_matches(speeds: dict, windows: list[FrameWindow], hypothesis: str, thresholds: dict,
                    alpha_w: float = 0.1) -> np.ndarray:
     """Matched flags of chance windows: a movement of the hypothesis' kind above the recording's θ_S
     (Eq. 1) in the window, bounded by Eq. 2 (``detect_in_window``, as in ``hypothesis_matches``, but
@@ -130,7 +130,7 @@ def chance_matches(speeds: dict, windows: list[Window], hypothesis: str, thresho
                      for w in windows], bool)
 
 
-def random_window_matches(speeds: dict, windows: list[Window], blocked: pd.DataFrame, fps: float, hypothesis: str,
+def random_window_matches(speeds: dict, windows: list[FrameWindow], blocked: pd.DataFrame, fps: float, hypothesis: str,
                           rng: np.random.Generator, thresholds: dict, alpha_w: float = 0.1,
                           per_window: int = 1) -> np.ndarray:
     """Matched flags of the ``away`` chance windows (``away_windows`` then ``chance_matches``)."""

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ..easing import cosine
 from ..rotations import (joint_turn_deg_np, quat_conjugate_np, quat_multiply_np, quat_slerp_np, rotate_about_y_np,
                          yaw_angle_np, yaw_to_quat_np)
 from ..errors import ConfigError
@@ -28,7 +29,7 @@ from ..skeleton import Motion
 
 def blend_weight(k: int, blend_frames: int) -> float:
     """Cosine weight of the new source at the k-th frame (k = 0..blend_frames-1) after a transition."""
-    return 0.5 - 0.5 * np.cos(np.pi * (k + 1) / (blend_frames + 1))
+    return cosine(k + 1, blend_frames + 1)
 
 
 def _tilt(q: np.ndarray) -> np.ndarray:

@@ -21,30 +21,31 @@ log = logging.getLogger(__name__)
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..cdbn import figures
     from ..cdbn.dataset import load_semisynthetic_turns, normalize_by_subject
     from ..cdbn.em import e_step, make_batch
     from ..cdbn.evaluate import cca, constraint_tests
     from ..cdbn.experiment import (
-        EvalParams,
+        CDBNEvalParams,
         init_comparison,
-        run_evaluation,
+        run_cdbn_evaluation,
         transition_distances,
     )
     from ..cdbn.modelio import save_model
+    from ..figures import save_figure
+    from ..figures.cdbn import init_ellipses_figure, states_curve_figure, trajectories_figure
 
     t0 = time.perf_counter()
     out_dir = Path(out_dir)
     p = params(cfg)
     ev = dict(p.extra.get("eval") or {})
     hands_cfg = ev.pop("hands", None)
-    ep = EvalParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in ev.items()})
+    ep = CDBNEvalParams(**{k: tuple(v) if isinstance(v, list) else v for k, v in ev.items()})
     root = ensure_corpus(cfg, p)
     raw = load_semisynthetic_turns(root, p.constraints, p.features)
     turns, norms = normalize_by_subject(raw)
     t_feat = time.perf_counter() - t0
     phases = {"corpus_and_features": t_feat}
-    res = run_evaluation(turns, norms, p, ep)
+    res = run_cdbn_evaluation(turns, norms, p, ep)
     phases.update(res["phase_seconds"])
     f1 = res["fold1"]
     n_cdbn = res["chosen_states"]["cdbn"]
@@ -85,13 +86,13 @@ def run(cfg, out_dir: Path) -> dict:
     pd.DataFrame([{**r, "model": k} for k, rs in res["per_turn"].items() for r in rs]).to_csv(
         out_dir / "per_turn.csv", index=False, float_format="%.5f")
     # figures
-    figures.figure6(np.concatenate([t.motion for t in fig6_turns]), comp, out_dir / "fig6_init.png")
-    figures.figure9(res["validation_curves"], out_dir / "fig9_states.png")
+    save_figure(init_ellipses_figure(np.concatenate([t.motion for t in fig6_turns]), comp), out_dir / "fig6_init.png")
+    save_figure(states_curve_figure(res["validation_curves"]), out_dir / "fig9_states.png")
     k = int(np.argmax([int((t.constraints > 0).sum()) for t in test]))
     nm = norms[test[k].subject][1]
-    figures.trajectories(p.features.fps, nm.invert(test[k].motion),
-                         {"jDBN": nm.invert(f1["jdbn_synth"][k]), "CDBN": nm.invert(f1["cdbn_synth"][k])},
-                         test[k].constraints, p.constraints, out_dir / "trajectories.png")
+    save_figure(trajectories_figure(p.features.fps, nm.invert(test[k].motion),
+                                    {"jDBN": nm.invert(f1["jdbn_synth"][k]), "CDBN": nm.invert(f1["cdbn_synth"][k])},
+                                    test[k].constraints, p.constraints), out_dir / "trajectories.png")
     pooled = cca(np.concatenate([t.speech for t in turns]), mot)
     phases["statistics_models_tables_figures"] = time.perf_counter() - tick
     tick = time.perf_counter()

@@ -82,7 +82,7 @@ def converse_params(task) -> ConverseParams:
 
 # ----------------------------------------------------------------------------------------------- inputs
 @dataclass
-class Speaker:
+class SpeakerInput:
     name: str              # "A" or "B"
     audio: Any             # io.audio.Audio (mono)
     words: pd.DataFrame
@@ -97,7 +97,7 @@ def _require(value, key: str) -> str:
     return str(value)
 
 
-def load_inputs(p: ConverseParams) -> tuple[Speaker, Speaker, float]:
+def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
     """(A, B, duration in seconds): both channels' audio and words, checked against each other."""
     from ..io import load_audio, load_transcript
 
@@ -125,7 +125,7 @@ def load_inputs(p: ConverseParams) -> tuple[Speaker, Speaker, float]:
             i = int(late[0])
             raise TranscriptFormatError(f"word {words['word'].iat[i]!r} ends at {words['end'].iat[i]:.3f} s, after the "
                                         f"end of its audio {f} ({a.duration:.3f} s)", tf, f"word {i}")
-        out.append(Speaker(name, a, words, f, tf))
+        out.append(SpeakerInput(name, a, words, f, tf))
     duration = max(a.duration for a in auds)
     if abs(auds[0].duration - auds[1].duration) > 0.1:
         log.warning("A's audio lasts %.2f s, B's %.2f s: the conversation lasts %.2f s (the shorter is silent after "
@@ -133,7 +133,7 @@ def load_inputs(p: ConverseParams) -> tuple[Speaker, Speaker, float]:
     return out[0], out[1], duration
 
 
-def annotate(sp: Speaker, params) -> pd.DataFrame:
+def annotate(sp: SpeakerInput, params) -> pd.DataFrame:
     """Audio segments of one speaker (the corpus's annotation); errors name the speaker's files."""
     from ..annotate.audio import annotate_audio
 
@@ -386,23 +386,33 @@ def run(cfg, out_dir: Path) -> dict:
     return summary
 
 
-def write_stereo(path: Path, a, b, duration: float) -> Path:
-    """A and B as the left and right channels of one WAV (B resampled to A's rate if they differ)."""
+def write_stereo(path: Path, a, b, duration: float, offsets_s=(0.0, 0.0)) -> Path:
+    """A and B as the left and right channels of one WAV of ``duration`` seconds (B resampled to A's
+    rate if they differ; a multichannel recording gives its first channel). ``offsets_s``: where each
+    recording's time 0 lies on the WAV's timeline (a negative offset drops the recording's start);
+    a speaker given as None is silent."""
     from ..io import save_wav
 
-    rate = int(a.sample_rate)
+    rate = int((a if a is not None else b).sample_rate) if (a is not None or b is not None) else 16000
     n = int(round(duration * rate))
 
-    def at_rate(x):
+    def at_rate(x, offset):
+        out = np.zeros(n)
+        if x is None:
+            return out
         s = np.asarray(x.samples, np.float64)
+        s = s[:, 0] if s.ndim == 2 else s
         if int(x.sample_rate) != rate:
             t = np.arange(int(round(len(s) * rate / x.sample_rate))) / rate
             s = np.interp(t, np.arange(len(s)) / x.sample_rate, s)
-        out = np.zeros(n)
-        out[:min(n, len(s))] = s[:n]
+        k = int(round(offset * rate))
+        s = s[max(0, -k):]
+        k = max(0, k)
+        m = max(0, min(n - k, len(s)))
+        out[k:k + m] = s[:m]
         return out
 
-    return save_wav(path, np.stack([at_rate(a), at_rate(b)], axis=1), rate)
+    return save_wav(path, np.stack([at_rate(a, offsets_s[0]), at_rate(b, offsets_s[1])], axis=1), rate)
 
 
 def render_conversation(results, seg, chars, plan, fps, path: Path, wav: Path, p: ConverseParams) -> Path:

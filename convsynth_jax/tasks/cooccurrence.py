@@ -25,7 +25,8 @@ def _csv(df, path):
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..figures import table1_figure
+    from ..figures import save_figure
+    from ..figures.motion_graph import table1_figure
     from ..stats.cooccurrence import TABLE_COLUMNS, cooccurrence_by_session, cooccurrence_table
     from .common import annotated_corpus, params_of
 
@@ -44,9 +45,7 @@ def run(cfg, out_dir: Path) -> dict:
                     ignore_index=True)
     _csv(ev, out_dir / "events.csv")
     _csv(seg, out_dir / "segments.csv")
-    fig = table1_figure(table)
-    with atomic_path(out_dir / "cooccurrence.png") as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
+    save_figure(table1_figure(table), out_dir / "cooccurrence.png", dpi=120)
     log.info("%s", "\n" + to_markdown(table))
     return {"corpus_root": str(corpus.root), "columns": TABLE_COLUMNS,
             "num_participants": len(parts), "num_events": int(len(ev)),

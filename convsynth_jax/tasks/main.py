@@ -35,7 +35,8 @@ def _csv(df: pd.DataFrame, path: Path) -> None:
 def run(cfg, out_dir: Path) -> dict:
     from ..errors import ConfigError
     from ..evaluation.loo import fit_fold, run_fold
-    from ..figures import ablation_figure, success_rate_figure
+    from ..figures import save_figure
+    from ..figures.motion_graph import ablation_figure, success_rate_figure
     from ..stats.cooccurrence import cooccurrence_table
     from .common import annotated_corpus, cache_dir, make_configured_system, open_corpus, params_of
 
@@ -111,10 +112,9 @@ def run(cfg, out_dir: Path) -> dict:
     for name, df in (("success_rates", rates), ("cooccurrence_by_condition", co),
                      ("quality_by_condition", quality), ("table3", timing)):
         _csv(df, out_dir / f"{name}.csv")
-    fig = success_rate_figure(rates)
-    fig.savefig(out_dir / "success_rates.png", dpi=120)
+    save_figure(success_rate_figure(rates), out_dir / "success_rates.png", dpi=120)
     if not co.empty:
-        ablation_figure(co).savefig(out_dir / "ablation.png", dpi=120)
+        save_figure(ablation_figure(co), out_dir / "ablation.png", dpi=120)
     paper = _paper_sections(out_dir, table1, graph_stats, timing, rates, co, cases, params.stats.significance)
     media = _render_window(cfg, system, annotations, fold, conditions, cases, fitted, params, out_dir)
     timings["report_s"] = time.perf_counter() - t0
@@ -150,18 +150,15 @@ def _participants(annotations: dict):
 
 def _graph_statistics(system, annotations, held_out, fitted, params, cache: Path, ks: list[int]):
     """Table 2 rows and Figure 4 data (histogram of c(i, i+k) and the chosen fit) per character for
-    each k in ``ks``, on the training sessions of the fold; ``None`` for systems without a motion
-    graph. The configured k comes from the fitted graph; the other ks are built here and their
-    statistics cached in ``cache`` (keyed like the graphs)."""
-    import dataclasses
+    each k in ``ks``, on the training sessions of the fold (``graph.statistics.graph_statistics``);
+    ``None`` for systems without a motion graph. The configured k comes from the fitted graph; the
+    other ks are built there and their statistics cached in ``cache`` (keyed like the graphs)."""
     import json
-
-    import numpy as np
 
     from ..annotate.cache import params_hash
     from ..evaluation.loo import training_clips
-    from ..graph import build_database, build_graph
-    from ..graph.build import k_step_costs
+    from ..graph import build_database
+    from ..graph.statistics import graph_statistics
     from ..systems.motion_graph import clip_name
     from ..utils import write_json_atomic
 
@@ -172,50 +169,39 @@ def _graph_statistics(system, annotations, held_out, fitted, params, cache: Path
     for char, model in fitted.items():
         items = [(clip_name(c.session, c.role), c.motion, c.own, c.partner)
                  for c in training_clips(annotations, held_out, char)]
-        key = params_hash(sorted(n for n, *_ in items), p.graph, p.features, p.annotate, ks, "paper_stats_v1")
+        key = params_hash(sorted(n for n, *_ in items), p.graph, p.features, p.annotate, ks, "paper_stats_v2")
         path = Path(cache) / f"paper_stats_{char}_{key}.json"
         if path.is_file():
             stats = json.loads(path.read_text())
         else:
-            db = build_database(items, p.features)
-            stats = {}
-            for k in ks:
-                g = model.graph if k == p.graph.k else build_graph(db, dataclasses.replace(p.graph, k=k))
-                m = g.meta
-                x = k_step_costs(db, k, float(m["w_v"]))
-                dens, edges = np.histogram(x[np.isfinite(x)], bins=p.graph.fit_bins, density=True)
-                stats[str(k)] = {
-                    "row": {"states_before_scc": m["num_states_before_scc"], "edges_before_scc": m["num_edges_before_scc"],
-                            "states_after_scc": m["num_states"], "edges_after_scc": m["num_edges"],
-                            "threshold": m["threshold"], "key_fraction": m["key_fraction"],
-                            "distribution": m["distribution"], "seconds": m.get("seconds")},
-                    "params": list(m["distribution_params"]), "edges": edges.tolist(), "density": dens.tolist()}
+            st = graph_statistics(build_database(items, p.features), p.graph, ks, char, {p.graph.k: model.graph})
+            stats = st._asdict()
             write_json_atomic(path, stats)
-        for k in ks:
-            st = stats[str(k)]
-            t2.append({"character": char, "k": k, **st["row"]})
-            e = st["edges"]
-            hist += [{"character": char, "k": k, "bin_left": lo, "bin_right": hi, "density": d}
-                     for lo, hi, d in zip(e[:-1], e[1:], st["density"])]
-            fits.append({"character": char, "k": k, "distribution": st["row"]["distribution"],
-                         "params": json.dumps(st["params"]), "rss": np.nan, "chosen": True,
-                         "threshold": st["row"]["threshold"]})
-    return pd.DataFrame(t2), pd.DataFrame(hist), pd.DataFrame(fits)
+        t2 += stats["table2"]
+        hist += stats["histograms"]
+        fits += stats["fits"]
+    return (pd.DataFrame(t2)[TABLE2_COLUMNS], pd.DataFrame(hist),
+            pd.DataFrame(fits).drop(columns="w_v"))
+
+
+# the report's Table 2 (before the paper's columns) and Figure 4 fit columns
+TABLE2_COLUMNS = ["character", "k", "states_before_scc", "edges_before_scc", "states_after_scc", "edges_after_scc",
+                  "threshold", "key_fraction", "distribution", "seconds"]
 
 
 def _paper_sections(out_dir: Path, table1, graph_stats, timing, rates, co, cases, alpha: float) -> list[str]:
     """The report's paper-artifact sections (Markdown lines); writes their CSVs and figures."""
     from .. import paper_values as P
     from ..evaluation import paper_report as R
-    from ..figures import figure4_figure, figure6_figure
-    from ..figures.paper import ablation_ci_figure, success_beside_paper_figure, table1_beside_paper_figure
+    from ..figures import save_figure
+    from ..figures.motion_graph import (ablation_ci_figure, figure4_figure, figure6_figure, success_beside_paper_figure,
+                                        table1_beside_paper_figure)
 
     md = summaries.to_markdown
     out = []
 
     def save(fig, name):
-        with atomic_path(out_dir / name) as tmp:
-            fig.savefig(tmp, dpi=110, format="png")
+        save_figure(fig, out_dir / name, dpi=110)
         return f"![{name}]({name})"
 
     t1 = R.table1_beside_paper(table1)

@@ -4,7 +4,6 @@ Writes ``table2.csv`` and ``table2.md``; the ``scc_warning`` column is non-empty
 SCC keeps under half of the states (also logged as a warning)."""
 from __future__ import annotations
 
-import dataclasses
 import logging
 from pathlib import Path
 
@@ -15,9 +14,13 @@ from ..utils import atomic_path, write_text_atomic
 
 log = logging.getLogger(__name__)
 
+TABLE2_COLUMNS = ["character", "k", "threshold", "states_before_scc", "edges_before_scc", "states_after_scc",
+                  "edges_after_scc", "kept_state_fraction", "seconds", "scc_warning"]
+
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..graph import build_database, build_graph
+    from ..graph import build_database
+    from ..graph.statistics import graph_statistics
     from .build_graph import character_clip_sets
     from .common import params_of
 
@@ -25,15 +28,8 @@ def run(cfg, out_dir: Path) -> dict:
     rows = []
     for char, clips in character_clip_sets(params).items():
         db = build_database(clips, params.features)
-        for k in cfg.task.get("ks", [2, 3, 4, 5]):
-            g = build_graph(db, dataclasses.replace(params.graph, k=int(k)))
-            m = g.meta
-            rows.append({"character": char or "all", "k": int(k), "threshold": m["threshold"],
-                         "states_before_scc": m["num_states_before_scc"], "edges_before_scc": m["num_edges_before_scc"],
-                         "states_after_scc": m["num_states"], "edges_after_scc": m["num_edges"],
-                         "kept_state_fraction": m["num_states"] / m["num_states_before_scc"], "seconds": m["seconds"],
-                         "scc_warning": m.get("scc_warning", "")})
-    table = pd.DataFrame(rows)
+        rows += graph_statistics(db, params.graph, cfg.task.get("ks", [2, 3, 4, 5]), char or "all").table2
+    table = pd.DataFrame(rows)[TABLE2_COLUMNS]
     with atomic_path(out_dir / "table2.csv") as tmp:
         table.to_csv(tmp, index=False)
     write_text_atomic(out_dir / "table2.md", to_markdown(table))

@@ -11,7 +11,7 @@ import pandas as pd
 
 from ..errors import FormatError
 from ..evaluation.summaries import to_markdown
-from ..stats.tests import proportion_test
+from ..stats.hypothesis import proportion_test
 from ..utils import atomic_path, write_text_atomic
 
 log = logging.getLogger(__name__)
@@ -45,7 +45,8 @@ def analyse(df: pd.DataFrame, path=None, alpha: float = 0.03) -> pd.DataFrame:
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..figures import figure6_figure
+    from ..figures import save_figure
+    from ..figures.motion_graph import figure6_figure
 
     src = Path(cfg.task.get("csv") or PAPER_CSV)
     if not src.is_file():
@@ -62,8 +63,6 @@ def run(cfg, out_dir: Path) -> dict:
     with atomic_path(out_dir / "user_study.csv") as tmp:
         table.to_csv(tmp, index=False)
     write_text_atomic(out_dir / "user_study.md", to_markdown(table))
-    fig = figure6_figure(table)
-    with atomic_path(out_dir / "figure6.png") as tmp:
-        fig.savefig(tmp, dpi=120, format="png")
+    save_figure(figure6_figure(table), out_dir / "figure6.png", dpi=120)
     log.info("%s", "\n" + to_markdown(table[["comparison", "preferred_a", "total", "chi2", "p_value"]]))
     return {"source": str(src), "figure": "figure6.png", "rows": table.to_dict(orient="records")}

@@ -1,9 +1,21 @@
 """Task ``walktalk_demo``: two characters walking (and, as a variant, jogging) side by side while
 talking, driven by real speech. Writes one BVH per character and gait (``<name>_<gait>.bvh``),
-``walktalk_events.csv`` (one row per spliced gesture) and ``walktalk_aar.csv`` (gaze events)."""
+``walktalk_events.csv`` (one row per spliced gesture) and ``walktalk_aar.csv`` (gaze events); with
+``task.video`` (default) also ``walktalk_speech.wav`` (the speech of both characters on the demo's
+timeline, the first speaker left, the second right) and a video, ``task.video_file`` (default
+``walktalk_demo.mp4``): one panel per gait, both characters seen along the direction of travel by a camera that
+follows the pair, gestures per character on a timeline underneath, the speech as its audio track.
+
+Speech audio per speaker: its ``wav``; with ``gesture_source=synthesized``, ``synthesized_timing=own``
+and no ``wav``, the input audio that ``task=synthesize`` wrote for its character (``<role>_input.wav`` in
+``task.synthesized_dir``, the role read from its ``report.json``). Each recording's time 0 is placed
+at the speaker's ``offset_s``, as its stress peaks or gesture times are. A speaker with neither
+(a ``peaks_tsv`` alone) is silent in the video (logged)."""
 from __future__ import annotations
 
+import json
 import logging
+import tempfile
 import time
 from pathlib import Path
 
@@ -11,11 +23,12 @@ import numpy as np
 import pandas as pd
 from omegaconf import OmegaConf
 
+from ..annotate.motion import RIG_JOINTS
 from ..errors import MissingFileError, WalkTalkError
 from ..io.bvh import save_bvh
 from ..utils import atomic_path
 from ..walktalk.demo import DemoParams, Speaker, run_demo
-from ..walktalk.evaluate import dof_limits, load_library, resolve_data_dir
+from ..walktalk.library import dof_limits, load_library, resolve_data_dir
 from ..walktalk.gaze import AAREvent
 from ..walktalk.params import params_from_dict
 
@@ -73,7 +86,7 @@ def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
     import dataclasses
 
     from ..walktalk.pipeline import gesture_context
-    from ..walktalk.synthesized import synthesized_gestures
+    from ..walktalk.conversation_gestures import synthesized_gestures
 
     folder = _resolve(str(t.get("synthesized_dir") or ""))
     if not t.get("synthesized_dir") or not folder.is_dir():
@@ -107,8 +120,98 @@ def _synthesized_source(t: dict, speakers: list, lib, p, own_times: bool):
     return by_speaker, out_speakers, info
 
 
+def _video_path(t: dict, out_dir: Path) -> Path | None:
+    """The video's path (``task.video_file``, relative to the output folder), checked writable
+    before any work is done; None when ``task.video`` is off."""
+    if not t.get("video", True):
+        return None
+    if len(t["speakers"]) != 2:
+        raise WalkTalkError(f"the video carries two speakers' audio, got {len(t['speakers'])} speakers "
+                            "(task.video=false writes the BVHs alone)", where="task.speakers")
+    path = Path(str(t.get("video_file") or "walktalk_demo.mp4"))
+    path = path if path.is_absolute() else out_dir / path
+    if path.suffix.lower() != ".mp4":
+        raise WalkTalkError(f"the video is written as MP4, got {path.name!r}", path, "task.video_file")
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.NamedTemporaryFile(dir=path.parent, prefix=f".{path.name}.", suffix=".probe"):
+            pass
+    except OSError as e:
+        raise WalkTalkError(f"cannot write the demo video there ({e.strerror or e})", path, "task.video_file") from None
+    return path
+
+
+def _speaker_audio(spec: dict, synthesized_dir: str | None, character: str | None):
+    """The speaker's speech recording (io.audio.Audio) or None; see the module docstring."""
+    from ..io.audio import load_audio
+
+    if spec.get("wav"):
+        return load_audio(_resolve(str(spec["wav"])))   # MissingFileError names the file
+    if not synthesized_dir:
+        return None
+    folder, char = _resolve(synthesized_dir), character
+    report = folder / "report.json"
+    if not report.is_file():
+        raise MissingFileError("the synthesized conversation's report.json (the character's role, for its input "
+                               "audio) is missing; give the speaker a wav", report)
+    entry = json.loads(report.read_text()).get("characters", {}).get(char) or {}
+    if "role" not in entry:
+        raise WalkTalkError(f"report.json has no role for character {char!r}", report, f"characters.{char}")
+    wav = folder / f"{entry['role']}_input.wav"
+    if not wav.is_file():
+        raise MissingFileError(f"input audio of character {char!r} (role {entry['role']}) not found", wav)
+    return load_audio(wav)
+
+
+def _follow_pair(tracks, hips: list[int]):
+    """Tracks with the camera on the pair: every frame shifted on the ground so the mean of the
+    characters' hips (``hips``: the hips joint per track) is at the origin; the walkers stay in view
+    and the locomotion shows in the legs. Joints above the hips (bandai2's static ``joint_Root``, left
+    behind at the start of the walk) are drawn at the hips."""
+    from ..render import Track
+
+    centre = np.mean([t.positions[:, h] for t, h in zip(tracks, hips)], axis=0)
+    shift = np.zeros_like(centre)
+    shift[:, [0, 2]] = centre[:, [0, 2]]
+    out = []
+    for t, h in zip(tracks, hips):
+        pos = t.positions - shift[:, None, :]
+        j = t.parents[h]
+        while j >= 0:
+            pos[:, j] = pos[:, h]
+            j = t.parents[j]
+        out.append(Track(t.name, pos, t.parents, t.transitions))
+    return tuple(out)
+
+
+def write_demo_video(motions_by_gait: dict, events: pd.DataFrame, names: list[str], fps: float, path: Path,
+                     wav: Path, video_fps: float, dpi: int) -> Path:
+    """One panel per gait (the characters' motions, in ``names`` order) over a timeline of each
+    character's gestures per gait (t_Pb..t_Re), with ``wav`` as the audio track."""
+    from ..render import Panel, Timeline, render_video, track_from_motion
+
+    panels = []
+    for gait, motions in motions_by_gait.items():
+        tracks = tuple(track_from_motion(motions[n], n) for n in names)
+        hips = [motions[n].skeleton.find(*RIG_JOINTS["hips"]) for n in names]
+        panels.append(Panel(gait, _follow_pair(tracks, hips)))
+    timelines = []
+    for gait in motions_by_gait:
+        for n in names:
+            ev = events[(events["gait"] == gait) & (events["character"] == n)] if len(events) else events
+            timelines.append(Timeline(f"{n}, {gait}", pd.DataFrame(
+                {"kind": ["G"] * len(ev), "start": list(ev.get("t_prep_begin", [])), "end": list(ev.get("t_retraction_end", []))})))
+    try:
+        # the view along the direction of travel (+Z, demo.place_character): X, across the pair, is horizontal
+        return render_video(panels, timelines, fps, path, audio=wav, render_fps=video_fps, dpi=dpi, width=3.0,
+                            ground_axis=0)
+    except (OSError, RuntimeError) as e:   # ffmpeg's own failures (imageio-ffmpeg raises these)
+        raise WalkTalkError(f"writing the demo video failed: {e}", path) from None
+
+
 def run(cfg, out_dir: Path) -> dict:
     t = OmegaConf.to_container(cfg.task, resolve=True)
+    video_path = _video_path(t, out_dir)
     p = params_from_dict(OmegaConf.to_container(cfg.walktalk, resolve=True))
     dp = DemoParams(duration_s=float(t["duration_s"]), spacing_cm=float(t["spacing_cm"]),
                     min_gap_s=float(t["min_gap_s"]), aar=str(t["aar"]), method=str(t["method"]),
@@ -130,8 +233,15 @@ def run(cfg, out_dir: Path) -> dict:
     if source == "synthesized":
         gestures, speakers, synth_info = _synthesized_source(t, speakers, lib, p, own_times)
     scripted = [AAREvent(**e) for e in (t.get("scripted_aar") or [])]
+    audio = {}
+    if video_path is not None:   # read before any work, so a missing recording stops the run here
+        for spec, sp in zip(t["speakers"], speakers):
+            char = Path(synth_info[sp.name]["file"]).stem if sp.name in synth_info else None
+            audio[sp.name] = _speaker_audio(spec, t.get("synthesized_dir") if own_times else None, char)
+            if audio[sp.name] is None:
+                log.warning("speaker %s has no speech recording (wav): silent in the video", sp.name)
     t2 = time.perf_counter()
-    rows, aar_rows, files = [], [], []
+    rows, aar_rows, files, by_gait = [], [], [], {}
     rng = np.random.default_rng(p.seed)
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
     for gait in t["gaits"]:
@@ -142,22 +252,44 @@ def run(cfg, out_dir: Path) -> dict:
             log.warning("%d characters but %d %s loops: loops are reused", len(speakers), len(lcs), gait)
             lcs = [lcs[i % len(lcs)] for i in range(len(speakers))]
         motions, ev, aar = run_demo(_pick_loops(lcs, len(speakers)), gestures, speakers, p, dp, rng, scripted, rom)
+        by_gait[gait] = motions
         for name, m in motions.items():
             save_bvh(m, out_dir / f"{name}_{gait}.bvh")
             files.append(f"{name}_{gait}.bvh")
         rows += ev
         aar_rows += [{"gait": gait, **e.__dict__} for e in aar]
     t3 = time.perf_counter()
-    events = pd.DataFrame(rows, columns=EVENT_COLUMNS + ["single_peak"])
+    events = pd.DataFrame(rows, columns=EVENT_COLUMNS + ["single_peak", "contact_alt_at_peak", "contact_at_nominal",
+                                                        "contact_alt_at_nominal"])
     with atomic_path(out_dir / "walktalk_events.csv") as tmp:
         events.to_csv(tmp, index=False)
     with atomic_path(out_dir / "walktalk_aar.csv") as tmp:
         pd.DataFrame(aar_rows).to_csv(tmp, index=False)
+    video = None
+    if video_path is not None:
+        from .converse import write_stereo
+
+        names = [sp.name for sp in speakers]
+        wav = write_stereo(out_dir / "walktalk_speech.wav", audio[names[0]], audio[names[1]], dp.duration_s,
+                           offsets_s=[float(s.get("offset_s", 0.0)) for s in t["speakers"]])
+        video = write_demo_video(by_gait, events, names, p.fps, video_path, wav, float(t.get("video_fps", 10.0)),
+                                 int(t.get("video_dpi", 80)))
+    t4 = time.perf_counter()
     single = events[events["single_peak"]] if len(events) else events
     return {"data_dir": str(data_dir), "files": files, "gestures_spliced": len(events),
             "utterance_peaks": {s.name: len(s.peaks_s) for s in speakers},
             "single_peak_contact_rate": float(single["contact_at_peak"].mean()) if len(single) else None,
+            # the same by the second reading of the phases, and both at the nominal (naive,
+            # unsynchronized) peak; per gait in contact_by_gait
+            "single_peak_contact_alt_rate": float(single["contact_alt_at_peak"].mean()) if len(single) else None,
+            "single_peak_contact_rate_naive": float(single["contact_at_nominal"].mean()) if len(single) else None,
+            "single_peak_contact_alt_rate_naive": float(single["contact_alt_at_nominal"].mean()) if len(single) else None,
+            "contact_by_gait": {g: {"single_peak": int(len(d)), **{c: float(d[c].mean()) for c in (
+                "contact_at_peak", "contact_alt_at_peak", "contact_at_nominal", "contact_alt_at_nominal")}}
+                for g, d in single.groupby("gait")} if len(single) else {},
             "shift_range_s": [float(events["shift_s"].min()), float(events["shift_s"].max())] if len(events) else None,
             "aar_events": len(aar_rows), "gesture_source": source, "synthesized": synth_info,
             "speech_seconds": t1 - t0, "load_seconds": t2 - t1,
-            "synthesis_seconds": t3 - t2}
+            "synthesis_seconds": t3 - t2, "video_seconds": t4 - t3,
+            "video": None if video is None else {"file": str(video), "audio": "walktalk_speech.wav",
+                                                 "speakers_with_audio": [n for n, a in audio.items() if a is not None]}}

@@ -1,8 +1,8 @@
 """Body parts of the paper's splicing (Sec. 4.3): lower body, torso, left arm, right arm.
 
 Joints are found by name through the project's one table of rig patterns,
-:data:`convsynth_jax.annotate.motion.RIG_JOINTS` (SMPL/SMPL-X, CMU, Mixamo, GENEA, BEAT, Bandai,
-Unreal, Biped); :data:`ROLES` maps this module's short role names onto it. An arm is the subtree
+:data:`convsynth_jax.rig.RIG_JOINTS` (SMPL/SMPL-X, CMU, Mixamo, GENEA, BEAT, Bandai, Unreal,
+Biped); :data:`ROLES` maps this module's short role names onto it. An arm is the subtree
 under its clavicle, the lower body the root chain above the spine plus both leg subtrees, the
 torso everything else (spine, chest, neck, head).
 """
@@ -12,8 +12,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
+from ..rig import find_role
 from ..skeleton import Skeleton
 
 # walktalk role -> role of the shared rig table (its "shoulder" role is the upper arm)
@@ -52,14 +52,14 @@ def find_body(skel: Skeleton, path: str | None = None) -> Body:
     without toe joints uses its ankles as toes (foot contacts then come from the ankle alone)."""
     joints, missing = {}, []
     for key, role in ROLES.items():
-        j = skel.find(*RIG_JOINTS[role])
+        j = find_role(skel, role)
         if j is None and key.startswith("toes_"):   # no toe joint (GENEA): contacts from the ankle alone
             j = joints.get(f"foot_{key[-1]}")
         if j is None:
             missing.append(f"{key} ({role})")
         joints[key] = j
     if missing:
-        raise WalkTalkError(f"skeleton lacks joints {missing} (patterns in convsynth_jax.annotate.motion.RIG_JOINTS); "
+        raise WalkTalkError(f"skeleton lacks joints {missing} (patterns in convsynth_jax.rig.RIG_JOINTS); "
                             f"joints are {list(skel.names)}", path)
     arm_l = tuple(_subtree(skel, joints["shoulder_l"]))
     arm_r = tuple(_subtree(skel, joints["shoulder_r"]))
@@ -88,33 +88,3 @@ def mask(num_joints: int, idx) -> np.ndarray:
     m = np.zeros(num_joints, dtype=bool)
     m[list(idx)] = True
     return m
-
-
-def quat_to_matrix_np(q: np.ndarray) -> np.ndarray:
-    """(..., 4) (w, x, y, z) -> (..., 3, 3), float64 NumPy."""
-    w, x, y, z = np.moveaxis(np.asarray(q, dtype=np.float64), -1, 0)
-    return np.stack([
-        np.stack([1 - 2 * (y * y + z * z), 2 * (x * y - w * z), 2 * (x * z + w * y)], -1),
-        np.stack([2 * (x * y + w * z), 1 - 2 * (x * x + z * z), 2 * (y * z - w * x)], -1),
-        np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
-
-
-def joint_positions(motion) -> np.ndarray:
-    """Global joint positions (F, J, 3), float64 NumPy forward kinematics.
-
-    The project's jitted ``kinematics.fk_kernel`` recompiles for every clip length (seconds on a
-    small CPU); the evaluation touches hundreds of clip lengths, so it uses this loop over joints
-    (vectorized over frames), which a test checks against ``kinematics.forward_kinematics``.
-    """
-    mats = quat_to_matrix_np(motion.rotations)
-    tr = np.asarray(motion.translations, dtype=np.float64)
-    parents = motion.skeleton.parents
-    gm = [None] * len(parents)
-    gp = [None] * len(parents)
-    for j, p in enumerate(parents):
-        if p < 0:
-            gm[j], gp[j] = mats[:, j], tr[:, j]
-        else:
-            gm[j] = gm[p] @ mats[:, j]
-            gp[j] = gp[p] + np.einsum("fab,fb->fa", gm[p], tr[:, j])
-    return np.stack(gp, axis=1)

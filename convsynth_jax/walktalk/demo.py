@@ -14,8 +14,8 @@ from pathlib import Path
 
 import numpy as np
 
-from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
+from ..rig import find_role
 from ..skeleton import Motion
 from .gaze import (
     AAREvent,
@@ -109,6 +109,7 @@ def run_demo(loops: list[LoopContext], gestures, speakers: list[Speaker], p: Wal
                                     sp.source or None, f"frame {round(u * fps)}")
         loco = tile_loop(lc.loop, T)
         contact = tile_contact(lc.loop, T)
+        contact_alt = tile_contact(lc.loop, T, second=True)
         cur = loco
         busy_until = -1
         order = sorted(range(len(sp.peaks_s)), key=lambda k: sp.peaks_s[k])
@@ -134,17 +135,22 @@ def run_demo(loops: list[LoopContext], gestures, speakers: list[Speaker], p: Wal
             rows.append({"character": sp.name, "gesture": Path(g.name).stem, "gait": lc.loop.gait,
                          "t_prep_begin": r.phases.pb / fps, "t_stroke_peak": r.peak / fps,
                          "t_retraction_end": r.phases.re / fps, "utterance_peak_s": u, "shift_s": r.shift_s,
-                         "contact_at_peak": bool(contact[r.peak]), "single_peak": g.single_peak})
+                         "contact_at_peak": bool(contact[r.peak]), "single_peak": g.single_peak,
+                         # the second reading of the phases, and both readings at the nominal
+                         # (unsynchronized) peak
+                         "contact_alt_at_peak": bool(contact_alt[r.peak]),
+                         "contact_at_nominal": bool(contact[r.nominal_peak]),
+                         "contact_alt_at_nominal": bool(contact_alt[r.nominal_peak])})
             meta.append({"character": sp.name, "t_prep_begin": r.phases.pb / fps, "t_stroke_begin": r.phases.sb / fps,
                          "t_retraction_begin": r.phases.rb / fps, "t_retraction_end": r.phases.re / fps})
         lateral = (i - (len(speakers) - 1) / 2) * dp.spacing_cm
         motions[sp.name] = dataclasses.replace(place_character(cur, lc.loop.advance, lateral), name=sp.name)
-    from .body import joint_positions
+    from ..kinematics import forward_kinematics_np
 
     roots = {}
     for n, m in motions.items():
-        hips = m.skeleton.find(*RIG_JOINTS["hips"])
-        roots[n] = joint_positions(m)[:, hips]
+        hips = find_role(m.skeleton, "hips")
+        roots[n] = forward_kinematics_np(m)[:, hips]
     if dp.aar == "scripted":
         aar = list(scripted or [])
     elif dp.aar == "statistics":

@@ -26,10 +26,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..annotate.motion import RIG_JOINTS
 from ..errors import WalkTalkError
+from ..kinematics import global_transforms_np
+from ..rig import find_role
+from ..rotations import quat_to_matrix_np
 from ..skeleton import Motion
-from .body import joint_positions, quat_to_matrix_np
 from .params import GazeParams
 
 
@@ -158,8 +159,8 @@ def apply_gaze(motion: Motion, character: str, events: list[AAREvent], others: d
     sk = motion.skeleton
     T = motion.num_frames
     t = np.arange(T) / motion.fps
-    pos = joint_positions(motion)
-    hips = sk.find(*RIG_JOINTS["hips"])
+    pos, glob = global_transforms_np(motion)   # of the un-gazed motion
+    hips = find_role(sk, "hips")
     me = pos[:, hips]
     heading = heading_of(me, motion.fps)
     yaw = np.zeros(T)
@@ -178,11 +179,7 @@ def apply_gaze(motion: Motion, character: str, events: list[AAREvent], others: d
         yaw += w * np.clip(r * theta, -lim, lim)
         over = (np.abs(fwd) / units_per_m - p.lean_distance_m) / max(p.lean_full_m - p.lean_distance_m, 1e-9)
         lean += w * np.sign(fwd) * np.radians(p.lean_max_deg) * np.clip(over, 0, 1)
-    # global rotations of the un-gazed motion
     mats = quat_to_matrix_np(motion.rotations)
-    glob = [None] * sk.num_joints
-    for j, par in enumerate(sk.parents):
-        glob[j] = mats[:, j] if par < 0 else glob[par] @ mats[:, j]
     rot = np.array(motion.rotations, dtype=np.float64)
     up = np.array([0.0, 1.0, 0.0])
     lean_axis = np.cross(np.broadcast_to(up, heading.shape), heading)
@@ -194,11 +191,11 @@ def apply_gaze(motion: Motion, character: str, events: list[AAREvent], others: d
         R = _yaw_matrix(share * yaw)
         if j == lean_joint:
             R = _axis_matrix(lean_axis, lean) @ R
-        gp = glob[sk.parents[j]]
+        gp = glob[:, sk.parents[j]]
         local = np.swapaxes(gp, -1, -2) @ R @ gp @ mats[:, j]
         rot[:, j] = _matrix_to_quat(local)
     if lean_joint is not None and p.lean_joint not in p.joint_shares:
-        gp = glob[sk.parents[lean_joint]]
+        gp = glob[:, sk.parents[lean_joint]]
         rot[:, lean_joint] = _matrix_to_quat(np.swapaxes(gp, -1, -2) @ _axis_matrix(lean_axis, lean) @ gp
                                              @ mats[:, lean_joint])
     from dataclasses import replace

@@ -25,8 +25,9 @@ import pandas as pd
 from scipy.signal import find_peaks
 
 from ..errors import MissingFileError, WalkTalkError
+from ..kinematics import forward_kinematics_np
 from ..skeleton import Motion
-from .body import Body, find_body, joint_positions
+from .body import Body, find_body
 from .params import GaitParams, PhaseParams
 
 
@@ -84,7 +85,7 @@ def validate_phases(ph: Phases, num_frames: int, path: str) -> None:
 def check_standing(motion: Motion, p: GaitParams, body: Body | None = None, positions=None) -> None:
     """A gesture clip must be recorded standing: its root may not travel more than max_root_travel_cm."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion) if positions is None else positions
+    pos = forward_kinematics_np(motion) if positions is None else positions
     root = pos[:, body.joints["hips"]][:, [0, 2]]
     d = np.linalg.norm(root - root[0], axis=1)
     if d.max() > p.max_root_travel_cm:
@@ -95,7 +96,7 @@ def check_standing(motion: Motion, p: GaitParams, body: Body | None = None, posi
 
 def wrist_tracks(motion: Motion, body: Body, positions=None) -> dict:
     """Root-relative wrist positions (F, 3) per side."""
-    pos = joint_positions(motion) if positions is None else positions
+    pos = forward_kinematics_np(motion) if positions is None else positions
     root = pos[:, body.joints["hips"]]
     return {s: pos[:, body.joints[f"hand_{s}"]] - root for s in ("l", "r")}
 
@@ -182,7 +183,7 @@ def make_gesture(motion: Motion, gait: GaitParams, phases: PhaseParams, body: Bo
                  kind: str = "beat") -> Gesture:
     """Check a standing gesture clip and detect its phases."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion)
+    pos = forward_kinematics_np(motion)
     check_standing(motion, gait, body, pos)
     ph, hand = detect_phases(motion, phases, body, pos)
     return Gesture(motion, ph, hand, kind, motion.name)

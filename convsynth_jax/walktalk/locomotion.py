@@ -1,12 +1,26 @@
-"""Locomotion loops (paper Sec. 3.1 and 4): contacts, heel strikes, two-cycle loops.
+"""Locomotion loops (paper Sec. 3.1 and 4): contacts, heel strikes, contact/flight phases, loops.
 
 A foot is *down* when its ankle or toe is within ``height_tol_cm`` of that point's lowest height
 in the clip and moves slower than ``speed_tol_cms`` horizontally; a heel strike is the first frame
-of a down run. Contact phases follow the paper's annotation: walking contact = the front foot on or
-near the ground and landing (slower than ``near_ground_speed_cms``; flight = one leg passing the
-other, until the swing foot lands); jogging contact = at least one foot down
-(flight = both feet in the air). The root altitude (rises in flight, falls in contact) is kept for
-diagnostics and for the elbow bounce of Sec. 4.2.
+of a down run.
+
+Contact and flight phases follow the paper's definition (Sec. 3.1, Fig. 3), each in two readings
+(:func:`contact_phases`), with every threshold taken from the frames being labelled (the loop's own
+motion; the whole clip in :func:`detect_gait`):
+
+* walking: *contact* is when the front foot is close to or touching the ground, *flight* when one
+  leg passes the other. Primary reading: the foot ahead along the direction of travel is down or
+  its lowest point (ankle or toe) is within ``near_ground_frac`` of its swing clearance (its
+  largest height above the ground), *and* the feet are apart: their horizontal separation along
+  the direction of travel is at least ``pass_frac`` of the step separation (the 95th percentile of
+  the absolute separation). This is a window around each heel strike, from the landing to the
+  moment the trailing leg starts to swing past, not the whole stance. Second reading: the feet
+  apart alone (separation only).
+* jogging: *flight* is both feet in the air, *contact* at least one foot on the ground. Primary
+  reading: a foot down (height and speed). Second reading: a foot's lowest point within
+  ``jog_ground_frac`` of its swing clearance (height only).
+
+The root altitude (rises in flight, falls in contact) is kept for the elbow bounce of Sec. 4.2.
 
 A loop is two full gait cycles from a left heel strike to the left heel strike two cycles later
 (the paper's clips start at *left contact*). To loop seamlessly we spread the pose residual between
@@ -18,12 +32,14 @@ from __future__ import annotations
 
 import dataclasses
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 
 from ..errors import WalkTalkError
+from ..kinematics import forward_kinematics_np
 from ..skeleton import Motion
-from .body import Body, find_body, joint_positions
+from .body import Body, find_body
 from .params import GaitParams
 
 
@@ -38,6 +54,8 @@ class GaitInfo:
     strikes_r: tuple[int, ...]
     gait: str                      # "walk" or "jog"
     root_height: np.ndarray
+    contact_alt: np.ndarray        # the second reading of the phases (:func:`contact_phases`)
+    separation: np.ndarray         # left ankle ahead of the right along the direction of travel, cm
 
 
 @dataclass(frozen=True)
@@ -60,6 +78,7 @@ class Loop:
     strikes_r: tuple[int, ...]
     root_joint: int = 1
     root_height: np.ndarray | None = None   # (N,) hips altitude, cm (for the elbow bounce)
+    contact_alt: np.ndarray | None = None   # (N,) the second reading of the phases (None = as ``contact``)
 
     @property
     def num_frames(self) -> int:
@@ -91,12 +110,92 @@ def _horizontal_speed(x: np.ndarray, fps: float) -> np.ndarray:
     return np.minimum(back, fwd)
 
 
+STEP_PERCENTILE = 95.0  # the step separation: this percentile of the feet's absolute separation
+
+
+@dataclass(frozen=True)
+class FootTracks:
+    """Foot kinematics of a run of frames, the input of :func:`contact_phases`. Arrays are (F,).
+
+    low_l, low_r: height of each foot's lowest point (ankle or toe) above the ground (the lowest
+    such point over the frames), cm; separation: the left ankle's lead over the right along the
+    direction of travel (the hips' horizontal displacement over the frames), cm."""
+
+    low_l: np.ndarray
+    low_r: np.ndarray
+    separation: np.ndarray
+
+
+def foot_tracks(pos: np.ndarray, body: Body) -> FootTracks:
+    """pos: (F, J, 3) joint positions (Y up, cm) -> :class:`FootTracks`."""
+    low = {s: np.minimum(pos[:, body.joints[f"foot_{s}"], 1], pos[:, body.joints[f"toes_{s}"], 1]) for s in ("l", "r")}
+    ground = min(low["l"].min(), low["r"].min())
+    root = pos[:, body.joints["hips"]]
+    travel = root[-1] - root[0]
+    heading = np.array([travel[0], 0.0, travel[2]])
+    heading = heading / max(np.linalg.norm(heading), 1e-9)
+    sep = (pos[:, body.joints["foot_l"]] - pos[:, body.joints["foot_r"]]) @ heading
+    return FootTracks(low["l"] - ground, low["r"] - ground, sep)
+
+
+class ContactReadings(NamedTuple):
+    """Contact labels (F,) bool (True = contact, False = flight) in the two readings of
+    :func:`contact_phases`: ``contact`` (primary; synchronization uses it) and ``second``."""
+
+    contact: np.ndarray
+    second: np.ndarray
+
+
+def contact_phases(tracks: FootTracks, down_l: np.ndarray, down_r: np.ndarray, gait: str,
+                   p: GaitParams) -> ContactReadings:
+    """Contact labels by the paper's definition (Sec. 3.1), in two readings; see the module
+    docstring. ``down_l``, ``down_r``: (F,) feet down (height and speed).
+    Thresholds come from ``tracks`` itself: each foot's swing clearance (its largest ``low``) and
+    the step separation (the :data:`STEP_PERCENTILE` percentile of ``abs(separation)``)."""
+    clear_l, clear_r = float(tracks.low_l.max()), float(tracks.low_r.max())
+    if gait == "jog":
+        on_ground = (tracks.low_l <= p.jog_ground_frac * clear_l) | (tracks.low_r <= p.jog_ground_frac * clear_r)
+        return ContactReadings(down_l | down_r, on_ground)
+    sep = tracks.separation
+    step = float(np.percentile(np.abs(sep), STEP_PERCENTILE)) if len(sep) else 0.0
+    apart = (np.abs(sep) >= p.pass_frac * step) & (step > 0)
+    near_l = _landing(down_l, tracks.low_l <= p.near_ground_frac * clear_l)
+    near_r = _landing(down_r, tracks.low_r <= p.near_ground_frac * clear_r)
+    front_near = np.where(sep > 0, near_l, near_r)
+    return ContactReadings(front_near & apart, apart)
+
+
+def _landing(down: np.ndarray, low: np.ndarray) -> np.ndarray:
+    """(F,) a foot on or close to the ground: down, or low in the run of low frames that reaches a
+    down frame (landing or lifting off). A swing foot whose toe dips toward the floor mid-swing and
+    rises again before it lands is not close to the ground there."""
+    near = down | low
+    out = np.zeros_like(near)
+    for a, b in _runs(near, 1):
+        if down[a:b].any():
+            out[a:b] = True
+    return out
+
+
 def detect_gait(motion: Motion, p: GaitParams, body: Body | None = None,
                 positions: np.ndarray | None = None) -> GaitInfo:
-    """Foot contacts, heel strikes and contact phases of a locomotion clip (Y up, cm)."""
+    """Foot contacts, heel strikes and contact phases of a locomotion clip (Y up, cm); the phase
+    thresholds are taken from the whole clip (:func:`extract_loop` relabels a loop from its own frames)."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion) if positions is None else positions
-    fps = motion.fps
+    pos = forward_kinematics_np(motion) if positions is None else positions
+    downs = feet_down(pos, body, motion.fps, p)
+    flight = ~(downs["l"] | downs["r"])
+    gait = "jog" if flight.mean() >= p.jog_flight_frac else "walk"
+    tracks = foot_tracks(pos, body)
+    contact, alt = contact_phases(tracks, downs["l"], downs["r"], gait, p)
+    strikes = {s: tuple(a for a, _ in _runs(downs[s], p.min_down_frames) if a > 0) for s in ("l", "r")}
+    return GaitInfo(downs["l"], downs["r"], contact, strikes["l"], strikes["r"], gait,
+                    pos[:, body.joints["hips"], 1].copy(), alt, tracks.separation)
+
+
+def feet_down(pos: np.ndarray, body: Body, fps: float, p: GaitParams) -> dict:
+    """Side ("l", "r") -> (F,) bool: the ankle or the toe down (:func:`foot_down`), runs shorter
+    than ``p.min_down_frames`` dropped."""
     downs = {}
     for side in ("l", "r"):
         a, t = pos[:, body.joints[f"foot_{side}"]], pos[:, body.joints[f"toes_{side}"]]
@@ -105,28 +204,7 @@ def detect_gait(motion: Motion, p: GaitParams, body: Body | None = None,
         for s, e in _runs(down, p.min_down_frames):
             keep[s:e] = True
         downs[side] = keep
-    flight = ~(downs["l"] | downs["r"])
-    gait = "jog" if flight.mean() >= p.jog_flight_frac else "walk"
-    if gait == "jog":
-        contact = ~flight
-    else:
-        root = pos[:, body.joints["hips"]]
-        vel = root[-1] - root[0]
-        heading = np.array([vel[0], 0.0, vel[2]])
-        heading = heading / max(np.linalg.norm(heading), 1e-9)
-        fl, fr = pos[:, body.joints["foot_l"]], pos[:, body.joints["foot_r"]]
-        front_is_l = (fl - fr) @ heading > 0
-        front_h = np.where(front_is_l, fl[:, 1], fr[:, 1])
-        ground = min(fl[:, 1].min(), fr[:, 1].min())
-        front_down = np.where(front_is_l, downs["l"], downs["r"])
-        # "near the ground" is a landing foot: low *and* slowing down. The swing ankle skims the
-        # floor within near_ground_cm for several frames at ~300 cm/s after passing the stance leg;
-        # counting those made ~80% of a walk "contact" (flight was only the passing frames).
-        front_speed = np.where(front_is_l, _horizontal_speed(fl, fps), _horizontal_speed(fr, fps))
-        contact = front_down | ((front_h - ground < p.near_ground_cm) & (front_speed < p.near_ground_speed_cms))
-    strikes = {s: tuple(a for a, _ in _runs(downs[s], p.min_down_frames) if a > 0) for s in ("l", "r")}
-    return GaitInfo(downs["l"], downs["r"], contact, strikes["l"], strikes["r"], gait,
-                    pos[:, body.joints["hips"], 1].copy())
+    return downs
 
 
 def seam_correct(rotations: np.ndarray) -> np.ndarray:
@@ -164,7 +242,8 @@ def extract_loop(motion: Motion, p: GaitParams, body: Body | None = None, which:
     """Two full gait cycles from a left heel strike (paper Sec. 4); raises :class:`WalkTalkError`
     listing the strikes found when the clip holds fewer than two cycles."""
     body = body or find_body(motion.skeleton, motion.name)
-    g = detect_gait(motion, p, body)
+    pos = forward_kinematics_np(motion)
+    g = detect_gait(motion, p, body, pos)
     sl = list(g.strikes_l)
     if len(sl) < 3:
         raise WalkTalkError(f"fewer than two gait cycles: left heel strikes at frames {list(g.strikes_l)}, "
@@ -188,9 +267,11 @@ def extract_loop(motion: Motion, p: GaitParams, body: Body | None = None, which:
     adv = np.array([d[0], 0.0, d[2]])
     tr[:, j0, 1] -= np.arange(n) / n * d[1]
     lm = dataclasses.replace(motion, rotations=rot, translations=tr, name=f"{motion.name}[{a}:{b}]")
-    return Loop(lm, adv, g.contact[a:b].copy(), g.gait, motion.name, int(a),
+    # the phases relabelled with thresholds from the loop's own frames
+    contact, alt = contact_phases(foot_tracks(pos[a:b], body), g.down_l[a:b], g.down_r[a:b], g.gait, p)
+    return Loop(lm, adv, contact, g.gait, motion.name, int(a),
                 tuple(s - a for s in g.strikes_l if a <= s < b), tuple(s - a for s in g.strikes_r if a <= s < b),
-                j0, g.root_height[a:b].copy())
+                j0, g.root_height[a:b].copy(), alt)
 
 
 def tile_indices(n_loop: int, n_frames: int) -> tuple[np.ndarray, np.ndarray]:
@@ -212,8 +293,11 @@ def tile_loop(loop: Loop, n_frames: int, start_offset: np.ndarray | None = None)
     return dataclasses.replace(m, rotations=rot, translations=tr, name=f"{m.name}x{n_frames}")
 
 
-def tile_contact(loop: Loop, n_frames: int) -> np.ndarray:
-    return loop.contact[tile_indices(loop.num_frames, n_frames)[0]]
+def tile_contact(loop: Loop, n_frames: int, second: bool = False) -> np.ndarray:
+    """(n_frames,) contact labels of the tiled loop: the primary reading, or (``second``) the
+    second reading (:func:`contact_phases`; the primary when the loop has none)."""
+    labels = loop.contact_alt if second and loop.contact_alt is not None else loop.contact
+    return labels[tile_indices(loop.num_frames, n_frames)[0]]
 
 
 def seam_foot_slide(motion: Motion, n_loop: int, p: GaitParams, body: Body | None = None,
@@ -222,7 +306,7 @@ def seam_foot_slide(motion: Motion, n_loop: int, p: GaitParams, body: Body | Non
     frames, over the frames within ``window`` of a loop seam (frame k*N-1 -> k*N); 0 when no seam
     lies inside the motion."""
     body = body or find_body(motion.skeleton, motion.name)
-    pos = joint_positions(motion) if positions is None else positions
+    pos = forward_kinematics_np(motion) if positions is None else positions
     n = motion.num_frames
     near = np.zeros(n, bool)          # frames t whose step t-1 -> t lies within ``window`` of a seam
     for s in range(n_loop, n, n_loop):

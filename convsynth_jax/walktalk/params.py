@@ -18,11 +18,19 @@ class GaitParams:
 
     height_tol_cm: float = 3.0        # a foot is down when ankle or toe is this close to its lowest height
     speed_tol_cms: float = 50.0       # ... and that point moves slower than this horizontally
-    near_ground_cm: float = 2.0       # walking contact: the front foot down, or its ankle this close to the ground ...
-    near_ground_speed_cms: float = 100.0  # ... and landing: slower than this horizontally (ours)
+    # contact/flight phases (Sec. 3.1; thresholds relative to the labelled frames' own motion, ours)
+    near_ground_frac: float = 0.5     # walking: a foot is near the ground within this share of its swing clearance
+    pass_frac: float = 0.5            # walking: legs passing (flight) while the feet are closer than this share of the step
+    jog_ground_frac: float = 0.1      # jogging, second reading: a foot on the ground within this share of its clearance
     min_down_frames: int = 2          # shorter down runs are noise
     jog_flight_frac: float = 0.05     # a clip with this fraction of frames with both feet up is a jog
     max_root_travel_cm: float = 20.0  # a gesture clip whose root moves farther than this is not standing
+
+    def __post_init__(self):
+        for name in ("near_ground_frac", "pass_frac", "jog_ground_frac"):
+            v = getattr(self, name)
+            if not 0.0 <= v <= 1.0:
+                raise WalkTalkError(f"{name} must lie in [0, 1], got {v}", where=f"walktalk.gait.{name}")
 
 
 @dataclass(frozen=True)

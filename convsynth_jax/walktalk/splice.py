@@ -24,6 +24,7 @@ import jax.numpy as jnp
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..easing import EASES
 from ..errors import WalkTalkError
 from ..rotations import quat_slerp
 from ..skeleton import Motion
@@ -228,12 +229,6 @@ def splice_weights(num_frames: int, ph: Phases, ease: str = "linear") -> np.ndar
     ret = (t >= ph.rb) & (t <= ph.re)
     w[ret] = (ph.re - t[ret]) / (ph.re - ph.rb + 1)
     return EASES[ease](w)
-
-
-EASES = {
-    "linear": lambda w: w,                                          # Eq. 2 as printed
-    "smootherstep": lambda w: w * w * w * (w * (6 * w - 15) + 10),  # ours
-}
 
 
 def _splice_frame(loco_q, gest_q, w, arm_mask):

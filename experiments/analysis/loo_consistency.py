@@ -25,6 +25,7 @@ from convsynth_jax.annotate.cache import annotate_corpus_cached
 from convsynth_jax.config import default_params
 from convsynth_jax.evaluation.consistency import consistency_table, loo_ground_truth
 from convsynth_jax.evaluation.summaries import to_markdown
+from convsynth_jax.figures import save_figure
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
 from convsynth_jax.tasks.common import open_corpus
 from convsynth_jax.utils import atomic_path, write_text_atomic
@@ -85,8 +86,7 @@ def main():
     with atomic_path(RESULTS / f"{name}.csv") as tmp:
         both.to_csv(tmp, index=False)
     write_text_atomic(RESULTS / f"{name}.md", to_markdown(both.drop(columns=["ci_low", "ci_high"]), ".3g"))
-    with atomic_path(RESULTS / f"{name}.png") as tmp:
-        figure({"recording thresholds": res, "window thresholds (old)": old}).savefig(tmp, dpi=120, format="png")
+    save_figure(figure({"recording thresholds": res, "window thresholds (old)": old}), RESULTS / f"{name}.png", dpi=120)
     write(name, {
         "corpus": a.corpus or "default", "sessions": len(ann), "all_pass": bool(res["passes"].all()),
         "old_code_path_passes": bool(old["passes"].all()),

@@ -59,7 +59,7 @@ def bench_em(K=41, frames=100_000, seq=2000):
 def bench_synthesis():
     from convsynth_jax.cdbn.features import Normalization, speech_features
     from convsynth_jax.cdbn.lbg import dense_chain
-    from convsynth_jax.cdbn.params import DBNModel, FeatureParams
+    from convsynth_jax.cdbn.params import DBNModel, CDBNFeatureParams
     from convsynth_jax.cdbn.synthesize import keypoint_smooth, synthesize_head
     from convsynth_jax.io.audio import Audio, load_audio
 
@@ -83,7 +83,7 @@ def bench_synthesis():
     model = DBNModel(rng.normal(size=(K, 9)), np.broadcast_to(np.eye(9), (K, 9, 9)).copy(), init, trans,
                      tuple(range(6)), (6, 7, 8), ("other", "nod", "shake"))
     cons = np.repeat(rng.integers(0, 3, 60), 30)
-    fp = FeatureParams()
+    fp = CDBNFeatureParams()
     out = {}
     for run in ("cold", "warm", "warm2"):
         t0 = time.perf_counter()
@@ -152,13 +152,13 @@ def bench_hands(cache: str, dyadic_sessions: int = 6, bandai_clips: int | None =
         bandai_hand_turns,
         dyadic_hand_turns,
     )
-    from convsynth_jax.cdbn.params import FeatureParams
+    from convsynth_jax.cdbn.params import CDBNFeatureParams
     from convsynth_jax.config import default_params
     from convsynth_jax.tasks.common import annotated_corpus
 
     out = {}
     ep = {"folds": 10, "jdbn_grid": (8, 12), "cdbn_grid": (3, 4), "max_test_folds": 3}
-    fp = FeatureParams()
+    fp = CDBNFeatureParams()
     bandai = REPO.parent / "shared" / "data" / "bandai2" / "bvh"
     wav = REPO.parent / "shared" / "data" / "speech" / "acoustic_corpus.wav"
     if bandai.is_dir() and wav.is_file():
@@ -187,9 +187,9 @@ def bench_hands_diagnosis(max_clips: int = 160, max_test_folds: int = 3):
     from convsynth_jax.cdbn.evaluate import NearestCentroid
     from convsynth_jax.cdbn.experiment import gesture_segments, hand_gesture_features
     from convsynth_jax.cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns, hand_evaluation
-    from convsynth_jax.cdbn.params import FeatureParams
+    from convsynth_jax.cdbn.params import CDBNFeatureParams
 
-    fp = FeatureParams()
+    fp = CDBNFeatureParams()
     bandai = REPO.parent / "shared" / "data" / "bandai2" / "bvh"
     wav = REPO.parent / "shared" / "data" / "speech" / "acoustic_corpus.wav"
     turns, rig = bandai_hand_turns(bandai, wav, fp, max_clips=max_clips)
@@ -268,7 +268,7 @@ def bench_fig6(cache: str, states: int = 16):
     cfg = compose(["task=cdbn_eval", f"cache_dir={cache}"])
     p = params(cfg)
     turns, _ = normalize_by_subject(load_semisynthetic_turns(ensure_corpus(cfg, p), p.constraints, p.features))
-    order = np.random.default_rng(0).permutation(len(turns))          # EvalParams.seed = 0, 10 folds
+    order = np.random.default_rng(0).permutation(len(turns))          # CDBNEvalParams.seed = 0, 10 folds
     train = [turns[i] for k in range(10) if k != 1 for i in order[k::10]]
     seqs = [t.observations() for t in train]
     batch = make_batch(seqs, None, pack=True)

@@ -7,7 +7,7 @@ from _bench import SHARED, timed, write
 
 import numpy as np
 
-from convsynth_jax.graph.database import batched_features
+from convsynth_jax.kinematics import batched_pose_features
 from convsynth_jax.io import load_bvh
 
 if __name__ == "__main__":
@@ -17,7 +17,7 @@ if __name__ == "__main__":
     runs = []
     for rep in range(3):  # the first run includes JIT compilation
         motions, t_load = timed(lambda: [load_bvh(f) for f in files])
-        (P, V), t_fk = timed(batched_features, motions)
+        (P, V), t_fk = timed(batched_pose_features, motions)
         runs.append({"load_s": t_load, "fk_features_s": t_fk, "total_s": t_load + t_fk})
     frames = sum(m.num_frames for m in motions)
     warm = runs[1:]

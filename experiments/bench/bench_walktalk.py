@@ -12,12 +12,12 @@ Reported (goals from issue #12, never asserted):
   * the elbow-tracking study: every walk and run clip as a loop (24 + 52), every 6th single-peak
     gesture, naive / stylized / stylized+synced: per gait, the correlation over loops of the
     stroke's elbow bend with the loop's, per gesture, plain and partial given the loop's spread
-    (evaluate.elbow_partial_corr says why), for the default, the old bounce order, the paper's band
+    (elbow.elbow_partial_corr says why), for the default, the old bounce order, the paper's band
     alone and our within-gait option (splice.band_std=gait_min + splice.joint_limit_mode=soft);
   * optionally (--synthesized-dir, the output folder of task=synthesize) the demo with its
     gestures cut from that synthesized conversation.
-Joint-limit violations are printed in both readings (evaluate.limit_violations: frames with any
-DOF out or any hand in the torso; evaluate.limit_cells: DOF x frame cells of the spliced arm over
+Joint-limit violations are printed in both readings (limit_metrics.limit_violations: frames with any
+DOF out or any hand in the torso; limit_metrics.limit_cells: DOF x frame cells of the spliced arm over
 the blended frames, gesturing hand in the torso), each beside the loop alone over the same frames.
 Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results/bench_walktalk.json
 (--out to name another file there).
@@ -27,6 +27,7 @@ Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results
     python experiments/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
     python experiments/bench_walktalk.py --combined          # every goal for the candidate settings at once
     python experiments/bench_walktalk.py --loop-seams        # what the loops' seam correction does to the arms
+    python experiments/bench/bench_walktalk.py --contact-phases  # contact fractions of every loop, both readings
 """
 from __future__ import annotations
 
@@ -49,7 +50,7 @@ GOALS = {"splice_warm_ms": 20.0, "eval_s": 60.0, "demo_s": 10.0}
 
 
 def bench_splice(data_dir: Path) -> dict:
-    from convsynth_jax.walktalk.evaluate import load_library
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p = WalkTalkParams()
@@ -100,12 +101,8 @@ def bench_demo(data_dir: Path, synthesized_dir: str | None = None) -> dict:
 
 
 def bench_ablation(data_dir: Path) -> list[dict]:
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        load_library,
-        run_evaluation,
-        summarize,
-    )
+    from convsynth_jax.walktalk.evaluate import EvalParams, run_evaluation, summarize
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     rows = []
@@ -137,7 +134,8 @@ def bench_ablation(data_dir: Path) -> list[dict]:
 
 
 def bench_elbow(data_dir: Path) -> dict:
-    from convsynth_jax.walktalk.evaluate import elbow_tracking, elbow_tracking_summary, load_library
+    from convsynth_jax.walktalk.elbow import elbow_tracking, elbow_tracking_summary
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p = WalkTalkParams()
@@ -166,7 +164,7 @@ def loop_spread(lib) -> dict:
     spread (std over the loop), and the correlation of the two (degrees)."""
     import numpy as np
 
-    from convsynth_jax.walktalk.evaluate import lc_bend
+    from convsynth_jax.walktalk.elbow import lc_bend
 
     out = {}
     for gait, lcs in lib.loops.items():
@@ -201,18 +199,14 @@ def elbow_variants(sp) -> dict:
 def elbow_diagnosis(data_dir: Path, every: int = 6, variants: dict | None = None) -> dict:
     """Why the within-gait elbow correlation is low, and what raises it: every walk and run clip as
     a loop, every ``every``-th single-peak gesture, the stylization variants of
-    :func:`elbow_variants` through the library's study (evaluate.elbow_tracking), with three ways to
+    :func:`elbow_variants` through the library's study (elbow.elbow_tracking), with three ways to
     measure the loop's elbow bend (its mean over the loop, the bend of its mean pose B_L, the loop
     over the stroke's own frames). Per gait and variant: the plain per-gesture correlation with each
     loop measure, and the partial one given the loop's bend spread with its slope."""
     import numpy as np
 
-    from convsynth_jax.walktalk.evaluate import (
-        _per_gesture_corr,
-        elbow_partial_corr,
-        elbow_tracking,
-        load_library,
-    )
+    from convsynth_jax.walktalk.elbow import _per_gesture_corr, elbow_partial_corr, elbow_tracking
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p = WalkTalkParams()
@@ -235,7 +229,7 @@ def elbow_diagnosis(data_dir: Path, every: int = 6, variants: dict | None = None
 
 
 def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
-    """Where the per-frame joint-limit reading (evaluate.limit_violations) fails: every
+    """Where the per-frame joint-limit reading (limit_metrics.limit_violations) fails: every
     ``every``-th single-peak gesture x the evaluation's loops, naive and stylized+synced, per gait:
     the share of t_Pb..t_Re frames failing, split by cause (a gesturing-arm DOF, the gesturing
     hand in the torso, the idle hand in the torso) and by phase (preparation incl. the pad,
@@ -244,18 +238,13 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     per loop (``per_loop``: the splices fail where, and only where, their loop does)."""
     import numpy as np
 
-    from convsynth_jax.walktalk.body import joint_positions
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        dof_limits,
-        hand_torso_distance,
-        limit_violations,
-        load_library,
-        peak_placed_splices,
-        torso_radius,
-    )
+    from convsynth_jax.kinematics import forward_kinematics_np
+    from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
+    from convsynth_jax.walktalk.library import dof_limits, load_library, peak_placed_splices
+    from convsynth_jax.walktalk.limit_metrics import LimitCheck, ScoredSpan, limit_violations
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.pipeline import splice_gesture
+    from convsynth_jax.walktalk.torso import hand_torso_distance
 
     p, ep = WalkTalkParams(), EvalParams()
     lib = load_library(p, data_dir, ep.loops_per_gait, single_peak_only=True)
@@ -265,14 +254,14 @@ def limits_breakdown(data_dir: Path, every: int = 4) -> dict:
     acc: dict = {}
     for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
         g = gc.gesture
-        lpos = joint_positions(loco)
+        lpos = forward_kinematics_np(loco)
         for method in ("naive", "stylized+synced"):
             r = splice_gesture(lc, gc, u, T, p.splice, method, loco=loco, contact=contact, limits=rom)
             ph = r.phases
             fr = np.arange(ph.pb, ph.re + 1)
             phase = np.where(fr < ph.sb, "prep", np.where(fr <= ph.se, "stroke", "retraction"))
-            for who, m, pos in (("splice", r.motion, joint_positions(r.motion)), ("loop", loco, lpos)):
-                dof, _ = limit_violations(m, pos, ph, gc.joints, lib.body, limits, radius)
+            for who, m, pos in (("splice", r.motion, forward_kinematics_np(r.motion)), ("loop", loco, lpos)):
+                dof, _ = limit_violations(ScoredSpan(m, pos, ph, gc.joints, g.sides), LimitCheck(lib.body, limits, radius))
                 inside = hand_torso_distance(pos, lib.body, fr) < radius
                 gest = np.array([s in g.sides for s in ("l", "r")])
                 tg, ti = inside[:, gest].any(axis=1), inside[:, ~gest].any(axis=1)
@@ -314,8 +303,8 @@ def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dic
     variant ``base``."""
     import numpy as np
 
-    from convsynth_jax.walktalk.body import joint_positions
-    from convsynth_jax.walktalk.evaluate import dof_limits, peak_placed_splices
+    from convsynth_jax.kinematics import forward_kinematics_np
+    from convsynth_jax.walktalk.library import dof_limits, peak_placed_splices
     from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
 
     rom = dof_limits(lib, p.splice.joint_limit_percentiles)
@@ -323,10 +312,10 @@ def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dic
     reach: dict = {}
     for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
         gst = gc.gesture
-        lpos = joint_positions(loco)
+        lpos = forward_kinematics_np(loco)
         for name, (sp, method) in variants.items():
             r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=rom)
-            pos = joint_positions(r.motion.slice(r.peak, r.peak + 1))[0]
+            pos = forward_kinematics_np(r.motion.slice(r.peak, r.peak + 1))[0]
             d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
                                         - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
                          for s in gst.sides])
@@ -350,12 +339,8 @@ def jerk_coupling(data_dir: Path, couplings=(0.0, 0.1, 0.25, 0.5, 1.0), every: i
     stylized+synced, naive beside it)."""
     import dataclasses
 
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        load_library,
-        run_evaluation,
-        summarize,
-    )
+    from convsynth_jax.walktalk.evaluate import EvalParams, run_evaluation, summarize
+    from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     p, ep = WalkTalkParams(), EvalParams()
@@ -403,7 +388,8 @@ def _goal_rows(lib, p, settings: dict, naive_df=None) -> tuple[list[dict], objec
     (plain and partial given the loop's spread, per gesture over its loops)."""
     import pandas as pd
 
-    from convsynth_jax.walktalk.evaluate import EvalParams, limit_readings, run_evaluation, summarize
+    from convsynth_jax.walktalk.evaluate import EvalParams, run_evaluation, summarize
+    from convsynth_jax.walktalk.limit_metrics import limit_readings
 
     if naive_df is None:
         naive_df = run_evaluation(lib, p, EvalParams(methods=("naive",)))
@@ -443,24 +429,18 @@ def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> di
       acceptance figures come from (jerk, limits, contact, shifts, +- c sigma);
     * ``all_loops``: every walk and run clip as a loop (24 + 52), every ``every``-th single-peak
       gesture: the within-gait elbow correlation over many loops (of the evaluation's rows, and of
-      the peak-placed study evaluate.elbow_tracking used by the earlier figures), and the other goals
+      the peak-placed study elbow.elbow_tracking used by the earlier figures), and the other goals
       again on these loops (with band_std=gait_min the band is the gait's narrowest over the loops
       loaded, so it differs between the two libraries).
 
-    Also both joint-limit readings of the sources themselves, unmodified (evaluate.source_readings,
-    evaluate.in_sample_violations) and the calibrated torso radius; and the price of each setting,
+    Also both joint-limit readings of the sources themselves, unmodified (limit_metrics.source_readings,
+    limit_metrics.in_sample_violations) and the calibrated torso radius; and the price of each setting,
     the gesture's reach at the stroke peak (:func:`gesture_reach`, every 4th gesture, the eval's
     loops)."""
-    from convsynth_jax.walktalk.evaluate import (
-        EvalParams,
-        dof_limits,
-        elbow_tracking,
-        elbow_tracking_summary,
-        in_sample_violations,
-        load_library,
-        source_readings,
-        torso_radius,
-    )
+    from convsynth_jax.walktalk.elbow import elbow_tracking, elbow_tracking_summary
+    from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
+    from convsynth_jax.walktalk.library import dof_limits, load_library
+    from convsynth_jax.walktalk.limit_metrics import in_sample_violations, source_readings
     from convsynth_jax.walktalk.params import WalkTalkParams
 
     settings = COMBINED if settings is None else settings
@@ -526,11 +506,13 @@ def loop_seams(data_dir: Path) -> dict:
     import numpy as np
 
     from convsynth_jax.io.bvh import load_bvh
-    from convsynth_jax.walktalk.body import joint_positions
-    from convsynth_jax.walktalk.evaluate import EvalParams, hand_torso_distance, load_library, torso_radius
+    from convsynth_jax.kinematics import forward_kinematics_np
+    from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
+    from convsynth_jax.walktalk.library import load_library
+    from convsynth_jax.walktalk.torso import hand_torso_distance
     from convsynth_jax.walktalk.locomotion import _qconj, _qmul
     from convsynth_jax.walktalk.params import WalkTalkParams
-    from convsynth_jax.walktalk.synthesized import torso_frame
+    from convsynth_jax.walktalk.conversation_gestures import torso_frame
 
     p, ep = WalkTalkParams(), EvalParams()
     lib = load_library(p, data_dir, 10_000, max_gestures=1, single_peak_only=True)
@@ -549,7 +531,7 @@ def loop_seams(data_dir: Path) -> dict:
             q = np.asarray(raw.rotations, dtype=np.float64)
             r = _qmul(q[a], _qconj(q[a + n]))
             ang = np.degrees(2 * np.arccos(np.clip(np.abs(r[:, 0]), 0, 1)))
-            pr, pl = joint_positions(raw)[a:a + n], joint_positions(lp.motion)
+            pr, pl = forward_kinematics_np(raw)[a:a + n], forward_kinematics_np(lp.motion)
             world = max(float(np.linalg.norm((pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])
                                              - (pr[:, body.joints[f"hand_{s}"]] - pr[:, hips]), axis=-1).max())
                         for s in ("l", "r"))
@@ -575,6 +557,62 @@ def loop_seams(data_dir: Path) -> dict:
     return {"torso_radius_cm": radius, "per_gait": per_gait, "loops": rows}
 
 
+def contact_phases(data_dir: Path) -> dict:
+    """The contact/flight phases (locomotion.contact_phases) of every walk and run clip's loop:
+    per loop the share of frames in contact by each reading and their agreement, and the
+    synchronization rule (sync.align_peak, 0.6 s) applied with the stroke peak's nominal frame at
+    every frame of the loop in turn: the share of synchronized peaks in contact by each reading,
+    beside the share of nominal (unsynchronized) frames in contact.
+
+    The second walking reading (feet apart) contains the primary one by construction, so a third,
+    independent reading is reported as a diagnostic (``root_low``, not a label the library uses):
+    the hips below their median height over the loop (Sec. 4: the root falls in contact and rises
+    in flight; a walker's hips are lowest around double support and highest as the legs pass)."""
+    import numpy as np
+
+    from convsynth_jax.errors import WalkTalkError
+    from convsynth_jax.io.bvh import load_bvh
+    from convsynth_jax.walktalk.body import find_body
+    from convsynth_jax.walktalk.locomotion import extract_loop, tile_contact
+    from convsynth_jax.walktalk.params import WalkTalkParams
+    from convsynth_jax.walktalk.sync import align_peak, shift_frames
+
+    p = WalkTalkParams()
+    s_frames = shift_frames(p.splice.max_shift_s, p.fps)
+    rows, skipped = [], []
+    for pattern in (p.walk_glob, p.jog_glob):
+        for f in sorted(data_dir.glob(pattern)):
+            m = load_bvh(f, fps=p.fps)
+            try:
+                lp = extract_loop(m, p.gait, find_body(m.skeleton, str(f)))
+            except WalkTalkError as e:
+                skipped.append(str(e))
+                continue
+            n = lp.num_frames
+            c, alt = tile_contact(lp, 3 * n), tile_contact(lp, 3 * n, second=True)
+            peaks = [k + align_peak(k, c, s_frames, False) for k in range(n + s_frames, 2 * n + s_frames)]
+            low = np.tile(lp.root_height <= np.median(lp.root_height), 3)
+            rows.append({"loop": f"{f.stem}[{lp.start}:{lp.start + n}]", "gait": lp.gait, "frames": n,
+                         "contact_frac": float(lp.contact.mean()), "contact_alt_frac": float(lp.contact_alt.mean()),
+                         "agree_frac": float((lp.contact == lp.contact_alt).mean()),
+                         "root_low_agree_frac": float((lp.contact == low[:n]).mean()),
+                         "synced_in_contact": float(np.mean(c[peaks])),
+                         "synced_in_contact_alt": float(np.mean(alt[peaks])),
+                         "synced_root_low": float(np.mean(low[peaks]))})
+    per_gait = []
+    for gait in ("walk", "jog"):
+        d = [r for r in rows if r["gait"] == gait]
+        if not d:
+            continue
+        rec = {"gait": gait, "loops": len(d)}
+        for k in ("contact_frac", "contact_alt_frac", "agree_frac", "root_low_agree_frac", "synced_in_contact",
+                  "synced_in_contact_alt", "synced_root_low"):
+            x = np.array([r[k] for r in d])
+            rec.update({f"{k}_mean": float(x.mean()), f"{k}_min": float(x.min()), f"{k}_max": float(x.max())})
+        per_gait.append(rec)
+    return {"per_gait": per_gait, "loops": rows, "skipped": skipped}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
@@ -593,6 +631,8 @@ def main():
                     "(writes experiments/results/bench_walktalk_combined.json)")
     ap.add_argument("--loop-seams", action="store_true", help="only what the loops' seam correction does to the "
                     "recordings (writes experiments/results/bench_walktalk_loop_seams.json)")
+    ap.add_argument("--contact-phases", action="store_true", help="only the contact fractions of every loop in "
+                    "both readings (writes experiments/results/bench_walktalk_contact_phases.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -613,6 +653,12 @@ def main():
             print({k: (round(v, digits) if isinstance(v, float) else v) for k, v in r.items()})
         print(*(result[k] for k in tail))
 
+    if a.contact_phases:
+        from _bench import write
+
+        res = contact_phases(data_dir)
+        res["load_average"] = list(os.getloadavg())
+        return write("bench_walktalk_contact_phases", {"data_dir": str(data_dir), **res})
     if a.limits_breakdown:
         return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_loop", 4,
                           ["limit_clips", "load_average"])

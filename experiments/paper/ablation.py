@@ -3,7 +3,8 @@ versus the held-out ground truth (two-sample proportion tests), and motion-quali
 from _common import done, parse, read_csv
 
 from convsynth_jax.evaluation import summaries
-from convsynth_jax.figures import ablation_figure
+from convsynth_jax.figures import save_figure
+from convsynth_jax.figures.motion_graph import ablation_figure
 
 if __name__ == "__main__":
     src, out, t0 = parse(__doc__, "all_cases.csv")
@@ -15,6 +16,6 @@ if __name__ == "__main__":
     (out / "ablation.md").write_text("## Co-occurrence\n\n" + summaries.to_markdown(co)
                                      + "\n## Motion quality\n\n" + summaries.to_markdown(q))
     fig = ablation_figure(co)
-    fig.savefig(out / "ablation.png", dpi=120)
-    fig.savefig(out / "ablation.pdf")
+    save_figure(fig, out / "ablation.png", dpi=120)
+    save_figure(fig, out / "ablation.pdf", dpi=120)
     done(out, ["ablation_cooccurrence.csv", "ablation_quality.csv", "ablation.md", "ablation.png"], t0)

@@ -27,8 +27,9 @@ if __name__ == "__main__":
     (out / "table1.md").write_text(summaries.to_markdown(table))
     (out / "table1.tex").write_text(summaries.to_latex(table))
 
-    from convsynth_jax.figures import table1_figure
+    from convsynth_jax.figures import save_figure
+    from convsynth_jax.figures.motion_graph import table1_figure
 
     fig = table1_figure(t if "chance_rate" in t else t.assign(chance_rate=float("nan")))
-    fig.savefig(out / "table1.png", dpi=120)
+    save_figure(fig, out / "table1.png", dpi=120)
     done(out, ["table1.md", "table1.tex", "table1.png"], t0)

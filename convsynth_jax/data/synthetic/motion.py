@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...easing import smoothstep
 from ...rotations import quat_multiply_np, yaw_to_quat_np
 from ...skeleton import Motion
 from ..skeleton_seated import INDEX, NAMES, SEAT_HEIGHT, base_pose_degrees, seated_skeleton
@@ -56,7 +57,7 @@ def _posture_offsets(rng, n: int, fps: float, shifts: list[float], session_sd: f
         new = base + rng.normal(0, shift_sd, base.shape)
         d = rng.uniform(*shift_seconds)
         x = np.clip((t - tau) / d, 0, 1)
-        w = (x * x * (3 - 2 * x))[:, None, None]
+        w = smoothstep(x)[:, None, None]
         sel = t >= tau
         off[sel] = (cur + w * (new - cur))[sel]
         cur = new

@@ -2,6 +2,7 @@
 ``glitches.csv`` and ``corpus.json`` (atomically), and the cache lookup ``ensure_synthetic_corpus``."""
 from __future__ import annotations
 
+import functools
 import json
 import logging
 import os
@@ -15,6 +16,7 @@ import pandas as pd
 from ...io.audio import save_wav
 from ...io.bvh import save_bvh
 from ...io.transcripts import save_transcript_tsv
+from ...parallel import ordered_map
 from ...utils import _umask
 from .calibration import planting_probabilities
 from .config import GENERATOR_VERSION, ROLES, config_hash, resolve_config
@@ -56,8 +58,9 @@ def _session(idx: int, cfg: dict, probs: dict, offsets: list[dict], out: Path) -
 GLITCH_COLUMNS = ["session", "participant", "kind", "joint", "channel", "degrees", "start_frame", "end_frame"]
 
 
-def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
-    """Write the synthetic corpus into ``out_dir`` (replaced atomically). Same seed, same bytes."""
+def make_synthetic_corpus(out_dir: str | Path, config=None, workers: int | None = None) -> Path:
+    """Write the synthetic corpus into ``out_dir`` (replaced atomically). Same seed, same bytes, for
+    any number of ``workers`` (processes, one session each at a time; ``convsynth_jax.parallel``)."""
     cfg = resolve_config(config)
     out_dir = Path(out_dir)
     out_dir.parent.mkdir(parents=True, exist_ok=True)
@@ -66,8 +69,8 @@ def make_synthetic_corpus(out_dir: str | Path, config=None) -> Path:
         probs, calibration = planting_probabilities(cfg)
         offsets = _quota_offsets(cfg)
         rows, glitches, sessions = [], [], []
-        for i in range(int(cfg["num_sessions"])):
-            r, g, meta = _session(i, cfg, probs, offsets, tmp)
+        session = functools.partial(_session, cfg=cfg, probs=probs, offsets=offsets, out=tmp)
+        for r, g, meta in ordered_map(session, range(int(cfg["num_sessions"])), workers):
             rows += r
             glitches += g
             sessions.append(meta)

@@ -10,7 +10,7 @@ standing gesture clips on the locomotion library's rig, so the demo can make tha
    threshold (runs closer than ``merge_s`` merged, shorter than ``min_s`` dropped, longer than
    ``max_s`` split at their slowest frame: a synthesized speaker seldom comes fully to rest), cut
    out with ``pad_s`` more on both sides.
-2. **Retargeting by joint role** (both rigs found through ``annotate.motion.RIG_JOINTS``): each
+2. **Retargeting by joint role** (both rigs found through ``convsynth_jax.rig.RIG_JOINTS``): each
    clip's upper-arm and forearm directions, expressed in a torso frame built from the hips, neck
    and the two upper-arm joints, are given to the target rig in its own torso frame. The target's
    collars, hands, torso and legs keep a standing pose of the library (``template``, one frame of a
@@ -33,12 +33,15 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from ..annotate.motion import RIG_JOINTS, joint_speeds, recording_thresholds
+from ..annotate.motion import joint_speeds, recording_thresholds
 from ..annotate.params import AnnotateParams
+from ..easing import smootherstep
 from ..errors import WalkTalkError
-from ..rotations import quat_slerp_np
+from ..kinematics import forward_kinematics_np, global_transforms_np
+from ..rig import find_role
+from ..rotations import quat_slerp_np, quat_to_matrix_np
 from ..skeleton import Motion
-from .body import Body, joint_positions, quat_to_matrix_np
+from .body import Body
 from .gestures import Gesture, make_gesture
 from .params import WalkTalkParams
 
@@ -55,9 +58,9 @@ class SegmentParams:
 
 
 def _find(skel, role: str, path: str) -> int:
-    j = skel.find(*RIG_JOINTS[role])
+    j = find_role(skel, role)
     if j is None:
-        raise WalkTalkError(f"skeleton lacks the {role} joint (patterns in annotate.motion.RIG_JOINTS); joints are "
+        raise WalkTalkError(f"skeleton lacks the {role} joint (patterns in convsynth_jax.rig.RIG_JOINTS); joints are "
                             f"{list(skel.names)}", path)
     return j
 
@@ -88,15 +91,6 @@ def swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return Rotation.from_rotvec(_unit(axis) * angle[:, None]).as_matrix()
 
 
-def _global_rotations(motion: Motion) -> np.ndarray:
-    """(F, J, 3, 3) global rotation matrices."""
-    mats = quat_to_matrix_np(motion.rotations)
-    out = np.empty_like(mats)
-    for j, p in enumerate(motion.skeleton.parents):
-        out[:, j] = mats[:, j] if p < 0 else out[:, p] @ mats[:, j]
-    return out
-
-
 def _to_quat(m: np.ndarray) -> np.ndarray:
     xyzw = Rotation.from_matrix(m).as_quat()
     return xyzw[:, [3, 0, 1, 2]]
@@ -110,13 +104,13 @@ def retarget_arms(source: Motion, template: Motion, body: Body, source_path: str
     src = {r: _find(ss, r, source_path) for r in ("hips", "neck", "left_shoulder", "right_shoulder",
                                                   "left_elbow", "right_elbow", "left_hand", "right_hand")}
     f = source.num_frames
-    spos = joint_positions(source)
+    spos = forward_kinematics_np(source)
     t_src = torso_frame(spos, src["hips"], src["neck"], src["left_shoulder"], src["right_shoulder"])
     tm = template.slice(0, 1)
     tj = body.joints
-    tpos = joint_positions(tm)
+    tpos = forward_kinematics_np(tm)
     t_tgt = torso_frame(tpos, tj["hips"], tj["neck"], tj["upperarm_l"], tj["upperarm_r"])[0]
-    g0 = _global_rotations(tm)[0]
+    g0 = global_transforms_np(tm)[1][0]
     local0 = quat_to_matrix_np(tm.rotations[0])
     offs = template.skeleton.offsets
     rot = np.repeat(np.asarray(tm.rotations, dtype=np.float64), f, axis=0)
@@ -147,7 +141,7 @@ def ease_to_rest(clip: Motion, frames: int, body: Body) -> Motion:
     if frames <= 0:
         return clip
     t = np.linspace(0.0, 1.0, frames + 1)[1:]
-    w = t * t * t * (t * (6 * t - 15) + 10)
+    w = smootherstep(t)
     rot = np.array(clip.rotations, dtype=np.float64)
     arms = list(body.arm_l) + list(body.arm_r)
     tail = rot[n - frames:, arms]

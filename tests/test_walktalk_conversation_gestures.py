@@ -1,4 +1,4 @@
-"""Gestures from the core system's synthesized conversation (walktalk/synthesized.py, ours): the
+"""Gestures from the core system's synthesized conversation (walktalk/conversation_gestures.py, ours): the
 retargeting by joint role against planted bone directions, the movement segmentation against
 planted movements, and the demo end to end on the tiny corpus's synthesized conversation."""
 from __future__ import annotations
@@ -16,8 +16,9 @@ from convsynth_jax.errors import ConvSynthError
 from convsynth_jax.io.bvh import load_bvh
 from convsynth_jax.rotations import euler_deg_to_quat_np
 from convsynth_jax.skeleton import Motion
-from convsynth_jax.walktalk.body import find_body, joint_positions
-from convsynth_jax.walktalk.synthesized import SegmentParams, movement_runs, retarget_arms
+from convsynth_jax.kinematics import forward_kinematics_np
+from convsynth_jax.walktalk.body import find_body
+from convsynth_jax.walktalk.conversation_gestures import SegmentParams, movement_runs, retarget_arms
 
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 
@@ -67,7 +68,7 @@ def test_retarget_carries_bone_directions_in_the_torso_frame(bandai):
     src = _seated_motion(e)
     out = retarget_arms(src, template, body)
     assert out.skeleton is template.skeleton and out.num_frames == f
-    sp, tp = joint_positions(src), joint_positions(out)
+    sp, tp = forward_kinematics_np(src), forward_kinematics_np(out)
     s = {k: INDEX[k] for k in ("Hips", "Neck", "LeftArm", "RightArm", "LeftForeArm", "RightForeArm", "LeftHand",
                                "RightHand")}
     fs = _frame(sp, s["Hips"], s["Neck"], s["LeftArm"], s["RightArm"])
@@ -170,3 +171,39 @@ def test_synthesized_source_needs_its_folder(tmp_path):
     cfg = compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", "task.gesture_source=clips"])
     with pytest.raises(ConvSynthError, match="gesture_source"):
         run_task(cfg, tmp_path / "out2")
+
+
+def test_demo_video_carries_both_speakers_speech(synthesized_dir, tmp_path):
+    """The demo on the synthesized conversation writes a video with an audio stream, as long as the
+    motion (within one motion frame), and the speech WAV under it holds each character's input
+    audio (task=synthesize's <role>_input.wav) from its speaker's offset on: A left, B right."""
+    from convsynth_jax.io.audio import load_audio
+    from convsynth_jax.render import probe_streams
+
+    chars = sorted(p.stem for p in synthesized_dir.glob("*.bvh"))
+    out = tmp_path / "demo"
+    duration, offsets = 6.0, (0.5, 1.25)
+    summary = run_task(compose(["task=walktalk_demo", f"walktalk.data_dir={FIXTURES}", f"task.duration_s={duration}",
+                                "task.loop_candidates=1", "task.gaits=[walk]", "task.video_fps=2",
+                                "task.gesture_source=synthesized", f"task.synthesized_dir={synthesized_dir}",
+                                f"task.synthesized_characters=[{','.join(chars)}]",
+                                f"task.speakers=[{{name: A, offset_s: {offsets[0]}}}, {{name: B, offset_s: {offsets[1]}}}]"]),
+                       out)
+    assert summary["video"]["speakers_with_audio"] == ["A", "B"]
+    streams = probe_streams(out / "walktalk_demo.mp4")
+    assert streams["video"] == 1 and streams["audio"] == 1
+    frames = load_bvh(out / "A_walk.bvh").num_frames
+    assert abs(streams["duration"] - frames / 30.0) <= 1 / 30.0
+    roles = {c: e["role"] for c, e in json.loads((synthesized_dir / "report.json").read_text())["characters"].items()}
+    wav = load_audio(out / "walktalk_speech.wav")
+    rate = wav.sample_rate
+    assert wav.samples.shape == (round(duration * rate), 2)
+    for ch, (char, off) in enumerate(zip(chars, offsets)):
+        src = load_audio(synthesized_dir / f"{roles[char]}_input.wav")
+        assert src.sample_rate == rate
+        k = round(off * rate)
+        got = wav.samples[:, ch]
+        want = np.asarray(src.samples, np.float64)[:len(got) - k]
+        assert np.abs(got[:k]).max() == 0                       # silent before the speaker's offset
+        np.testing.assert_allclose(got[k:k + len(want)], want, atol=1 / 32767 + 1e-6)   # 16-bit PCM
+        assert np.abs(want).max() > 0.01                         # and there is speech to carry

@@ -4,6 +4,10 @@
   of a bandai2 skeleton has 6 channels), so contacts are known exactly: the left foot is down for
   cycle frames 0..round(stance P), the right half a cycle later; heel strikes at k*P and (k+0.5)*P;
   arms swing sinusoidally; the root altitude is h0 + bounce * cos(4 pi t / P).
+* :func:`synthetic_walk`: a walk placed the same way, with double support: each foot is down for
+  cycle frames 0..round(duty P), the left from cycle frame 0 (heel strikes at k*P and (k+0.5)*P); the swing
+  foot's lowest point rises to ``swing_height`` and it passes the stance foot once per step
+  (``truth["passing"]``: the first frame the swing ankle is ahead of the stance ankle).
 * :func:`synthetic_gesture`: a standing clip whose right (or both) upper arm rotates by a planted
   profile: rest, smooth rise, hold (optionally with oscillating peaks), smooth return.
 """
@@ -12,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from ..easing import smoothstep
 from ..skeleton import Motion, Skeleton
 
 NAMES = ("joint_Root", "Hips", "Spine", "Chest", "Neck", "Head", "Shoulder_L", "UpperArm_L", "LowerArm_L",
@@ -86,9 +91,38 @@ def synthetic_jog(periods: float = 3.0, period: int = 30, stance: float = 0.4, s
     return Motion(skeleton(), rot, tr, fps, "synthetic_jog"), truth
 
 
+def synthetic_walk(periods: float = 3.0, period: int = 32, duty: float = 0.6, speed_cm_per_frame: float = 4.0,
+                   swing_height: float = 8.0, fps: float = 30.0) -> tuple[Motion, dict]:
+    """A walk with planted heel strikes, double support and leg passing. Returns (motion, truth)
+    with ``down_l``, ``down_r`` (F,) bool, ``strikes_l``, ``strikes_r`` and ``passing`` (frames)."""
+    n = round(periods * period)
+    t = np.arange(n, dtype=np.float64)
+    rot, tr = _blank(n)
+    v = speed_cm_per_frame
+    hips = np.stack([np.zeros(n), np.full(n, 90.0), v * t], 1)
+    tr[:, 1] = hips
+    stance = round(duty * period)              # last stance frame of a cycle
+    truth, z = {}, {}
+    for side, off, leg, foot in (("l", 0.0, 14, 16), ("r", period / 2, 18, 20)):
+        k = np.floor((t - off) / period)
+        strike = k * period + off                  # the last heel strike of this foot
+        idx = t - strike                           # frames since it
+        s = np.clip((idx - stance) / (period - stance), 0.0, 1.0)   # swing progress
+        land = v * strike + 0.5 * v * stance       # the foot lands half a stance ahead of the hips
+        z[side] = land + _smooth(s) * v * period
+        y = swing_height * np.sin(np.pi * s)
+        world = np.stack([np.full(n, OFFSETS[leg, 0]), 7.0 + y, z[side]], 1)
+        tr[:, foot] = world - hips - OFFSETS[leg] - OFFSETS[leg + 1]
+        down = idx <= stance
+        truth[f"down_{side}"] = down
+        truth[f"strikes_{side}"] = tuple(int(i) for i in np.flatnonzero(down[1:] & ~down[:-1]) + 1)
+    ahead = z["l"] > z["r"]
+    truth["passing"] = tuple(int(i) for i in np.flatnonzero(ahead[1:] != ahead[:-1]) + 1)
+    return Motion(skeleton(), rot, tr, fps, "synthetic_walk"), truth
+
+
 def _smooth(x):
-    x = np.clip(x, 0.0, 1.0)
-    return x * x * (3 - 2 * x)
+    return smoothstep(np.clip(x, 0.0, 1.0))
 
 
 def synthetic_gesture(n: int = 70, rise=(10, 25), fall=(40, 55), amp_deg: float = 90.0, sides: str = "r",

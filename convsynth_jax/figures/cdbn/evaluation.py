@@ -1,25 +1,17 @@
-"""Figures of the CDBN evaluation (OO matplotlib, no global backend): Fig. 6 (state ellipses after
-random vs LBG initialization), Fig. 9 (validation CCA_m and LLR versus the number of states) and an
-example of synthesized head trajectories with the constraint shaded."""
+"""Figures of the CDBN evaluation (Sadoughi & Busso; OO matplotlib, no global backend): Fig. 6
+(state ellipses after random vs LBG initialization), Fig. 9 (validation CCA_m and LLR versus the
+number of states) and an example of synthesized head trajectories with the constraint shaded. Each
+returns the Figure; ``task=cdbn_eval`` writes it with ``figures.save_figure``."""
 from __future__ import annotations
-
-from pathlib import Path
 
 import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.patches import Ellipse
 
-from ..utils import atomic_path
 
-
-def _save(fig: Figure, path: Path) -> Path:
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=110, format="png")
-    return Path(path)
-
-
-def figure6(data: np.ndarray, comparison: dict, path: Path, dims=(0, 1), labels=("pitch (z)", "yaw (z)")) -> Path:
-    """data: (N, d_m) original motion (z-units); comparison: init_comparison output."""
+def init_ellipses_figure(data: np.ndarray, comparison: dict, dims=(0, 1), labels=("pitch (z)", "yaw (z)")) -> Figure:
+    """The paper's Fig. 6: the motion-stream state ellipses after random and after LBG initialization
+    over the data. data: (N, d_m) original motion (z-units); comparison: init_comparison output."""
     fig = Figure(figsize=(9, 4.2))
     for ax_i, init in enumerate(("random", "lbg")):
         ax = fig.add_subplot(1, 2, ax_i + 1)
@@ -36,10 +28,12 @@ def figure6(data: np.ndarray, comparison: dict, path: Path, dims=(0, 1), labels=
         ax.set_xlabel(labels[0])
         ax.set_ylabel(labels[1])
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
-def figure9(curves: dict, path: Path) -> Path:
+def states_curve_figure(curves: dict) -> Figure:
+    """The paper's Fig. 9: validation CCA_m and LLR versus the number of states, per model kind.
+    curves: kind -> {number of states: {"cca_m", "llr"}}."""
     fig = Figure(figsize=(9, 3.6))
     for i, kind in enumerate(sorted(curves)):
         ax = fig.add_subplot(1, len(curves), i + 1)
@@ -52,11 +46,13 @@ def figure9(curves: dict, path: Path) -> Path:
         ax2.set_ylabel("LLR", color="C1")
         ax.set_title(kind)
     fig.tight_layout()
-    return _save(fig, path)
+    return fig
 
 
-def trajectories(fps: float, original: np.ndarray, synthesized: dict, constraints: np.ndarray, names: tuple,
-                 path: Path) -> Path:
+def trajectories_figure(fps: float, original: np.ndarray, synthesized: dict, constraints: np.ndarray,
+                        names: tuple) -> Figure:
+    """Head pitch, yaw and roll (degrees) of one turn: the original and each synthesized trajectory
+    (name -> (T, 3)), with the frames of each constraint (codes >= 1 of ``names``) shaded."""
     fig = Figure(figsize=(10, 5))
     t = np.arange(len(original)) / fps
     for i, lab in enumerate(("pitch", "yaw", "roll")):
@@ -73,4 +69,4 @@ def trajectories(fps: float, original: np.ndarray, synthesized: dict, constraint
     fig.axes[0].legend(loc="upper right", fontsize=7, ncol=5)
     fig.axes[-1].set_xlabel("time (s)")
     fig.tight_layout()
-    return _save(fig, path)
+    return fig

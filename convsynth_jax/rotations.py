@@ -236,6 +236,14 @@ def yaw_to_quat_np(angle) -> np.ndarray:
     return np.stack([np.cos(a), z, np.sin(a), z], axis=-1)
 
 
+def joint_turn_deg_np(q) -> np.ndarray:
+    """(n - 1,) the largest turn (degrees) of any joint below the root from frame g to g + 1, for
+    rotations q: (n, J, 4) of one clip (a marker-swap glitch turns a joint 16-180 degrees in one frame)."""
+    q = np.asarray(q, np.float64)[:, 1:]
+    dots = np.clip(np.abs(np.sum(q[1:] * q[:-1], axis=-1)), 0.0, 1.0)
+    return np.rad2deg(2.0 * np.arccos(dots)).max(axis=-1, initial=0.0)
+
+
 def rotate_about_y_np(v, angle) -> np.ndarray:
     """Rotate (..., 3) vectors by (...) radians about +Y (right-handed)."""
     v = np.asarray(v, dtype=np.float64)

@@ -237,3 +237,58 @@ def test_real_speech_clauses_have_paper_like_sizes(speech_dir, name):
     # guarded peaks stay within an octave of the speaker's median
     f0 = seg["f0_peak"].dropna()
     assert (f0 <= 2.0 * f0.median()).all() and (f0 >= 0.5 * f0.median()).all()
+
+
+# ------------------------------------------- octave errors longer than the running median (issue 31)
+def _real_track(speech_dir, name):
+    from convsynth_jax.annotate.audio import f0_track
+    from convsynth_jax.io import load_audio, load_transcript
+
+    audio = load_audio(speech_dir / f"{name}.wav")
+    times, f0 = f0_track(audio, AnnotateParams())
+    return audio, load_transcript(speech_dir / f"{name}.TextGrid"), times, f0
+
+
+def test_planted_sustained_octave_jump_in_real_speech_is_caught(speech_dir, monkeypatch):
+    """A real voice (acoustic_corpus: median about 99 Hz, 95th percentile about 151 Hz) whose track
+    doubles over the word "there's" (3.74-3.93 s, 91-100 Hz -> 182-200 Hz: near twice the median,
+    above the speaker's range, too long for the running median): the clause's peak stays in the
+    speaker's range and the clause is flagged. Before the speaker-range rule its peak was 198 Hz,
+    on the doubled stretch, unflagged."""
+    import convsynth_jax.annotate.audio as audio_mod
+
+    audio, words, times, f0 = _real_track(speech_dir, "acoustic_corpus")
+    planted = f0.copy()
+    jump = (times >= 3.735) & (times <= 3.935) & np.isfinite(f0)
+    assert jump.sum() >= 14 and np.nanmax(f0[jump]) <= 101.0
+    planted[jump] *= 2.0
+    monkeypatch.setattr(audio_mod, "f0_track", lambda a, p: (times, planted.copy()))
+    seg = annotate_audio(words, audio, AnnotateParams())
+    hit = seg[(seg["kind"] == "PC") & (seg["start"] <= 3.8) & (seg["end"] >= 3.8)]
+    assert len(hit) == 1
+    assert hit["f0_peak"].iloc[0] < 1.6 * np.nanmedian(f0)        # not the planted 182-200 Hz
+    assert not (3.73 <= hit["peak"].iloc[0] <= 3.94)
+    assert bool(hit["f0_suspect"].iloc[0])
+
+
+def test_speaker_range_rule_catches_the_real_doubled_stretch_of_cold_corpus(speech_dir):
+    """cold_corpus (median about 65 Hz, 95th percentile about 81 Hz) has a real doubled stretch: the
+    tracker gives 124-129 Hz at 5.91-6.14 s between frames at 61 Hz. Its clause is flagged and its
+    peak lies in the speaker's range."""
+    audio, words, times, f0 = _real_track(speech_dir, "cold_corpus")
+    stretch = (times >= 5.9) & (times <= 6.15) & np.isfinite(f0)
+    assert np.nanmin(f0[stretch]) > 1.8 * np.nanmedian(f0)               # the data is as described
+    seg = annotate_audio(words, audio, AnnotateParams())
+    hit = seg[(seg["kind"] == "PC") & (seg["start"] <= 6.0) & (seg["end"] >= 6.0)]
+    assert len(hit) == 1 and bool(hit["f0_suspect"].iloc[0])
+    assert hit["f0_peak"].iloc[0] < np.nanpercentile(f0, 95)
+
+
+def test_speaker_range_rule_drops_nothing_in_clean_real_speech(speech_dir):
+    """No false alarm: on acoustic_corpus (no sustained octave error) the rule drops no frame that
+    the other rules keep, so the guarded contour is the same with the rule switched off."""
+    _, _, times, f0 = _real_track(speech_dir, "acoustic_corpus")
+    on = guard_f0(times, f0, AnnotateParams())
+    off = guard_f0(times, f0, AnnotateParams(f0_near_octave_semitones=99.0))
+    np.testing.assert_array_equal(on.dropped, off.dropped)
+    np.testing.assert_array_equal(np.isnan(on.f0), np.isnan(off.f0))

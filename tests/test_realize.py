@@ -222,3 +222,53 @@ def test_a_fast_clip_visited_for_one_frame_does_not_play_through_the_next_blend(
         dev = _angle(m.rotations[u, 1:], plain).max()
         assert dev <= bound, (u, np.rad2deg(dev), np.rad2deg(bound))
     np.testing.assert_allclose(np.abs(np.sum(m.rotations[21 + n:, 1:] * c_rot, -1)), 1.0, atol=1e-9)
+
+
+def _with_glitch(m, joint: str, frames, degrees: float):
+    """A copy of clip ``m`` with a marker-swap glitch: ``joint`` turned ``degrees`` about Z on ``frames``."""
+    rot = np.array(m.rotations, copy=True)
+    j = m.skeleton.names.index(joint)
+    kick = Rotation.from_euler("Z", degrees, degrees=True)
+    for f in frames:
+        rot[f, j] = (kick * Rotation.from_quat(rot[f, j][[1, 2, 3, 0]])).as_quat()[[3, 0, 1, 2]]
+    return Motion(m.skeleton, rot, np.array(m.translations), m.fps, m.name)
+
+
+@pytest.mark.parametrize("nested", [False, True])
+def test_a_blend_never_fades_in_a_glitch_of_its_continuation(nested):
+    """Issue 31: a clip continued by a blend has a marker-swap glitch (29 degrees on the right arm for
+    2 frames) right after the frames the path displays. ``nested``: the clip is an interrupted layer
+    (a -> b at 20, b -> c at 28, b's glitch at its frames 12-13, played at b's frozen weight 0.68:
+    what the nested blend did on leave-one-out); else the old stream of a single transition (a -> c at 20, a's glitch at 22-23).
+    With the hold (synth.continuation_max_step_deg) the display equals that of the clean clip held
+    at the frame before the glitch; without it the right arm jumps by a large part of 29 degrees."""
+    skel = seated_skeleton()
+    n = 12
+    clean = {"a": _still_clip(skel, "a", (0, 0, 0), 90.0, 0.0), "b": _still_clip(skel, "b", (0, 0, 15), 90.0, 0.0),
+             "c": _still_clip(skel, "c", (0, 0, 30), 90.0, 0.0)}
+    if nested:   # b shown for 8 frames (weight 0.68 when interrupted), then continued from its frame 11
+        clips, frames = ["a"] * 20 + ["b"] * 8 + ["c"] * 20, list(range(20)) + list(range(4, 12)) + list(range(20))
+        syn, bad = [20, 28], ("b", [12, 13])
+    else:
+        clips, frames = ["a"] * 20 + ["c"] * 20, list(range(20)) + list(range(20))
+        syn, bad = [20], ("a", [22, 23])
+    glitched = dict(clean, **{bad[0]: _with_glitch(clean[bad[0]], "RightArm", bad[1], 29.0)})
+    ref = realize(clips, frames, clean, syn, blend_frames=n)
+    arm = skel.names.index("RightArm")
+    off = realize(clips, frames, glitched, syn, blend_frames=n)
+    assert np.rad2deg(_angle(off.rotations[:, arm], ref.rotations[:, arm]).max()) > 5.0   # the defect, unheld
+    held = realize(clips, frames, glitched, syn, blend_frames=n, max_step_deg=15.0)
+    # still clips: holding the clean clip changes nothing, so the held display is the clean one
+    np.testing.assert_allclose(np.abs(np.sum(held.rotations * ref.rotations, -1)), 1.0, atol=1e-9)
+
+
+def test_continuation_end_stops_before_the_first_large_step():
+    from convsynth_jax.synth.realize import continuation_end
+
+    skel = seated_skeleton()
+    m = _with_glitch(_spinning_clip(skel, "s", 5.0, n=30), "RightArm", [12, 13], 29.0)
+    assert continuation_end(m.rotations, 3, 15.0, 100) == 11       # 11 -> 12 turns 29 + 5 degrees
+    assert continuation_end(m.rotations, 3, 0.0, 100) == 29         # off: the clip's last frame
+    assert continuation_end(m.rotations, 3, 15.0, 5) == 8           # within the horizon
+    assert continuation_end(m.rotations, 14, 15.0, 100) == 29       # after the glitch
+    assert continuation_end(m.rotations, 12, 15.0, 100) == 13       # inside the glitch: stops before it ends

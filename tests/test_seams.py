@@ -109,9 +109,12 @@ def test_planted_finger_stroke_at_a_transition(planted):
     (the same sway with one 15-degree wrist beat): a seam_ratio > 1. With the seam filter no transition starts or lands within its radius of the
     flick, every remaining transition's seam is <= 1, and the graph keeps most of its states."""
     motions, db = planted
-    base = GraphParams(key_fraction=1.0, use_audio_keys=False)
+    # the flick turns the wrist 25 degrees a frame: the glitch filter (on by default) would drop its
+    # transitions too, so both graphs here have it off to show the seam filter alone
+    base = GraphParams(key_fraction=1.0, use_audio_keys=False, glitch_max_step_deg=0.0)
     old = build_graph(db, base)
-    new = build_graph(db, GraphParams(key_fraction=1.0, use_audio_keys=False, seam_filter_quantile=0.95))
+    new = build_graph(db, GraphParams(key_fraction=1.0, use_audio_keys=False, seam_filter_quantile=0.95,
+                                      glitch_max_step_deg=0.0))
 
     def near_flick(e):  # within 3 frames of the flick's frames FLICK .. FLICK + 3
         return any(c == "b" and FLICK - 3 <= f <= FLICK + 6 for c, f in ((e[0], e[1]), (e[2], e[3])))
@@ -175,3 +178,67 @@ def test_bad_seam_options_are_config_errors_naming_the_key(override, key):
 
     with pytest.raises(ConfigError, match=key):
         default_params([override])
+
+
+def _with_glitch(m, joint: str, frames, degrees: float):
+    rot = np.array(m.rotations, copy=True)
+    j = m.skeleton.names.index(joint)
+    kick = Rotation.from_euler("Z", degrees, degrees=True)
+    for f in frames:
+        rot[f, j] = (kick * Rotation.from_quat(rot[f, j][[1, 2, 3, 0]])).as_quat()[[3, 0, 1, 2]]
+    return Motion(m.skeleton, rot, np.array(m.translations), m.fps, m.name)
+
+
+def test_glitch_filter_drops_transitions_next_to_a_planted_marker_swap():
+    """Issue 31: clip b has a 29-degree right-arm glitch at frames 40-41 (steps into 40 and into 42).
+    Synthetic transitions whose source or destination lies within 4 frames of those steps' frames
+    (35..46 of b) are dropped, the others kept; the joint turn the database stores is the slow one."""
+    from convsynth_jax.graph.seams import apply_glitch_filter, glitch_filter_mask
+
+    skel = seated_skeleton()
+    motions = {"a": _clip(skel, "a", 0.0), "b": _with_glitch(_clip(skel, "b", 2.0), "RightArm", [40, 41], 29.0)}
+    db = build_database([(k, m, None, None) for k, m in motions.items()])
+    # the stored turn against a loop over frames and joints
+    slow = np.zeros(db.num_frames)
+    for n in range(db.num_frames):
+        if db.frame[n] == 0:
+            continue
+        for b in range(1, skel.num_joints):
+            d = abs(float(np.dot(db_rot(motions, db, n, b), db_rot(motions, db, n - 1, b))))
+            slow[n] = max(slow[n], np.rad2deg(2 * np.arccos(min(1.0, d))))
+    np.testing.assert_allclose(db.joint_turn, slow, atol=1e-3)
+    assert db.joint_turn[N + 40] > 25 and db.joint_turn[N + 42] > 25 and db.joint_turn[:N].max() < 5
+    a = np.array([10, N + 34, N + 35, N + 46, N + 47, 20])
+    j = np.array([N + 10, 5, 5, 5, 5, N + 36])
+    np.testing.assert_array_equal(glitch_filter_mask(db, a, j, 15.0, 4), [True, True, False, False, True, False])
+    c = np.arange(a.size, dtype=np.float32)
+    kept = apply_glitch_filter(db, a, j, c, GraphParams(), meta=(meta := {}))
+    np.testing.assert_array_equal(kept[2], [0, 1, 4])
+    assert meta["glitch_filter"]["dropped"] == 3
+    off = apply_glitch_filter(db, a, j, c, GraphParams(glitch_max_step_deg=0.0))
+    np.testing.assert_array_equal(off[2], c)
+
+
+def db_rot(motions, db, n, b):
+    return np.asarray(motions[db.clip_names[db.clip[n]]].rotations[db.frame[n], b], np.float64)
+
+
+def test_glitch_filter_leaves_no_synthetic_transition_next_to_the_glitch_in_a_built_graph():
+    """Built graphs: without the filter some synthetic transitions leave or enter clip b within 4 frames
+    of its glitch's steps (frames 35..46); with it (the default) none does."""
+    skel = seated_skeleton()
+    motions = {"a": _clip(skel, "a", 0.0), "b": _with_glitch(_clip(skel, "b", 2.0), "RightArm", [40, 41], 29.0),
+               "c": _clip(skel, "c", 4.0)}
+    db = build_database([(k, m, None, None) for k, m in motions.items()])
+
+    def touching(**p):
+        g = build_graph(db, GraphParams(seed=0, **p))
+        near = (np.asarray(g.clip_names)[g.clip] == "b") & (g.frame >= 35) & (g.frame <= 46)
+        n = 0
+        for s in range(g.num_states):
+            tg, _, sy = g.out_edges(s)
+            n += int(sum(bool(near[s] or near[t]) for t, y in zip(tg, sy) if y))
+        return n
+
+    assert touching(glitch_max_step_deg=0.0) > 0
+    assert touching() == 0

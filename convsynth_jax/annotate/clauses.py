@@ -31,6 +31,10 @@ F0 octave guard (``guard_f0``): pitch trackers halve or double F0 for a few fram
 harmonics), which made segment peaks of 300-350 Hz for a speaker with a 176 Hz median. Frames more
 than ``f0_guard_octaves`` from the speaker's median over the whole recording, or more than
 ``f0_jump_semitones`` from the running median of the contour (``f0_median_window`` s), are dropped;
+so are frames at least ``f0_near_octave_semitones`` (10) from the median that lie outside the
+speaker's own range (its 5th to 95th percentile, ``f0_range_quantile``): a doubled stretch longer
+than the running median's window (a male speaker with a 165 Hz median and a 224 Hz 95th
+percentile got a 323 Hz clause peak without this rule);
 peaks are picked on the remaining contour after a ``f0_smooth_frames`` median filter. Praat's own
 octave-jump cost (``f0_octave_jump_cost``) already penalizes such jumps inside the tracker.
 """
@@ -82,8 +86,9 @@ class GuardedF0:
 
 
 def guard_f0(times: np.ndarray, f0: np.ndarray, params: AnnotateParams) -> GuardedF0:
-    """Drop octave jumps from an F0 track (module docstring): frames outside the speaker's range
-    (median +- ``f0_guard_octaves``) or off the running median by more than ``f0_jump_semitones``."""
+    """Drop octave jumps from an F0 track (module docstring): frames outside median +-
+    ``f0_guard_octaves``, frames near an octave off the median and outside the speaker's own range,
+    and frames off the running median by more than ``f0_jump_semitones``."""
     raw = np.asarray(f0, np.float64)
     voiced = np.isfinite(raw) & (raw > 0)
     if voiced.sum() < 3:
@@ -92,6 +97,10 @@ def guard_f0(times: np.ndarray, f0: np.ndarray, params: AnnotateParams) -> Guard
     med = float(np.median(raw[voiced]))
     st = np.where(voiced, 12.0 * np.log2(np.where(voiced, raw, 1.0) / med), np.nan)
     keep = voiced & (np.abs(st) <= 12.0 * params.f0_guard_octaves)
+    # near an octave off the median and outside the speaker's own range: a doubled (halved) stretch
+    q = float(params.f0_range_quantile)
+    lo, hi = np.quantile(raw[voiced], [q, 1.0 - q])
+    keep &= ~((np.abs(st) >= params.f0_near_octave_semitones) & ((raw > hi) | (raw < lo)))
     dt = float(np.median(np.diff(times))) if times.size > 1 else 0.01
     width = max(1, int(round(params.f0_median_window / dt))) | 1
     local = _nan_median_filter(np.where(keep, st, np.nan), width)

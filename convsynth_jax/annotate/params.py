@@ -55,6 +55,11 @@ class AnnotateParams:
     f0_octave_jump_cost: float = 0.5
     f0_guard_octaves: float = 1.0
     f0_jump_semitones: float = 9.0
+    # a frame at least this far from the speaker's median (semitones) and outside the speaker's own
+    # range (the f0_range_quantile .. 1 - f0_range_quantile quantiles of the voiced frames) is an
+    # octave error: a doubled or halved stretch too long for the running median to catch (issue 31)
+    f0_near_octave_semitones: float = 10.0
+    f0_range_quantile: float = 0.05
     f0_median_window: float = 0.25             # s
     f0_smooth_frames: int = 5
     # Motion segmentation: Eq. 1 (clip idle threshold) and Eq. 2 (window threshold)

@@ -34,7 +34,7 @@ from .cost import candidate_edges, scaled_features
 from .database import MotionDatabase, build_database
 from .keystates import key_states
 from .params import FeatureParams, GraphParams
-from .seams import apply_seam_filter
+from .seams import apply_glitch_filter, apply_seam_filter
 from .types import MotionGraph
 
 log = logging.getLogger(__name__)
@@ -234,6 +234,7 @@ def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: 
     kstats: dict = {}
     a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats, features=X)
     a, j, c = apply_seam_filter(db, a, j, c, p, meta=kstats)  # ours, off by default (graph/seams.py)
+    a, j, c = apply_glitch_filter(db, a, j, c, p, meta=kstats)  # ours, on by default (graph/seams.py)
     tm["edges_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     meta = {

@@ -11,6 +11,7 @@ import numpy as np
 from ..annotate.types import FrameAudio
 from ..errors import GraphError, MissingFileError
 from ..kinematics import batched_pose_features
+from ..rotations import joint_turn_deg_np
 from .params import FeatureParams
 
 log = logging.getLogger(__name__)
@@ -35,6 +36,9 @@ class MotionDatabase:
     partner: FrameAudio
     joint_names: tuple = ()
     meta: dict = field(default_factory=dict)
+    # (N,) the largest turn (degrees) of any joint from the clip's previous frame (0 at a clip's first
+    # frame; rotations.joint_turn_deg_np): what the glitch filter reads (graph/seams.py); None: unknown
+    joint_turn: np.ndarray | None = None
 
     @property
     def num_frames(self) -> int:
@@ -80,12 +84,14 @@ def build_database(clips, features: FeatureParams | None = None) -> MotionDataba
     fa = lambda fs: FrameAudio(cat(fs, "label"), cat(fs, "seg_start"), cat(fs, "seg_end"), cat(fs, "seg_peak"))  # noqa: E731
     lengths = [len(c) for c in CL]
     P, V = batched_pose_features(motions, up, remove_yaw)
+    turn = np.concatenate([np.concatenate([[0.0], joint_turn_deg_np(m.rotations)]) for m in motions])
     return MotionDatabase(tuple(names), float(fps), P, V, weights,
                           np.concatenate(CL), np.concatenate(FR), np.concatenate([[0], np.cumsum(lengths)]),
                           fa(own), fa(partner), tuple(skel.names),
                           {"remove_yaw": remove_yaw, "up_axis": up,
                            "root_relative": "positions minus root position, rotated by the inverse root heading"
-                                            if remove_yaw else "positions minus root position"})
+                                            if remove_yaw else "positions minus root position"},
+                          joint_turn=turn.astype(np.float32))
 
 
 def bvh_folder_clips(root, pattern: str = "**/*.bvh", fps: float = 30):

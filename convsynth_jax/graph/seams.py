@@ -1,4 +1,5 @@
-"""Seam edge filter (ours, issue #15 part 2; option ``graph.seam_filter_quantile``, off by default).
+"""Seam edge filter (ours, issue #15 part 2; option ``graph.seam_filter_quantile``, off by default) and
+glitch filter (ours, issue 31; ``graph.glitch_max_step_deg``, on by default: :func:`apply_glitch_filter`).
 
 The paper (Section 6) admits every synthetic transition whose cost c(i, j) is below the threshold.
 The cost compares poses and velocities (Eq. 3-4) with finger joints weighted 0, so nothing stops a
@@ -80,4 +81,33 @@ def apply_seam_filter(db: MotionDatabase, a, j, c, params, meta: dict | None = N
         meta["seam_filter"] = {"quantile": float(q), "radius": int(params.seam_filter_radius),
                                "acceleration_limit": limit, "candidates": int(keep.size),
                                "dropped": int((~keep).sum())}
+    return a[keep], j[keep], c[keep]
+
+
+def glitch_filter_mask(db: MotionDatabase, a: np.ndarray, j: np.ndarray, max_step_deg: float,
+                       radius: int) -> np.ndarray:
+    """Which synthetic transitions a -> j (database frame indices, (E,)) the glitch filter keeps: those
+    with no step of more than ``max_step_deg`` degrees (any joint, ``db.joint_turn``) within ``radius``
+    frames of a or of j in the same clip. A step into frame g marks g - 1 and g."""
+    turn = np.asarray(db.joint_turn, np.float64)
+    step = turn > float(max_step_deg)
+    both = step.copy()
+    clip = np.asarray(db.clip)
+    both[:-1] |= step[1:] & (clip[1:] == clip[:-1])      # the frame before the step
+    bad = near_fast_frames(db, both.astype(np.float64), 0.5, radius)
+    a, j = np.asarray(a, np.int64), np.asarray(j, np.int64)
+    return ~(bad[a] | bad[j])
+
+
+def apply_glitch_filter(db: MotionDatabase, a, j, c, params, meta: dict | None = None):
+    """(a, j, c) without the synthetic transitions next to a glitch (:func:`glitch_filter_mask`; ours, on
+    by default: ``graph.glitch_max_step_deg`` 15, 0 = off). Records the counts in ``meta``
+    (``glitch_filter``)."""
+    limit = float(params.glitch_max_step_deg)
+    if limit <= 0 or db.joint_turn is None:
+        return a, j, c
+    keep = glitch_filter_mask(db, a, j, limit, int(params.seam_filter_radius))
+    if meta is not None:
+        meta["glitch_filter"] = {"max_step_deg": limit, "radius": int(params.seam_filter_radius),
+                                 "candidates": int(keep.size), "dropped": int((~keep).sum())}
     return a[keep], j[keep], c[keep]

@@ -19,7 +19,9 @@ Two matching modes (``search.matching``):
 
 * ``labels`` (ours, relaxed; the rules above): one input clause may be stitched from several
   source clauses, the peak rule only asks for some source peak frame within tol, and segments of
-  2 tol or less (no core frames) are unconstrained.
+  2 tol or less (no core frames) are unconstrained. Two segments of one kind that touch (a clause
+  split at a word boundary) get a frame between them where the label is forbidden
+  (:func:`_split_touching`), so one run cannot cover both.
 * ``paper`` (default; Section 7.2 as the paper states it): each input segment (own PC, own LR,
   partner HP) is matched by ONE source segment of the same kind, played whole, whose start, F0
   peak (PC) and end, placed on the output timeline, lie within tol of the input's. Short segments
@@ -64,6 +66,7 @@ rule from the path's source frames and the database segments, without this encod
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import NamedTuple
 
 import numpy as np
 import pandas as pd
@@ -75,6 +78,20 @@ from .params import SearchParams
 FREE = -1
 NO_PEAK = -(1 << 20)   # PaperArrays.own_peak where the input segment has no F0 peak
 MATCHING_MODES = ("paper", "labels")
+
+
+class EntryWindows(NamedTuple):
+    """One channel's entry windows of ``search.matching=paper`` at each frame (T,) (or one frame's
+    values): :class:`PaperArrays` and the kernels' padded inputs."""
+    kind: object        # label code of the window covering the frame, FREE for none
+    start: object       # the window's input segment (frames on the output timeline)
+    end: object
+    peak: object        # NO_PEAK for none
+    free: object        # bool: entries of any kind allowed
+    reset: object       # bool: a window opens (its flag is cleared)
+    check: object       # bool: a window closes (its flag must be set)
+    end_tol: object     # int32: the end tolerance (tol, + the retiming slack)
+    peak_tol: object    # int32: the peak tolerance
 
 
 @dataclass
@@ -107,16 +124,17 @@ class PaperArrays:
 
     par_tol: int = 0           # the partner windows' end tolerance (tol)
 
-    def own(self):
-        """(kind, start, end, peak, free, reset, check, end tolerance, peak tolerance), each (T,)."""
-        return (self.own_kind, self.own_start, self.own_end, self.own_peak, self.own_free, self.own_reset,
-                self.own_check, self.own_end_tol, self.own_peak_tol)
+    def own(self) -> EntryWindows:
+        """The own channel's windows, each (T,)."""
+        return EntryWindows(self.own_kind, self.own_start, self.own_end, self.own_peak, self.own_free,
+                            self.own_reset, self.own_check, self.own_end_tol, self.own_peak_tol)
 
-    def partner(self):
+    def partner(self) -> EntryWindows:
+        """The partner channel's windows, each (T,) (no peak; both tolerances tol)."""
         nopk = np.full_like(self.par_start, NO_PEAK)
         tol = np.full_like(self.par_start, self.par_tol)
-        return (self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset, self.par_check,
-                tol, tol)
+        return EntryWindows(self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset,
+                            self.par_check, tol, tol)
 
 
 @dataclass
@@ -214,6 +232,8 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
             par[a:b] = HP
             segs.append({"kind": "PH", "channel": "partner", "start": s, "end": e, "peak": None})
             forbid_outside(par_not, HP, s, e)
+    _split_touching(own_not, own, [x for x in segs if x["channel"] == "own"], tol)
+    _split_touching(par_not, par, [x for x in segs if x["channel"] == "partner"], tol)
     idle_runs = _runs(own == IDLE)
     for a, b in idle_runs:
         if ("idle", a, b) in relaxed:
@@ -223,6 +243,26 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
     own_not[own != FREE] = FREE  # a hard requirement on a frame wins over a forbidden label
     par_not[par != FREE] = FREE
     return Constraints(T, fps, tol, own, par, pw, reset, check, segs, own_not, par_not)
+
+
+def _split_touching(forbid: np.ndarray, req: np.ndarray, segs: list, tol: int) -> None:
+    """``labels``: two constrained segments of one kind and channel that touch or overlap ([s1, e1),
+    [s2, e2) with s2 <= e1: clauses split at a word boundary) share their margins, so one run of the
+    label could cover both, and neither run would start and end near its segment (issue 31: the
+    search claimed such windows, the checker rejected them). The label is forbidden at one frame
+    m = (e1 + s2) // 2 between them, so the first run ends within tol of e1 and the second starts
+    within tol of s2 (ours: sound, not complete; a break elsewhere in the margins would do too).
+    Segments whose cores overlap (m outside [e1 - tol, s2 + tol - 1]) cannot both be met by label
+    runs; they are left as they are."""
+    code = {"PC": PC, "LR": LR, "PH": HP}
+    items = sorted(segs, key=lambda x: (x["start"], x["end"]))
+    T = forbid.shape[0]
+    for x, y in zip(items[:-1], items[1:]):
+        if x["kind"] != y["kind"] or y["start"] > x["end"]:
+            continue
+        m = (x["end"] + y["start"]) // 2
+        if x["end"] - tol <= m <= y["start"] + tol - 1 and 0 <= m < T and req[m] == FREE:
+            forbid[m] = code[x["kind"]]
 
 
 def _slack(retime: float, s: int, x: int, tol: int, T: int) -> int:

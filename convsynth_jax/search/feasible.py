@@ -37,7 +37,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import kernel_cache
-from .constraints import Constraints, label_ok, paper_channel_step
+from .constraints import Constraints, EntryWindows, label_ok, paper_channel_step
 from .rules import start_rule, unpack_code
 
 
@@ -222,10 +222,10 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         lab = labs[t]                                                      # (S,)
         A = jnp.zeros(S, u8)
         if paper:
-            oa, pa = tuple(a[t] for a in own_a), tuple(a[t] for a in par_a)
-            fo = (fl & 1).astype(bool) & ~oa[5]                          # flags after the frame's resets
-            fp = (fl >> 1).astype(bool) & ~pa[5]
-            ok = (~oa[6] | fo) & (~pa[6] | fp)                            # (F,): the flag checks
+            oa, pa = EntryWindows(*(a[t] for a in own_a)), EntryWindows(*(a[t] for a in par_a))
+            fo = (fl & 1).astype(bool) & ~oa.reset                       # flags after the frame's resets
+            fp = (fl >> 1).astype(bool) & ~pa.reset
+            ok = (~oa.check | fo) & (~pa.check | fp)                      # (F,): the flag checks
             f1 = fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
             for f in range(F):
                 A |= (ok[f] & (((G_next >> f1[f].astype(u8)) & 1) == 1)).astype(u8) << f
@@ -263,13 +263,13 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
 
 def feasibility(prep, constraints: Constraints, padded_inputs):
     """((Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring), solvable
-    (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs`` = (reqs, pw, reset,
-    check, paper_arrs), padded to Tp frames exactly as the beam kernel gets them."""
+    (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs``: the window's
+    ``beam_kernel.WindowInputs`` (reqs, pw, reset, check, paper), padded to Tp frames exactly as the beam
+    kernel gets them."""
     c = constraints
-    reqs, pw, reset, check, paper_arrs = padded_inputs
     edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
     return kernel_cache.call(_feasible_kernel, "feasible",
-                             (edges, prep.device[4], prep.paper_device[1], reqs, pw, reset, check, paper_arrs,
+                             (edges, prep.device.state_code, prep.paper_device.segment_info, *padded_inputs,
                               np.int32(c.num_frames), np.int32(prep.num_states)),
                              {"F": num_flags(c), "paper": c.paper is not None})
 

@@ -218,7 +218,8 @@ def realize_chain(graph, motions: dict, path: np.ndarray, cuts, synth, chair, ch
         syn_all += at
         parts.append(realize(clips[a:b], frames[a:b], motions, [t - a for t in at], chair=chair,
                              chair_yaw_deg=chair_yaw_deg, blend_frames=int(synth.blend_frames),
-                             blend_method=str(synth.blend_method)))
+                             blend_method=str(synth.blend_method),
+                             max_step_deg=float(synth.continuation_max_step_deg)))
     motion = parts[0]
     if len(parts) > 1:
         from ..skeleton import Motion

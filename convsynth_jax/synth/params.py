@@ -14,3 +14,9 @@ class SynthParams:
     # (ours: the offset between the displayed stream and the new source, in value and velocity,
     # decayed to zero by a quintic over blend_frames frames; realize.inertialized_blend)
     blend_method: str = "cosine"
+    # a blend's old stream (the previous clip's continuation, and an interrupted layer's) holds at the
+    # last frame before a step in which some joint turns more than this many degrees (ours, issue 31):
+    # a marker-swap glitch of the source is never faded in through a blend. Clean motion of the
+    # synthetic corpus turns at most 11.8 degrees a frame in 99.9% of its steps, its glitches enter
+    # with 16-180 degrees. 0: off (the continuation plays whatever its clip has)
+    continuation_max_step_deg: float = 15.0

@@ -88,7 +88,8 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     syn_at = res.synthetic_at or []
     chair, yaw = CHAIRS.get(chair_index, CHAIRS[0])
     motion = realize(clips, frames, clip_motions, syn_at, chair=chair, chair_yaw_deg=yaw,
-                     blend_frames=int(synth.blend_frames), blend_method=str(synth.blend_method))
+                     blend_frames=int(synth.blend_frames), blend_method=str(synth.blend_method),
+                     max_step_deg=float(synth.continuation_max_step_deg))
     warp = retime_knots(graph, cons, path, float(search.retime_factor)) if float(search.retime_factor) > 0 else None
     if warp is not None:
         motion = warp_motion(motion, *warp)

@@ -8,6 +8,9 @@
   along their clips (``composed_blend``), so nothing pops back to a raw source pose and a clip
   visited for a frame or two is not played at full weight through the next blend. After a single
   transition this is the plain cross-fade of the previous clip's continuation.
+* A continuation holds at the last frame before a step of its clip in which some joint turns more
+  than ``max_step_deg`` degrees (ours: a marker-swap glitch of the source is never faded in through
+  a blend; :func:`continuation_end`).
 * The root's ground-plane velocity and yaw rate are taken from each source frame in its own heading
   frame and integrated from a chair placement (position and heading); its height and its tilt
   (rotation without heading) come from the source frame and are blended across synthetic
@@ -18,8 +21,8 @@ from __future__ import annotations
 import numpy as np
 
 from ..easing import cosine
-from ..rotations import (quat_conjugate_np, quat_multiply_np, quat_slerp_np, rotate_about_y_np, yaw_angle_np,
-                         yaw_to_quat_np)
+from ..rotations import (joint_turn_deg_np, quat_conjugate_np, quat_multiply_np, quat_slerp_np, rotate_about_y_np,
+                         yaw_angle_np, yaw_to_quat_np)
 from ..errors import ConfigError
 from ..skeleton import Motion
 
@@ -50,7 +53,9 @@ def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_f
 
     source: (T, ...) the raw per-output-frame values (quaternions (T, ..., 4) when ``rotations``,
     else additive values); source_at(clip, frame) -> the value of any source frame; prev_of(t) ->
-    (clip, frame, num_frames) of output frame t - 1's source. Returns the displayed values (T, ...)."""
+    (clip, frame, last) of output frame t - 1's source, ``last`` the last frame its continuation may
+    play (the clip's last frame, or the frame before a glitch: :func:`continuation_end`); the
+    continuation holds there. Returns the displayed values (T, ...)."""
     out = np.array(source, dtype=np.float64, copy=True)
     T = out.shape[0]
     syn = sorted({int(x) for x in synthetic_at if 0 < int(x) < T})
@@ -62,8 +67,8 @@ def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_f
     def raw(m, u):
         """Layer m's own source at output frame u, going on along its clip past transition m + 1."""
         if m + 1 < M and u >= syn[m + 1]:
-            clip, f, n = prev[m + 1]
-            return np.asarray(source_at(clip, min(f + 1 + u - syn[m + 1], n - 1)), np.float64)
+            clip, f, last = prev[m + 1]
+            return np.asarray(source_at(clip, max(f, min(f + 1 + u - syn[m + 1], last))), np.float64)
         return np.asarray(source[u], np.float64)
 
     memo: dict = {}
@@ -92,6 +97,19 @@ def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_f
             out[u] = stream(m, u)
         # frames after this blend that a later transition does not take over keep the raw source
     return out
+
+
+def continuation_end(rotations: np.ndarray, frame: int, max_step_deg: float, horizon: int) -> int:
+    """The last frame a continuation of a clip from ``frame`` plays (ours): the frame before the first
+    step g - 1 -> g (frame < g <= frame + horizon) in which some joint below the root turns more than
+    ``max_step_deg`` degrees, else frame + horizon (at most the clip's last frame). rotations: (n, J, 4)
+    the clip's rotations; ``max_step_deg`` <= 0: no limit."""
+    n = rotations.shape[0]
+    stop = min(n - 1, int(frame) + int(horizon))
+    if max_step_deg <= 0 or stop <= frame:
+        return stop
+    big = np.flatnonzero(joint_turn_deg_np(rotations[frame:stop + 1]) > max_step_deg)
+    return int(frame) + int(big[0]) if big.size else stop
 
 
 def _quat_log(q: np.ndarray) -> np.ndarray:
@@ -166,10 +184,11 @@ def inertialized_blend(source: np.ndarray, next_of, synthetic_at, blend_frames: 
 
 
 def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0, 0.0, 0.0), chair_yaw_deg=0.0,
-            blend_frames: int = 6, blend_method: str = "cosine") -> Motion:
+            blend_frames: int = 6, blend_method: str = "cosine", max_step_deg: float = 0.0) -> Motion:
     """source_clips/source_frames: (T,) clip name and frame per output frame; motions: clip name ->
     Motion; synthetic_at: output frames t whose transition (t-1 -> t) is synthetic; blend_method:
-    ``cosine`` (the paper's cross-fade, composed) or ``inertialize`` (ours)."""
+    ``cosine`` (the paper's cross-fade, composed) or ``inertialize`` (ours); ``max_step_deg``: a
+    cosine blend's continuations hold before a larger joint step (:func:`continuation_end`; 0: off)."""
     T = len(source_frames)
     m0 = motions[source_clips[0]]
     skel, fps = m0.skeleton, m0.fps
@@ -177,8 +196,8 @@ def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0
     trans = np.stack([motions[c].translations[f] for c, f in zip(source_clips, source_frames)]).astype(np.float64)
 
     def prev_of(t):
-        c = source_clips[t - 1]
-        return c, int(source_frames[t - 1]), motions[c].num_frames
+        c, f = source_clips[t - 1], int(source_frames[t - 1])
+        return c, f, continuation_end(motions[c].rotations, f, float(max_step_deg), T)
 
     def get_rot(c, f):
         return np.asarray(motions[c].rotations[f, 1:], np.float64)

@@ -109,9 +109,9 @@ def test_planted_finger_stroke_at_a_transition(planted):
     (the same sway with one 15-degree wrist beat): a seam_ratio > 1. With the seam filter no transition starts or lands within its radius of the
     flick, every remaining transition's seam is <= 1, and the graph keeps most of its states."""
     motions, db = planted
-    # the flick turns the wrist 25 degrees a frame: the glitch filter (on by default) would drop its
-    # transitions too, so both graphs here have it off to show the seam filter alone
-    base = GraphParams(key_fraction=1.0, use_audio_keys=False, glitch_max_step_deg=0.0)
+    # the flick turns the wrist 25 degrees a frame: the glitch filter (preset=quality) would drop its
+    # transitions too, so both graphs here leave it off to show the seam filter alone
+    base = GraphParams(key_fraction=1.0, use_audio_keys=False)
     old = build_graph(db, base)
     new = build_graph(db, GraphParams(key_fraction=1.0, use_audio_keys=False, seam_filter_quantile=0.95,
                                       glitch_max_step_deg=0.0))
@@ -212,7 +212,7 @@ def test_glitch_filter_drops_transitions_next_to_a_planted_marker_swap():
     j = np.array([N + 10, 5, 5, 5, 5, N + 36])
     np.testing.assert_array_equal(glitch_filter_mask(db, a, j, 15.0, 4), [True, True, False, False, True, False])
     c = np.arange(a.size, dtype=np.float32)
-    kept = apply_glitch_filter(db, a, j, c, GraphParams(), meta=(meta := {}))
+    kept = apply_glitch_filter(db, a, j, c, GraphParams(glitch_max_step_deg=15.0), meta=(meta := {}))
     np.testing.assert_array_equal(kept[2], [0, 1, 4])
     assert meta["glitch_filter"]["dropped"] == 3
     off = apply_glitch_filter(db, a, j, c, GraphParams(glitch_max_step_deg=0.0))
@@ -225,7 +225,7 @@ def db_rot(motions, db, n, b):
 
 def test_glitch_filter_leaves_no_synthetic_transition_next_to_the_glitch_in_a_built_graph():
     """Built graphs: without the filter some synthetic transitions leave or enter clip b within 4 frames
-    of its glitch's steps (frames 35..46); with it (the default) none does."""
+    of its glitch's steps (frames 35..46); with it (preset=quality's 15 degrees) none does."""
     skel = seated_skeleton()
     motions = {"a": _clip(skel, "a", 0.0), "b": _with_glitch(_clip(skel, "b", 2.0), "RightArm", [40, 41], 29.0),
                "c": _clip(skel, "c", 4.0)}
@@ -241,4 +241,15 @@ def test_glitch_filter_leaves_no_synthetic_transition_next_to_the_glitch_in_a_bu
         return n
 
     assert touching(glitch_max_step_deg=0.0) > 0
-    assert touching() == 0
+    assert touching(glitch_max_step_deg=15.0) == 0
+    assert touching() > 0   # the paper's default: off
+
+
+def test_glitch_options_are_off_in_the_paper_preset_and_on_in_quality():
+    """The glitch filter and the continuation hold are ours: preset=paper (the default) leaves them
+    off, preset=quality turns both on."""
+    from convsynth_jax.config import default_params
+
+    paper, quality = default_params([]), default_params(["preset=quality"])
+    assert paper.graph.glitch_max_step_deg == 0.0 and paper.synth.continuation_max_step_deg == 0.0
+    assert quality.graph.glitch_max_step_deg == 15.0 and quality.synth.continuation_max_step_deg == 15.0

@@ -55,8 +55,8 @@ class GraphParams:
     # glitch filter (ours, graph/seams.py, issue 31; 0 = off): drop synthetic transitions with a step
     # in which some joint turns more than this many degrees (a marker-swap glitch: 16-180 degrees in
     # the synthetic corpus; clean motion at most 11.8 in 99.9% of steps) within seam_filter_radius
-    # frames of their source or destination frame, so no seam shows a glitch
-    glitch_max_step_deg: float = 15.0
+    # frames of their source or destination frame, so no seam shows a glitch; preset=quality sets 15
+    glitch_max_step_deg: float = 0.0
 
     def __post_init__(self):
         q = self.seam_filter_quantile

@@ -18,5 +18,6 @@ class SynthParams:
     # last frame before a step in which some joint turns more than this many degrees (ours, issue 31):
     # a marker-swap glitch of the source is never faded in through a blend. Clean motion of the
     # synthetic corpus turns at most 11.8 degrees a frame in 99.9% of its steps, its glitches enter
-    # with 16-180 degrees. 0: off (the continuation plays whatever its clip has)
-    continuation_max_step_deg: float = 15.0
+    # with 16-180 degrees; preset=quality sets 15. 0 (default, the paper): off (the continuation plays
+    # whatever its clip has)
+    continuation_max_step_deg: float = 0.0

@@ -7,6 +7,7 @@ experiments/results/loo_default/.
 """
 import argparse
 import json
+import os
 import sys
 import time
 from pathlib import Path
@@ -15,6 +16,8 @@ REPO = Path(__file__).resolve().parents[2]
 sys.path.insert(0, str(REPO))
 
 import pandas as pd  # noqa: E402
+
+from convsynth_jax.manifest import run_manifest  # noqa: E402
 
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.collect import write_collected  # noqa: E402
@@ -27,9 +30,11 @@ if __name__ == "__main__":
     ap.add_argument("--folds", type=int, default=None)
     ap.add_argument("--cache", default=str(REPO / "data_cache"))
     ap.add_argument("--out", default=str(REPO / "experiments" / "results" / "loo_default"))
+    ap.add_argument("--partial", default=None, help="CSV rewritten after every fold with the cases so far")
     ap.add_argument("overrides", nargs="*", help="config overrides, e.g. system=random_playback")
     args = ap.parse_args()
     t0 = time.perf_counter()
+    manifest = run_manifest(overrides=args.overrides)  # taken at the start: the commit that ran
     params = default_params([f"cache_dir={args.cache}", "progress=false", *args.overrides])
     system = make_system(params, params.system)
     corpus, ann = annotated_corpus(params)
@@ -45,6 +50,9 @@ if __name__ == "__main__":
             frames.append(run_fold(system, ann, fold, cond, params, cache_dir=cache, models=models,
                                    with_audio=system.needs_audio, thresholds=thresholds))
             print(f"fold {fold} {cond}: {time.perf_counter() - tf:.1f} s", flush=True)
+        if args.partial:  # the cases so far, kept if the run is cut short
+            Path(args.partial).parent.mkdir(parents=True, exist_ok=True)
+            pd.concat(frames, ignore_index=True).to_csv(args.partial, index=False)
     cases = pd.concat(frames, ignore_index=True)
     out = Path(args.out)
     write_collected(cases, out)
@@ -54,4 +62,6 @@ if __name__ == "__main__":
               "total_seconds": total, "corpus_and_annotation_seconds": t_ann,
               "success_rates": rates.to_dict(orient="records"), "goal_seconds": 900}
     (out / "bench_loo.json").write_text(json.dumps(result, indent=2))
+    manifest["load_avg_1_5_15_at_end"] = list(os.getloadavg())
+    (out / "manifest.json").write_text(json.dumps(manifest, indent=2) + "\n")
     print(json.dumps(result, indent=2))

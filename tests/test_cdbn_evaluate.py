@@ -81,3 +81,18 @@ def test_gesture_segments_report_their_turns():
     assert len(src) == len(segs) == len(labs)
     assert [(n, lab) for n, lab in zip(src, labs) if lab != "other"] == [("a", "nod"), ("a", "shake"), ("b", "shake")]
     assert sorted(n for n, lab in zip(src, labs) if lab == "other") == ["a", "a", "b"]
+
+
+def test_other_windows_stay_inside_their_run():
+    """An 'other' window of gesture_segments lies inside its 'other' run: a run of 30-44 frames
+    followed by a gesture gives no window that reaches into the gesture (windows are 20-44 frames)."""
+    from convsynth_jax.cdbn.dataset import Turn
+    from convsynth_jax.cdbn.experiment import gesture_segments
+
+    c = np.array([0] * 31 + [1] * 20 + [0] * 33 + [2] * 20)
+    turn = Turn("a", "s", np.zeros((len(c), 6)), c[:, None].astype(float).repeat(3, 1), c)
+    rng = np.random.default_rng(0)
+    for _ in range(20):
+        segs, labs = gesture_segments([turn], [turn.motion], ("other", "nod", "shake"), 30.0, rng)
+        others = [s for s, lab in zip(segs, labs) if lab == "other"]
+        assert len(others) == 2 and all(len(s) >= 20 and not s.any() for s in others)

@@ -100,4 +100,45 @@ def test_bandai_hand_turns_pair_real_motion_with_real_speech():
         assert t.speech.shape == (len(t.motion), 6) and t.motion.shape[1] == 10
         assert np.isfinite(t.observations()).all()
         c = t.constraints
-        assert c[0] == 0 and c[-1] == 0 and set(np.unique(c)) == {0, BANDAI_CONSTRAINTS.index("raise")}
+        gesture = t.name.split("_")[1]
+        assert c[0] == 0 and c[-1] == 0 and set(np.unique(c)) == {0, BANDAI_CONSTRAINTS.index(gesture)}
+
+
+def test_bandai_constraints_name_the_side_and_span_the_whole_gesture():
+    """Issue 31 item 4: each real raise clip's constraint names its gesture with its side (a pooled
+    'raise' does not say which arm to lift), and its span holds the whole lift and lowering: every
+    frame left 'other' is within 10% of the clip's largest excursion from rest, and the frames just
+    inside the span are already away from rest. (A fixed 15% margin at each end left up to half the
+    lift in 'other'.) The pooled, fixed-margin labelling stays available as an option."""
+    from convsynth_jax.cdbn.hand_eval import BANDAI_POOLED_CONSTRAINTS, bandai_constraints, bandai_hand_turns
+
+    from conftest import shared_path
+
+    wav = shared_path("speech", "acoustic_corpus.wav")
+    turns, _ = bandai_hand_turns(BANDAI.parent, wav, CDBNFeatureParams())
+    names = bandai_constraints()
+    assert {t.name.split("_")[1] for t in turns} == {"raise-up-right-hand", "raise-up-both-hands"}
+    for t in turns:
+        m = t.motion
+        away = np.minimum(np.linalg.norm(m - m[0], axis=1), np.linalg.norm(m - m[-1], axis=1))
+        inside = np.flatnonzero(t.constraints > 0)
+        assert {names[k] for k in t.constraints[inside]} == {t.name.split("_")[1]}
+        assert (np.diff(inside) == 1).all()
+        assert (away[t.constraints == 0] <= 0.1 * away.max()).all()
+        assert away[inside[0]] > 0.1 * away.max() and away[inside[-1]] > 0.1 * away.max()
+    pooled, _ = bandai_hand_turns(BANDAI.parent, wav, CDBNFeatureParams(), gestures="pooled", span="fraction")
+    for t in pooled:
+        r = int(round(0.15 * len(t.motion)))
+        assert set(np.unique(t.constraints[r:-r])) == {BANDAI_POOLED_CONSTRAINTS.index("raise")}
+        assert not t.constraints[:r].any() and not t.constraints[-r:].any()
+
+
+def test_gesture_accuracy_by_kind_ignores_the_side():
+    from convsynth_jax.cdbn.hand_eval import accuracy_by_kind
+
+    rows = [{"truth": "raise-up-left-hand", "predicted": "raise-up-right-hand"},
+            {"truth": "raise-up-both-hands", "predicted": "wave-both-hands"},
+            {"truth": "wave-left-hand", "predicted": "wave-left-hand"},
+            {"truth": "wave-right-hand", "predicted": "other"}]
+    assert accuracy_by_kind({"cdbn": rows}) == {"cdbn": {"raise": {"n": 2, "accuracy": 0.5},
+                                                         "wave": {"n": 2, "accuracy": 0.5}}}

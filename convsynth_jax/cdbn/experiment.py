@@ -108,8 +108,9 @@ def choose_states(values: dict, cca_slack: float, llr_slack: float) -> int:
 
 def gesture_segments(turns: list[Turn], motions: list[np.ndarray], names: tuple, fps: float,
                      rng: np.random.Generator | None = None, with_other: bool = True, sources: list | None = None):
-    """(segments, labels) of constraint runs other than code 0 ('other'), plus as many random 'other'
-    windows of similar length when ``with_other``; ``sources``, when given, receives each segment's
+    """(segments, labels) of constraint runs other than code 0 ('other'), plus one random 'other'
+    window of 20-44 frames (at most the run) inside each 'other' run of 30 frames or more when
+    ``with_other``; ``sources``, when given, receives each segment's
     turn name."""
     segs, labels = [], []
     for t, m in zip(turns, motions):
@@ -122,8 +123,8 @@ def gesture_segments(turns: list[Turn], motions: list[np.ndarray], names: tuple,
                 if sources is not None:
                     sources.append(t.name)
             elif c[a] == 0 and with_other and b - a >= 30 and rng is not None:
-                L = int(rng.integers(20, 45))
-                s0 = int(rng.integers(a, b - min(L, b - a) + 1))
+                L = min(int(rng.integers(20, 45)), b - a)  # inside the run: never into the next gesture
+                s0 = int(rng.integers(a, b - L + 1))
                 segs.append(m[s0:s0 + L])
                 labels.append(names[0])
                 if sources is not None:
@@ -169,7 +170,7 @@ def run_cdbn_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: CDBNE
     per_turn = {"jdbn": [], "cdbn": []}
     kld = {"jdbn": [], "cdbn": []}
     llr = {"jdbn": [], "cdbn": []}
-    gest = {"jdbn": ([], [], []), "cdbn": ([], [], [])}
+    gest = {"jdbn": ([], [], []), "cdbn": ([], [], []), "original": ([], [], [])}
     states, params_n = {"jdbn": [], "cdbn": []}, {"jdbn": [], "cdbn": []}
     folds_out = {}
     test_folds = list(range(1, ep.folds))[: ep.max_test_folds]
@@ -180,6 +181,15 @@ def run_cdbn_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: CDBNE
         segs, labs = gesture_segments(train, [norms[t.subject][1].invert(t.motion) for t in train], p.constraints,
                                       p.features.fps, rng)
         clf = NearestCentroid(np.stack([feat(s, p.features.fps) for s in segs]), np.asarray(labs))
+        # the classifier on the test turns' original motion: how far it can be trusted (ours)
+        src = []
+        gs, gl = gesture_segments(test, [norms[t.subject][1].invert(t.motion) for t in test], p.constraints,
+                                  p.features.fps, None, with_other=False, sources=src)
+        if gs:
+            pred = clf.predict(np.stack([feat(s, p.features.fps) for s in gs]))
+            gest["original"][0].extend(gl)
+            gest["original"][1].extend(pred.tolist())
+            gest["original"][2].extend(src)
         for kind in ("jdbn", "cdbn"):
             tm = fit(kind, train, chosen[kind], p)
             sc = score(tm, test, p, norms, rig)
@@ -214,16 +224,16 @@ def run_cdbn_evaluation(turns: list[Turn], norms: dict, p: CDBNParams, ep: CDBNE
                       "cca_ms_mean": float(cms.mean()), "cca_ms_sd": float(cms.std()),
                       "kld": float(np.mean(kld[kind])), "llr": float(np.mean(llr[kind]))})
     acc = {}
-    for kind in ("jdbn", "cdbn"):
+    for kind in gest:
         truth, pred = np.array(gest[kind][0]), np.array(gest[kind][1])
         acc[kind] = {lab: {"n": int((truth == lab).sum()),
                            "accuracy": float((pred[truth == lab] == lab).mean()) if (truth == lab).any() else float("nan")}
                      for lab in p.constraints[1:]}
     # (ours) which class each synthesized gesture was taken for, and from which turn
     confusion = {kind: {lab: {q: int(((np.array(gest[kind][0]) == lab) & (np.array(gest[kind][1]) == q)).sum())
-                              for q in p.constraints} for lab in p.constraints[1:]} for kind in ("jdbn", "cdbn")}
+                              for q in p.constraints} for lab in p.constraints[1:]} for kind in gest}
     predictions = {kind: [{"turn": n, "truth": a, "predicted": b} for a, b, n in zip(*gest[kind])]
-                   for kind in ("jdbn", "cdbn")}
+                   for kind in gest}
     cm_j = np.array([r["cca_m"] for r in per_turn["jdbn"]])
     cm_c = np.array([r["cca_m"] for r in per_turn["cdbn"]])
     cms_j = np.array([r["cca_ms"] for r in per_turn["jdbn"]])

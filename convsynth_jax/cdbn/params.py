@@ -133,10 +133,18 @@ class HandEvalParams:
     bvh_dir: Optional[str] = None
     wav: Optional[str] = None
     max_clips: Optional[int] = None
+    gestures: str = "per_side"       # per_side: one constraint per gesture and side (the paper's one
+    #                                  gesture per constraint); pooled (ours): raise / wave
+    span: str = "motion"             # motion: the gesture spans the frames away from rest; fraction (ours):
+    #                                  all but the clip's first and last 15%
     eval: Dict[str, Any] = field(default_factory=dict)
 
     def __post_init__(self):
         known = {f.name for f in fields(CDBNEvalParams)} - {"hands"}
+        if self.gestures not in ("per_side", "pooled"):
+            raise ConfigError(f"cdbn.eval.hands.gestures: 'per_side' or 'pooled', got {self.gestures!r}")
+        if self.span not in ("motion", "fraction"):
+            raise ConfigError(f"cdbn.eval.hands.span: 'motion' or 'fraction', got {self.span!r}")
         unknown = sorted(set(self.eval) - known)
         if unknown:
             raise ConfigError(f"cdbn.eval.hands.eval: unknown key(s) {unknown}; CDBNEvalParams has {sorted(known)}")

@@ -106,11 +106,12 @@ def run(cfg, out_dir: Path) -> dict:
     if hc.bvh_dir:
         # hand model (Table V analogue, ours to make optional: it adds minutes): real Bandai2 raise/wave
         # arm motion, gesture constraints, paired with the real speech of hands.wav (unrelated to it)
-        from ..cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns, hand_evaluation
+        from ..cdbn.hand_eval import bandai_constraints, bandai_hand_turns, hand_evaluation
 
-        ht, rig = bandai_hand_turns(hc.bvh_dir, hc.wav, p.features, max_clips=hc.max_clips, seed=ep.seed)
+        ht, rig = bandai_hand_turns(hc.bvh_dir, hc.wav, p.features, max_clips=hc.max_clips, seed=ep.seed,
+                                    gestures=hc.gestures, span=hc.span)
         kw = {k: tuple(v) if isinstance(v, list) else v for k, v in hc.eval.items()}
-        hands = hand_evaluation(ht, rig, BANDAI_CONSTRAINTS, {"seed": ep.seed, **kw}, p)
+        hands = hand_evaluation(ht, rig, bandai_constraints(hc.gestures), {"seed": ep.seed, **kw}, p)
         pd.DataFrame(hands["table"]).to_csv(out_dir / "table_hands.csv", index=False, float_format="%.4f")
         phases["hands"] = time.perf_counter() - tick
     return {"success": True, "corpus_root": str(root), "turns": len(turns),

@@ -175,57 +175,6 @@ def bench_hands(cache: str, dyadic_sessions: int = 6, bandai_clips: int | None =
     return out
 
 
-def bench_hands_diagnosis(max_clips: int = 160, max_test_folds: int = 3):
-    """Why the Bandai2 raise gestures of the hand model are misclassified: (1) the hand evaluation
-    (as --hands) with the synthesized segments' predicted class per clip sub-type (raise-up-left-hand,
-    raise-up-both-hands, ...); (2) the same nearest-centroid classifier, fitted per test fold on the
-    training segments, applied to the ORIGINAL motion of the test segments (its ceiling); (3) how much
-    the arms move in the 'other' edges (first/last 15% of each clip, ours) against the labelled middle
-    (mean absolute angle change per frame, degrees), per sub-type."""
-    from collections import Counter
-
-    from convsynth_jax.cdbn.evaluate import NearestCentroid
-    from convsynth_jax.cdbn.experiment import gesture_segments, hand_gesture_features
-    from convsynth_jax.cdbn.hand_eval import BANDAI_CONSTRAINTS, bandai_hand_turns, hand_evaluation
-    from convsynth_jax.cdbn.params import CDBNFeatureParams
-
-    fp = CDBNFeatureParams()
-    bandai = REPO.parent / "shared" / "data" / "bandai2" / "bvh"
-    wav = REPO.parent / "shared" / "data" / "speech" / "acoustic_corpus.wav"
-    turns, rig = bandai_hand_turns(bandai, wav, fp, max_clips=max_clips)
-    sub = lambda name: name.split("_")[1]
-    ep = {"folds": 10, "jdbn_grid": (8, 12), "cdbn_grid": (3, 4), "max_test_folds": max_test_folds}
-    res = hand_evaluation(turns, rig, BANDAI_CONSTRAINTS, ep)
-    out = {"clips": len(turns), "eval": ep, "accuracy": res["gesture_accuracy"], "confusion": res["gesture_confusion"],
-           "synthesized_by_subtype": {k: {f"{a} -> {b}": n for (a, b), n in
-                                          sorted(Counter((sub(q["turn"]), q["predicted"]) for q in v).items())}
-                                      for k, v in res["gesture_predictions"].items()}}
-    order = np.random.default_rng(0).permutation(len(turns))
-    parts = [order[i::10] for i in range(10)]
-    rng = np.random.default_rng(0)
-    got = Counter()
-    for f in list(range(1, 10))[:max_test_folds]:
-        test = [turns[i] for i in parts[f]]
-        train = [turns[i] for i in np.concatenate([parts[i] for i in range(10) if i != f])]
-        segs, labs = gesture_segments(train, [t.motion for t in train], BANDAI_CONSTRAINTS, fp.fps, rng)
-        clf = NearestCentroid(np.stack([hand_gesture_features(x, fp.fps) for x in segs]), np.asarray(labs))
-        src = []
-        gs, _ = gesture_segments(test, [t.motion for t in test], BANDAI_CONSTRAINTS, fp.fps, None, with_other=False,
-                                 sources=src)
-        got.update((sub(n), str(q)) for n, q in zip(src, clf.predict(np.stack([hand_gesture_features(x, fp.fps)
-                                                                                 for x in gs]))))
-    out["original_by_subtype"] = {f"{a} -> {b}": n for (a, b), n in sorted(got.items())}
-    motion = {}
-    for name in sorted({sub(t.name) for t in turns}):
-        ts = [t for t in turns if sub(t.name) == name]
-        step = lambda t, m: float(np.abs(np.diff(t.motion[m], axis=0)).mean())
-        motion[name] = {"clips": len(ts), "mean_frames": float(np.mean([len(t.motion) for t in ts])),
-                        "other_edges_deg_per_frame": float(np.mean([step(t, t.constraints == 0) for t in ts])),
-                        "labelled_middle_deg_per_frame": float(np.mean([step(t, t.constraints > 0) for t in ts]))}
-    out["motion_per_frame"] = motion
-    return out
-
-
 def bench_distance(cache: str, fps: float = 30.0, max_iters=(20, 300)):
     """Eq. 8 on all nod/shake turns: the shared-state model (N = 8) after max_iter = 20 and converged
     (tol 1e-4), to show that the 0.13-0.18 of the old runs came from unconverged EM."""
@@ -313,7 +262,6 @@ def main():
     ap.add_argument("--distance", action="store_true", help="only the Eq. 8 convergence check (bench_cdbn_distance.json)")
     ap.add_argument("--hands", action="store_true", help="only the hand-model evaluation (bench_cdbn_hands.json)")
     ap.add_argument("--fig6", action="store_true", help="only Fig. 6 under several random-initialization readings")
-    ap.add_argument("--hands-diagnosis", action="store_true", help="only the Bandai2 raise/wave diagnosis")
     ap.add_argument("--cache", default=str(REPO / "data_cache"), help="cache_dir of the dyadic corpus (--hands)")
     ap.add_argument("--dyadic-sessions", type=int, default=6)
     ap.add_argument("--bandai-clips", type=int, default=None)
@@ -325,18 +273,6 @@ def main():
         res = bench_distance(args.cache)
         print(json.dumps(res))
         write_json_atomic(args.out.with_name("bench_cdbn_distance.json"), res)
-        return
-    if args.hands_diagnosis:
-        import os
-
-        from convsynth_jax.utils import write_json_atomic
-
-        warnings.simplefilter("ignore", RuntimeWarning)
-        t0 = time.perf_counter()
-        res = {"load_average_at_start": os.getloadavg(), **bench_hands_diagnosis(args.bandai_clips or 160)}
-        res["load_average_at_end"], res["wall_seconds"] = os.getloadavg(), time.perf_counter() - t0
-        write_json_atomic(args.out.with_name("bench_cdbn_hands_diagnosis.json"), res)
-        print(json.dumps(res, default=float, indent=1))
         return
     if args.fig6:
         import os

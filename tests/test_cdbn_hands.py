@@ -142,3 +142,14 @@ def test_gesture_accuracy_by_kind_ignores_the_side():
             {"truth": "wave-right-hand", "predicted": "other"}]
     assert accuracy_by_kind({"cdbn": rows}) == {"cdbn": {"raise": {"n": 2, "accuracy": 0.5},
                                                          "wave": {"n": 2, "accuracy": 0.5}}}
+
+
+def test_present_constraints_drop_the_absent_ones():
+    from convsynth_jax.cdbn.dataset import Turn
+    from convsynth_jax.cdbn.hand_eval import BANDAI_CONSTRAINTS, present_constraints
+
+    c = np.array([0, 2, 2, 0, 6, 6, 0])
+    t = Turn("x", "s", np.zeros((7, 6)), np.zeros((7, 10)), c)
+    (u,), names = present_constraints([t], BANDAI_CONSTRAINTS)
+    assert names == ("other", BANDAI_CONSTRAINTS[2], BANDAI_CONSTRAINTS[6])
+    assert u.constraints.tolist() == [0, 1, 1, 0, 2, 2, 0]

@@ -85,7 +85,7 @@ def test_eval_with_the_hand_model_on_real_bandai_clips(corpus_args, tmp_path):
         "cdbn.eval.hands.eval.max_test_folds=1"]), out)
     assert (out / "table_hands.csv").is_file()
     h = s["hands"]
-    assert h["turns"] == 10 and set(h["frames_per_constraint"]) == {"other", "raise", "wave"}
+    assert h["turns"] == 10 and set(h["frames_per_constraint"]) == {"other", "raise-up-right-hand", "wave-right-hand"}
     assert {r["model"] for r in h["table"]} == {"Baseline (jDBN)", "CDBN-Ges"}
     for r in h["table"]:
         assert np.isfinite([r["cca_m_mean"], r["cca_ms_mean"], r["kld"]]).all()

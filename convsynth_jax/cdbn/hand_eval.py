@@ -124,6 +124,19 @@ def bandai_hand_turns(bvh_dir, wav, fp: CDBNFeatureParams, rest_fraction: float 
     return turns, rig
 
 
+def present_constraints(turns, names: tuple):
+    """(turns, names) keeping only the constraints that occur in ``turns`` (the first, ``other``,
+    always), codes renumbered: a clip selection without, e.g., left-hand waves trains no model for
+    them."""
+    used = np.zeros(len(names), bool)
+    used[0] = True
+    for t in turns:
+        used[np.unique(t.constraints)] = True
+    code = np.cumsum(used) - 1
+    return [t._replace(constraints=code[t.constraints].astype(np.int32)) for t in turns], \
+        tuple(n for n, u in zip(names, used) if u)
+
+
 def hand_evaluation(turns, rig, names: tuple, eval_kw: dict, base=None) -> dict:
     """The Sec. VIII protocol (run_cdbn_evaluation) on hand turns: Table V analogue (states, parameters,
     CCA_m, CCA_ms, KLD per model), gesture accuracy of the synthesized segments (``original``: the
@@ -136,6 +149,7 @@ def hand_evaluation(turns, rig, names: tuple, eval_kw: dict, base=None) -> dict:
     from .experiment import CDBNEvalParams, run_cdbn_evaluation
     from .params import CDBNParams
 
+    turns, names = present_constraints(turns, names)
     p = dataclasses.replace(base or CDBNParams(), constraints=tuple(names))
     zt, norms = normalize_by_subject(turns)
     t0 = time.perf_counter()

@@ -1,10 +1,17 @@
-"""Small helpers shared across the library: atomic writes, JSON encoding, logging setup."""
+"""Small helpers shared across the library: atomic writes, inter-process file locks, JSON encoding.
+
+Shared caches (the synthetic corpus, annotations, motion graphs, stored kernels) follow one rule: a
+reader takes an entry only when it is complete (entries appear by an atomic rename), and a process
+that finds an entry missing computes it while holding the entry's lock (:func:`file_lock`), after
+looking again, so several processes started together on one empty cache compute each entry once."""
 from __future__ import annotations
 
 import contextlib
 import json
 import os
+import shutil
 import tempfile
+import time
 from pathlib import Path
 from typing import Any, Iterator
 
@@ -37,6 +44,51 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
         with contextlib.suppress(FileNotFoundError):
             tmp_path.unlink()
         raise
+
+
+def lock_path(path: str | Path) -> Path:
+    """The lock file of ``path``: ``.<name>.lock`` beside it."""
+    path = Path(path)
+    return path.parent / f".{path.name}.lock"
+
+
+@contextlib.contextmanager
+def file_lock(path: str | Path, timeout_s: float | None = None) -> Iterator[Path]:
+    """Hold the inter-process lock of ``path`` (an exclusive ``flock`` on :func:`lock_path`, through
+    the ``filelock`` package) for the block; wait for it as long as another process holds it, or at
+    most ``timeout_s`` seconds (then :class:`~convsynth_jax.errors.ConvSynthError` naming the lock
+    file). The operating system releases the lock when its holder exits, even when killed, so a
+    crashed process never leaves a stale lock. Yields the lock file's path. The lock file stays
+    (removing it while another process waits on it would break the lock)."""
+    from filelock import FileLock, Timeout
+
+    from .errors import ConvSynthError
+
+    lp = lock_path(path)
+    lp.parent.mkdir(parents=True, exist_ok=True)
+    lock = FileLock(str(lp), timeout=-1 if timeout_s is None else float(timeout_s), thread_local=False)
+    try:
+        lock.acquire()
+    except Timeout:
+        raise ConvSynthError(f"another process has held this lock for more than {timeout_s} s", lp) from None
+    try:
+        yield lp
+    finally:
+        lock.release()
+
+
+def replace_dir(tmp: str | Path, target: str | Path) -> Path:
+    """Put the complete folder ``tmp`` at ``target`` by renames: an existing ``target`` is first
+    renamed aside (then deleted), so ``target`` is never seen half-deleted or half-written."""
+    tmp, target = Path(tmp), Path(target)
+    old = None
+    if target.exists():
+        old = target.parent / f".{target.name}.old-{os.getpid()}-{time.monotonic_ns()}"
+        os.replace(target, old)
+    os.replace(tmp, target)
+    if old is not None:
+        shutil.rmtree(old, ignore_errors=True)
+    return target
 
 
 def write_text_atomic(path: str | Path, text: str) -> Path:

@@ -7,6 +7,7 @@ looking again, so several processes started together on one empty cache compute 
 from __future__ import annotations
 
 import contextlib
+import errno
 import json
 import os
 import shutil
@@ -16,6 +17,8 @@ from pathlib import Path
 from typing import Any, Iterator
 
 import numpy as np
+
+from .errors import ConvSynthError
 
 
 def _umask() -> int:
@@ -31,8 +34,11 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
     Nothing is left half-written: on any exception the temporary file is removed.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=suffix or path.suffix, dir=path.parent)
+    except OSError as e:
+        raise write_error(e, path) from None
     os.close(fd)
     tmp_path = Path(tmp)
     try:
@@ -40,10 +46,32 @@ def atomic_path(path: str | Path, suffix: str | None = None) -> Iterator[Path]:
         if tmp_path.exists():
             os.chmod(tmp_path, 0o666 & ~_umask())
         os.replace(tmp_path, path)
-    except BaseException:
-        with contextlib.suppress(FileNotFoundError):
+    except BaseException as e:
+        with contextlib.suppress(OSError):
             tmp_path.unlink()
+        if isinstance(e, OSError) and write_error(e, path) is not e:
+            raise write_error(e, path) from None
         raise
+
+
+# errno values of a write that the user fixes outside the program: read-only, no permission, disk full, quota
+WRITE_FAULTS = {errno.EACCES, errno.EPERM, errno.EROFS, errno.ENOSPC, errno.EDQUOT, errno.EFBIG}
+
+
+def write_error(e: OSError, path: Path) -> BaseException:
+    """The project's :class:`~convsynth_jax.errors.WriteError` for a failed write of ``path`` when ``e`` is
+    a fault the user fixes outside the program (:data:`WRITE_FAULTS`), else ``e`` itself."""
+    from .errors import WriteError
+
+    if isinstance(e, ConvSynthError) or e.errno not in WRITE_FAULTS:
+        return e
+
+    why = {errno.ENOSPC: "the disk is full", errno.EDQUOT: "the disk quota is exceeded",
+           errno.EROFS: "the file system is read-only", errno.EFBIG: "the file is too large"}.get(
+        e.errno, f"no permission to write in {path.parent}")
+    err = WriteError(f"cannot write ({why}: {e.strerror or e}); nothing was written", path)
+    err.errno = e.errno
+    return err
 
 
 def lock_path(path: str | Path) -> Path:

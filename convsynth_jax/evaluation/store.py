@@ -30,7 +30,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import FormatError, MissingFileError
-from ..utils import _umask, file_lock, replace_dir, write_json_atomic
+from ..utils import _umask, file_lock, replace_dir, write_error, write_json_atomic
 
 log = logging.getLogger(__name__)
 
@@ -83,17 +83,22 @@ class ResultStore:
 
     def write(self, key: str, cases: pd.DataFrame, record: dict) -> Path:
         """Store a finished job's table and record as the complete entry of ``key`` (atomically)."""
-        self.root.mkdir(parents=True, exist_ok=True)
-        self._remove_partial(key)
-        tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=self.root))
+        try:
+            self.root.mkdir(parents=True, exist_ok=True)
+            self._remove_partial(key)
+            tmp = Path(tempfile.mkdtemp(prefix=f".{key}.", dir=self.root))
+        except OSError as e:
+            raise write_error(e, self.entry(key)) from None
         try:
             cases.to_csv(tmp / CASES, index=False)
             written = datetime.datetime.now(datetime.timezone.utc).isoformat(timespec="seconds")
             write_json_atomic(tmp / RECORD, {**record, "key": key, "written": written})
             os.chmod(tmp, 0o777 & ~_umask())  # mkdtemp makes it private
             return replace_dir(tmp, self.entry(key))
-        except BaseException:
-            shutil.rmtree(tmp, ignore_errors=True)
+        except BaseException as e:
+            shutil.rmtree(tmp, ignore_errors=True)  # a partial entry is never left visible
+            if isinstance(e, OSError) and write_error(e, self.entry(key)) is not e:
+                raise write_error(e, self.entry(key)) from None
             raise
 
     def _remove_partial(self, key: str) -> None:

@@ -19,7 +19,7 @@ from ...io.audio import save_wav
 from ...io.bvh import save_bvh
 from ...io.transcripts import save_transcript_tsv
 from ...parallel import ordered_map
-from ...utils import _umask, file_lock, replace_dir
+from ...utils import _umask, file_lock, replace_dir, write_error
 from .calibration import planting_probabilities
 from .config import GENERATOR_VERSION, ROLES, config_hash, resolve_config
 from .plan import _plan, _quota_offsets, _render_motion, _render_rng
@@ -65,8 +65,11 @@ def make_synthetic_corpus(out_dir: str | Path, config=None, workers: int | None 
     any number of ``workers`` (processes, one session each at a time; ``convsynth_jax.parallel``)."""
     cfg = resolve_config(config)
     out_dir = Path(out_dir)
-    out_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    try:
+        out_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{out_dir.name}.", dir=out_dir.parent))
+    except OSError as e:
+        raise write_error(e, out_dir) from None
     try:
         probs, calibration = planting_probabilities(cfg)
         offsets = _quota_offsets(cfg)
@@ -87,8 +90,10 @@ def make_synthetic_corpus(out_dir: str | Path, config=None, workers: int | None 
         (tmp / "corpus.json").write_text(json.dumps(meta, indent=2, sort_keys=True) + "\n")
         os.chmod(tmp, 0o777 & ~_umask())
         replace_dir(tmp, out_dir)
-    except BaseException:
-        shutil.rmtree(tmp, ignore_errors=True)
+    except BaseException as e:
+        shutil.rmtree(tmp, ignore_errors=True)  # nothing half-written stays visible
+        if isinstance(e, OSError) and write_error(e, out_dir) is not e:
+            raise write_error(e, out_dir) from None
         raise
     log.info("wrote synthetic corpus %s (%d sessions)", out_dir, len(sessions))
     return out_dir

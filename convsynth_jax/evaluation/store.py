@@ -10,14 +10,16 @@ that key removes. A re-run of the same sweep finds the completed jobs' entries a
 (``task.resume``), redoing only the missing ones; while a job computes it holds its key's lock, so two
 processes running the same job at once compute it once.
 
-The key does not see the code: after changing the library, point ``task.store`` elsewhere or delete
-the store (a re-run then computes everything again). Nor does it see the contents of a corpus
-folder, only its configuration (for the synthetic corpus, its generator parameters).
+The key includes a hash of the package's source files, so an edited library never reuses results of
+the old code (the old entries stay until the store is deleted). It does not see the contents of a
+corpus folder, only its configuration (for the synthetic corpus, its generator parameters): after
+replacing the files of a real corpus in place, delete the store or point ``task.store`` elsewhere.
 ``task=collect task.store=DIR`` reads every complete entry (:func:`collect_store`).
 """
 from __future__ import annotations
 
 import datetime
+import functools
 import hashlib
 import json
 import logging
@@ -38,11 +40,24 @@ RECORD = "record.json"
 CASES = "cases.csv"
 
 
-def job_key(config: dict, version: str) -> str:
+def job_key(config: dict, code: str) -> str:
     """The store key of a job: a SHA-256 (first 24 hex digits) of its resolved configuration (a plain,
-    JSON-serializable dict; keys in any order) and the package version."""
-    text = json.dumps({"config": config, "version": version}, sort_keys=True, default=str)
+    JSON-serializable dict; keys in any order) and ``code`` (:func:`code_fingerprint`)."""
+    text = json.dumps({"config": config, "code": code}, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:24]
+
+
+@functools.lru_cache(maxsize=1)
+def code_fingerprint() -> str:
+    """The package version and a hash of every source file of the package, so that results computed by
+    other code are never reused (any edit of the library makes a sweep compute everything again)."""
+    from .. import __version__
+
+    pkg = Path(__file__).resolve().parent.parent
+    h = hashlib.sha256(__version__.encode())
+    for f in sorted(pkg.rglob("*.py")):
+        h.update(str(f.relative_to(pkg)).encode() + b"\0" + f.read_bytes() + b"\0")
+    return h.hexdigest()
 
 
 @dataclass(frozen=True)

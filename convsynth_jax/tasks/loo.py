@@ -11,7 +11,8 @@ Resumable sweeps: a job that succeeds is also kept in the results store ``task.s
 (:mod:`convsynth_jax.evaluation.store`). With ``task.resume=true`` (default) a job whose entry is
 there copies it into its output folder instead of computing it (``summary.json``: ``resumed``), so
 re-running a killed sweep redoes only the jobs that had not finished. Failed jobs are not stored
-(a re-run tries them again). ``task.store=null`` turns the store off.
+(a re-run tries them again), nor are jobs with ``task.export_bvh=true`` (their motion files are not
+kept in the store). ``task.store=null`` turns the store off.
 """
 from __future__ import annotations
 
@@ -46,16 +47,15 @@ NOT_IN_TASK_KEY = ("store", "resume")
 
 def store_key(cfg) -> str:
     """The results-store key of this job: its resolved configuration without :data:`NOT_IN_KEY` (and
-    the task's ``store``/``resume``), plus the package version."""
+    the task's ``store``/``resume``), plus the package's source fingerprint."""
     from omegaconf import OmegaConf
 
-    from .. import __version__
-    from ..evaluation.store import job_key
+    from ..evaluation.store import code_fingerprint, job_key
 
     config = OmegaConf.to_container(cfg, resolve=True)
     config = {k: v for k, v in config.items() if k not in NOT_IN_KEY and k != "hydra"}
     config["task"] = {k: v for k, v in config.get("task", {}).items() if k not in NOT_IN_TASK_KEY}
-    return job_key(config, __version__)
+    return job_key(config, code_fingerprint())
 
 
 def run(cfg, out_dir: Path) -> dict:
@@ -63,7 +63,7 @@ def run(cfg, out_dir: Path) -> dict:
     from ..evaluation.store import ResultStore
 
     settings = task_settings(cfg)
-    if settings.store is None:
+    if settings.store is None or settings.export_bvh:  # the store keeps tables, not the exported motion
         return _run_job(cfg, out_dir, settings)
     store, key = ResultStore(settings.store), store_key(cfg)
     with store.claim(key):  # the same job started twice at once: computed once

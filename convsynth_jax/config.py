@@ -30,7 +30,7 @@ from omegaconf import DictConfig, ListConfig, OmegaConf
 
 from .errors import ConfigError, ConvSynthError
 from .schema import build_params
-from .utils import write_json_atomic
+from .utils import write_error, write_json_atomic
 
 log = logging.getLogger("convsynth_jax")
 
@@ -147,7 +147,10 @@ def task_settings(cfg: DictConfig):
 def run_task(cfg: DictConfig, out_dir: str | Path) -> dict:
     """Run the task named by ``cfg.task.name`` and write ``summary.json`` into ``out_dir``."""
     out_dir = Path(out_dir)
-    out_dir.mkdir(parents=True, exist_ok=True)
+    try:
+        out_dir.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise write_error(e, out_dir) from None
     name = cfg.task.name
     try:
         module = importlib.import_module(f"convsynth_jax.tasks.{name}")
@@ -173,8 +176,11 @@ def main(cfg: DictConfig) -> dict | None:
         summary = run_task(cfg, out_dir)
     except ConvSynthError as e:
         log.error("%s", e)
-        write_json_atomic(Path(out_dir) / "summary.json",
-                          {"task": cfg.task.name, "success": False, "error": str(e)})
+        try:
+            write_json_atomic(Path(out_dir) / "summary.json",
+                              {"task": cfg.task.name, "success": False, "error": str(e)})
+        except ConvSynthError as e2:  # e.g. the output folder itself cannot be written
+            log.error("%s", e2)
         if os.environ.get("CONVSYNTH_RAISE", "1") != "0":
             raise SystemExit(2) from e
         return None

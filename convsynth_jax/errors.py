@@ -48,6 +48,11 @@ class CorpusError(ConvSynthError):
     """A corpus is inconsistent: missing participants, mismatched durations, bad manifest."""
 
 
+class WriteError(ConvSynthError, OSError):
+    """A result cannot be written (read-only folder, full disk, quota). Nothing half-written is left:
+    the temporary file is removed and the target keeps its previous contents (or stays absent)."""
+
+
 class LabelError(ConvSynthError):
     """An unknown label (audio segment kind, motion event kind, hypothesis) was given."""
 

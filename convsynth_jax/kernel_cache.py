@@ -42,7 +42,7 @@ import jax
 import numpy as np
 
 from .errors import ConfigError
-from .utils import atomic_path
+from .utils import atomic_path, file_lock
 
 log = logging.getLogger(__name__)
 
@@ -202,19 +202,46 @@ def _load_or_compile(fun, name, args, static, run: bool = True):
         def flat(*xs):
             return fun(*jax.tree.unflatten(tree, xs), **static)
 
-        f = _read(path, key)
-        if f is not None:
-            try:   # a loaded program that cannot run (e.g. written by an older version of this module): never again
-                out = jax.block_until_ready(f(*leaves))
-                _LOADED[key] = f
-                return f, (out if run else None)
-            except jax.errors.JaxRuntimeError as e:
-                log.warning("%s: the stored kernel does not run (%s); compiling it again", path, str(e)[:200])
-        with _fresh_compilation():
-            f = jax.jit(flat).lower(*leaves).compile()
-        _write(path, key, f)
+        found = _try_stored(path, key, leaves, run)
+        if found is not None:
+            return found
+        # processes sharing the folder: the first compiles and writes, the others wait and load its file
+        with _kernel_lock(path):
+            found = _try_stored(path, key, leaves, run)
+            if found is not None:
+                return found
+            with _fresh_compilation():
+                f = jax.jit(flat).lower(*leaves).compile()
+            _write(path, key, f)
         _LOADED[key] = f
         return f, None
+
+
+def _try_stored(path: Path, key: str, leaves, run: bool):
+    """(the stored kernel, its outputs or None) when ``path`` holds a kernel for ``key`` that runs, else None."""
+    f = _read(path, key)
+    if f is None:
+        return None
+    try:   # a loaded program that cannot run (e.g. written by an older version of this module): never again
+        out = jax.block_until_ready(f(*leaves))
+    except jax.errors.JaxRuntimeError as e:
+        log.warning("%s: the stored kernel does not run (%s); compiling it again", path, str(e)[:200])
+        return None
+    _LOADED[key] = f
+    return f, (out if run else None)
+
+
+@contextlib.contextmanager
+def _kernel_lock(path: Path):
+    """The stored kernel's inter-process lock; where no lock can be made (a read-only folder) the kernel
+    is compiled without it (and, as before, not stored)."""
+    stack = contextlib.ExitStack()
+    try:
+        stack.enter_context(file_lock(path))
+    except OSError as e:
+        log.warning("%s: cannot lock the stored kernel (%s); compiling without the lock", path, e)
+    with stack:
+        yield
 
 
 @contextlib.contextmanager
@@ -246,6 +273,10 @@ class JaxCacheParams:
     kernel_dir: Optional[str] = None       # the search kernels' whole executables
     min_compile_time_s: float = 0.0        # cache kernels that took at least this long to compile
     min_entry_size_bytes: int = 0          # ... and are at least this large
+    # JAX's size limit of the compilation cache (least recently used entries go first). Any limit turns
+    # on JAX's file lock around every read and write of the folder, so processes sharing it never read
+    # an entry half-written; -1 (no limit) turns the lock off too, 0 turns the cache off.
+    max_size_bytes: int = 16 * 2**30
 
 
 def enable_compilation_cache(params: JaxCacheParams | None) -> Path | None:
@@ -255,6 +286,8 @@ def enable_compilation_cache(params: JaxCacheParams | None) -> Path | None:
     compiled executables and is safe to delete (the next run recompiles). Entries are written for
     kernels that took at least ``jax_cache.min_compile_time_s`` to compile (default 0: every kernel,
     since on CPU many small ones add up) and are at least ``jax_cache.min_entry_size_bytes`` large.
+    ``jax_cache.max_size_bytes`` (default 16 GiB) bounds the folder and makes JAX lock it while reading or
+    writing an entry, so processes sharing it never read one half-written.
     The search kernels' executables are also stored whole in ``jax_cache.kernel_dir`` (default
     ``${cache_dir}/jax_kernels``; :mod:`convsynth_jax.kernel_cache`), so a second run skips their
     tracing and lowering too; null turns that off, and so does ``jax_cache.dir=null``.
@@ -271,6 +304,9 @@ def enable_compilation_cache(params: JaxCacheParams | None) -> Path | None:
         raise ConfigError(f"jax_cache.dir={path}: cannot create the compilation cache directory ({e})") from None
     jax.config.update("jax_persistent_cache_min_compile_time_secs", float(params.min_compile_time_s))
     jax.config.update("jax_persistent_cache_min_entry_size_bytes", int(params.min_entry_size_bytes))
+    if jax.config.jax_compilation_cache_max_size != int(params.max_size_bytes):
+        jax.config.update("jax_compilation_cache_max_size", int(params.max_size_bytes))
+        _set_cache_dir(jax, None)  # read again when the folder is set below
     _set_cache_dir(jax, str(path))
     kdir = params.kernel_dir
     set_kernel_dir(Path(str(kdir)).expanduser().resolve() if kdir else None)

@@ -9,7 +9,7 @@ import logging
 import pickle
 from pathlib import Path
 
-from ..utils import atomic_path
+from ..utils import atomic_path, file_lock
 from .params import AnnotateParams
 from .pipeline import annotate_corpus
 
@@ -50,15 +50,30 @@ def annotate_corpus_cached(corpus, params: AnnotateParams, fps: float, cache_dir
     written there (atomically). An unreadable cache file is ignored and rebuilt."""
     key = params_hash(str(Path(corpus.root).resolve()), corpus_fingerprint(corpus), params, float(fps))
     cache = Path(cache_dir) / f"annotations_{key}.pkl" if cache_dir else None
-    if cache is not None and cache.is_file():
-        try:
-            with open(cache, "rb") as fh:
-                return pickle.load(fh)
-        except Exception as e:  # a stale or foreign cache is rebuilt, never trusted
-            log.warning("ignoring unreadable annotation cache %s (%s)", cache, e)
-    result = annotate_corpus(corpus, params, fps, progress=progress, workers=workers)
-    if cache is not None:
+    if cache is None:
+        return annotate_corpus(corpus, params, fps, progress=progress, workers=workers)
+    found = _read_cached(cache)
+    if found is not None:
+        return found
+    # several processes on one cache folder: the first computes, the others wait and read its file
+    with file_lock(cache):
+        found = _read_cached(cache)
+        if found is not None:
+            return found
+        result = annotate_corpus(corpus, params, fps, progress=progress, workers=workers)
         with atomic_path(cache, suffix=".pkl") as tmp:
             with open(tmp, "wb") as fh:
                 pickle.dump(result, fh, protocol=pickle.HIGHEST_PROTOCOL)
     return result
+
+
+def _read_cached(cache: Path) -> dict | None:
+    """The annotation stored in ``cache``, or None when absent or unreadable (rebuilt, never trusted)."""
+    if not cache.is_file():
+        return None
+    try:
+        with open(cache, "rb") as fh:
+            return pickle.load(fh)
+    except Exception as e:  # a stale or foreign cache is rebuilt, never trusted
+        log.warning("ignoring unreadable annotation cache %s (%s)", cache, e)
+        return None

@@ -23,7 +23,8 @@ def _job_dirs(root: Path) -> list[Path]:
     """Directories that hold a Hydra job (they have .hydra/overrides.yaml) or a cases.csv."""
     found = {p.parent.parent for p in root.rglob(".hydra/overrides.yaml")}
     found |= {p.parent for p in root.rglob("cases.csv")}
-    return sorted(found)
+    # hidden folders other than Hydra's are partial results (a results store's unfinished entries)
+    return sorted(d for d in found if not any(part.startswith(".") for part in d.relative_to(root).parts))
 
 
 def _overrides(job: Path) -> dict:

@@ -48,10 +48,10 @@ def wav_duration(path: str | Path) -> float:
     try:
         with wave.open(str(path), "rb") as w:
             return w.getnframes() / float(w.getframerate())
-    except (wave.Error, EOFError):
-        return load_audio(path).duration
     except OSError as e:
         raise AudioFormatError(f"cannot read WAV header ({e})", path) from None
+    except Exception:  # noqa: BLE001 - wave.Error, EOFError, or a crash of the wave module on a damaged header:
+        return load_audio(path).duration  # the full reader says what is wrong
 
 
 def load_audio(path: str | Path, channel: int | None = None) -> Audio:
@@ -62,6 +62,8 @@ def load_audio(path: str | Path, channel: int | None = None) -> Audio:
         rate, data = wavfile.read(path)
     except (ValueError, EOFError, OSError) as e:
         raise AudioFormatError(f"unreadable WAV ({e})", path) from None
+    except Exception as e:  # noqa: BLE001 - scipy's reader crashes on some damaged headers (RuntimeError, UnboundLocalError)
+        raise AudioFormatError(f"unreadable WAV (damaged header: {type(e).__name__} {e})", path) from None
     if data.size == 0:
         raise AudioFormatError("WAV holds no samples", path)
     if data.dtype == np.uint8:

@@ -33,6 +33,7 @@ class Participant:
     transcript_path: Path | None = None
     audio_channel: int | None = None
     session: str = ""
+    listed_in: Path | None = None       # the manifest that lists this participant (None: a GENEA folder)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def load_motion(self, fps: float | None = 30) -> Motion:
@@ -43,14 +44,16 @@ class Participant:
 
     def load_audio(self) -> Audio:
         if self.audio_path is None:
-            raise MissingFileError(f"session {self.session!r}, participant {self.role!r}: no audio file")
+            raise MissingFileError(f"session {self.session!r}, participant {self.role!r}: no audio file beside "
+                                   f"its motion {self.motion_path.name}", self.listed_in or self.motion_path.parent)
         if "audio" not in self._cache:
             self._cache["audio"] = load_audio(self.audio_path, channel=self.audio_channel)
         return self._cache["audio"]
 
     def load_transcript(self) -> pd.DataFrame:
         if self.transcript_path is None:
-            raise MissingFileError(f"session {self.session!r}, participant {self.role!r}: no transcript file")
+            raise MissingFileError(f"session {self.session!r}, participant {self.role!r}: no transcript file beside "
+                                   f"its motion {self.motion_path.name}", self.listed_in or self.motion_path.parent)
         if "words" not in self._cache:
             self._cache["words"] = load_transcript(self.transcript_path)
         return self._cache["words"]
@@ -178,6 +181,13 @@ def load_genea(root: str | Path, tolerance: float = 1.0, check: bool = True) -> 
     return corpus
 
 
+def _manifest_text(path: Path) -> str:
+    try:
+        return path.read_text(encoding="utf-8-sig")
+    except UnicodeDecodeError as e:
+        raise FormatError(f"not UTF-8 text (byte {e.start})", path) from None
+
+
 def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) -> Corpus:
     path = Path(path)
     if not path.is_file():
@@ -187,7 +197,7 @@ def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) 
         import yaml
 
         try:
-            data = yaml.safe_load(path.read_text()) or {}
+            data = yaml.safe_load(_manifest_text(path)) or {}
         except yaml.YAMLError as e:
             raise FormatError(f"invalid YAML ({e})", path) from None
         entries = data.get("sessions") if isinstance(data, dict) else None
@@ -195,10 +205,20 @@ def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) 
             raise FormatError("expected a top-level 'sessions' list", path)
         rows = []
         for i, s in enumerate(entries):
+            if not isinstance(s, dict) or not isinstance(s.get("participants") or [], list):
+                raise FormatError("expected a mapping with a 'participants' list", path, f"sessions[{i}]")
             for j, p in enumerate(s.get("participants") or []):
+                if not isinstance(p, dict):
+                    raise FormatError("expected a mapping (role, motion, audio, transcript)", path,
+                                      f"sessions[{i}].participants[{j}]")
                 rows.append({"session": s.get("name", f"session{i}"), **p, "_where": f"sessions[{i}].participants[{j}]"})
     elif path.suffix.lower() == ".csv":
-        df = pd.read_csv(path)
+        import io
+
+        try:
+            df = pd.read_csv(io.StringIO(_manifest_text(path)))
+        except (pd.errors.ParserError, pd.errors.EmptyDataError) as e:
+            raise FormatError(f"invalid CSV ({str(e).strip()})", path) from None
         missing = {"session", "role", "motion"} - set(df.columns)
         if missing:
             raise FormatError(f"manifest CSV lacks columns {sorted(missing)}", path, "line 1")
@@ -214,14 +234,21 @@ def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) 
                 return None
             p = (base / str(v)).resolve()
             if not p.is_file():
-                raise MissingFileError(f"{r['_where']}: {key} file not found", p)
+                raise MissingFileError(f"{r['_where']}: {key} file not found (named by {path.name})", p)
             return p
         motion = resolve("motion")
         if motion is None:
             raise FormatError(f"{r['_where']}: no motion file", path, r["_where"])
+        if r.get("role") in (None, ""):
+            raise FormatError("no role", path, r["_where"])
         ch = r.get("audio_channel")
+        if ch is not None:
+            try:
+                ch = int(ch)
+            except (TypeError, ValueError):
+                raise FormatError(f"audio_channel must be a whole number, got {ch!r}", path, r["_where"]) from None
         part = Participant(str(r["role"]), str(r.get("character", r["role"])), motion, resolve("audio"),
-                           resolve("transcript"), None if ch is None else int(ch), str(r["session"]))
+                           resolve("transcript"), ch, str(r["session"]), listed_in=path)
         by_session.setdefault(str(r["session"]), []).append(part)
     sessions = []
     for name, parts in by_session.items():

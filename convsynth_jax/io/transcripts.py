@@ -154,6 +154,13 @@ def _parse_textgrid(text: str, tier: str, path: Path) -> pd.DataFrame:
             raise TranscriptFormatError(f"expected a number for {kind}, got {tok!r}", path, f"line {line}") from None
         return v
 
+    def count(kind: str) -> int:
+        line = toks[pos][2] if pos < len(toks) else (toks[-1][2] if toks else 1)
+        v = number(kind)
+        if not (math.isfinite(v) and v >= 0 and v == int(v)):
+            raise TranscriptFormatError(f"expected a whole number >= 0 for {kind}, got {v!r}", path, f"line {line}")
+        return int(v)
+
     ftype, _, line = take("header")
     if ftype != "ooTextFile":
         raise TranscriptFormatError(f"not a Praat text file (starts with {ftype!r})", path, f"line {line}")
@@ -165,7 +172,7 @@ def _parse_textgrid(text: str, tier: str, path: Path) -> pd.DataFrame:
     tok, _, line = take("tiers flag")
     if tok != "<exists>":
         return pd.DataFrame(columns=COLUMNS)
-    n_tiers = int(number("tier count"))
+    n_tiers = count("tier count")
     names = []
     for _ in range(n_tiers):
         tclass, _, line = take("tier class")
@@ -173,7 +180,7 @@ def _parse_textgrid(text: str, tier: str, path: Path) -> pd.DataFrame:
         names.append(tname)
         number("tier xmin")
         number("tier xmax")
-        n = int(number("interval count"))
+        n = count("interval count")
         if tclass == "IntervalTier":
             rows = []
             for k in range(n):

@@ -13,10 +13,12 @@ from pathlib import Path
 import numpy as np
 
 from ..annotate.cache import params_hash
+from ..errors import GraphError
 from ..graph import load_graph
 from ..graph.build import build_graph_from_clips
 from ..graph.types import MotionGraph
 from ..synth.pipeline import synthesize_character
+from ..utils import file_lock
 from .base import WindowInput, WindowResult
 from .playback import PlaybackSystem, clip_name, training_labels
 
@@ -36,6 +38,17 @@ class GraphModel:
     labels: dict = dataclasses.field(default_factory=dict)
 
 
+def _read_cached_graph(path: Path):
+    """The graph stored at ``path``, or None when absent or unreadable (then built again)."""
+    if not path.is_file():
+        return None
+    try:
+        return load_graph(path)
+    except GraphError as e:
+        log.warning("ignoring unreadable cached motion graph (%s); building it again", e)
+        return None
+
+
 class MotionGraphSystem(PlaybackSystem):
     produces_hands = True
 
@@ -48,11 +61,19 @@ class MotionGraphSystem(PlaybackSystem):
         # the graph stores the clips' audio labels, so the annotation parameters are part of the key
         key = params_hash(sorted(motions), p.graph, p.features, p.annotate)
         cached = Path(cache_dir) / f"graph_{character}_{key}.npz" if cache_dir else None
-        if cached is not None and cached.is_file():
-            g = load_graph(cached)
-            return GraphModel(g, motions, float(g.meta.get("seconds", np.nan)), labels)
+        if cached is None:
+            return self._build(items, motions, labels, None)
+        g = _read_cached_graph(cached)
+        if g is None:  # several processes on one cache folder: the first builds, the others wait and read
+            with file_lock(cached):
+                g = _read_cached_graph(cached)
+                if g is None:
+                    return self._build(items, motions, labels, cached)
+        return GraphModel(g, motions, float(g.meta.get("seconds", np.nan)), labels)
+
+    def _build(self, items, motions, labels, cached) -> GraphModel:
         t0 = time.perf_counter()
-        g = build_graph_from_clips(items, p.graph, p.features)
+        g = build_graph_from_clips(items, self.params.graph, self.params.features)
         seconds = time.perf_counter() - t0
         g.meta["seconds"] = seconds
         if cached is not None:

@@ -5,6 +5,14 @@ system on the other sessions (models cached in ``cache_dir`` where the system su
 by all conditions with the same fit), synthesizes both characters in every 15 s window (14 s hop)
 of the held-out session and writes ``cases.csv`` (one row per window x character). Errors are
 recorded in the table and summary; the job itself does not fail, so a sweep always runs to the end.
+
+Resumable sweeps: a job that succeeds is also kept in the results store ``task.store`` (default
+``${cache_dir}/results/loo``) under the hash of its resolved configuration
+(:mod:`convsynth_jax.evaluation.store`). With ``task.resume=true`` (default) a job whose entry is
+there copies it into its output folder instead of computing it (``summary.json``: ``resumed``), so
+re-running a killed sweep redoes only the jobs that had not finished. Failed jobs are not stored
+(a re-run tries them again), nor are jobs with ``task.export_bvh=true`` (their motion files are not
+kept in the store). ``task.store=null`` turns the store off.
 """
 from __future__ import annotations
 
@@ -13,6 +21,7 @@ import time
 import traceback
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import pandas as pd
 
@@ -27,10 +36,65 @@ class LooSettings:
 
     name: str = "loo"
     export_bvh: bool = False            # write each synthesized window as BVH
+    store: Optional[str] = None         # results store (evaluation/store.py); None: off
+    resume: bool = True                 # reuse a finished job's stored result instead of computing it
+
+
+# configuration keys that do not change a job's result (left out of its store key)
+NOT_IN_KEY = ("cache_dir", "progress", "jax_cache", "path")
+NOT_IN_TASK_KEY = ("store", "resume")
+
+
+def store_key(cfg) -> str:
+    """The results-store key of this job: its resolved configuration without :data:`NOT_IN_KEY` (and
+    the task's ``store``/``resume``), plus the package's source fingerprint."""
+    from omegaconf import OmegaConf
+
+    from ..evaluation.store import code_fingerprint, job_key
+
+    config = OmegaConf.to_container(cfg, resolve=True)
+    config = {k: v for k, v in config.items() if k not in NOT_IN_KEY and k != "hydra"}
+    config["task"] = {k: v for k, v in config.get("task", {}).items() if k not in NOT_IN_TASK_KEY}
+    return job_key(config, code_fingerprint())
 
 
 def run(cfg, out_dir: Path) -> dict:
     from ..config import task_settings
+    from ..evaluation.store import ResultStore
+
+    settings = task_settings(cfg)
+    if settings.store is None or settings.export_bvh:  # the store keeps tables, not the exported motion
+        return _run_job(cfg, out_dir, settings)
+    store, key = ResultStore(settings.store), store_key(cfg)
+    with store.claim(key):  # the same job started twice at once: computed once
+        stored = store.read(key) if settings.resume else None
+        if stored is not None:
+            log.info("fold %s condition %s: finished before, stored result %s reused", stored.record.get("fold"),
+                     stored.record.get("condition"), store.entry(key))
+            _write_cases(stored.cases, out_dir)
+            return {**stored.record["summary"], "resumed": True, "store_key": key}
+        summary = _run_job(cfg, out_dir, settings)
+        if summary["success"]:
+            import pandas as pd
+
+            store.write(key, pd.read_csv(out_dir / "cases.csv"),
+                        {"system": summary["system"], "fold": summary["fold"], "condition": summary["condition"],
+                         "summary": summary, "config": _plain(cfg)})
+    return {**summary, "resumed": False, "store_key": key}
+
+
+def _plain(cfg) -> dict:
+    from omegaconf import OmegaConf
+
+    return OmegaConf.to_container(cfg, resolve=True)
+
+
+def _write_cases(cases: pd.DataFrame, out_dir: Path) -> None:
+    with atomic_path(out_dir / "cases.csv") as tmp:
+        cases.to_csv(tmp, index=False)
+
+
+def _run_job(cfg, out_dir: Path, settings: LooSettings) -> dict:
     from ..evaluation.loo import run_fold
     from .common import annotated_corpus, cache_dir, make_configured_system, params_of
 
@@ -44,16 +108,14 @@ def run(cfg, out_dir: Path) -> dict:
         system.condition_options(condition)
         _, annotations = annotated_corpus(params)
         cases = run_fold(system, annotations, fold, condition, params, out_dir=out_dir, cache_dir=cache_dir(params),
-                         export_bvh=task_settings(cfg).export_bvh,
-                         with_audio=system.needs_audio)
+                         export_bvh=settings.export_bvh, with_audio=system.needs_audio)
         error = None
     except Exception as e:  # a failing job is recorded, it does not end the sweep
         log.error("fold %s condition %s failed: %s", fold, condition, e)
         cases = pd.DataFrame([{"system": system_name, "fold": fold, "condition": condition, "status": "error",
                                "success": False, "error": f"{type(e).__name__}: {e}"}])
         error = traceback.format_exc()
-    with atomic_path(out_dir / "cases.csv") as tmp:
-        cases.to_csv(tmp, index=False)
+    _write_cases(cases, out_dir)
     ok = cases.get("success", pd.Series(dtype=bool)).fillna(False).astype(bool)
     return {
         "system": system_name, "fold": fold, "condition": condition, "num_cases": int(len(cases)),

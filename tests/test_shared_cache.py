@@ -1,0 +1,50 @@
+"""Caches shared by processes started together (issue 29, part 2): the synthetic corpus, the
+annotation cache, the stored kernels and JAX's compilation cache are each computed once and never
+read half-written. The full command-line reproduction (4 ``convsynth task=cooccurrence`` and a joblib
+multirun of 4) is experiments/bench/parallel_cache.py."""
+from __future__ import annotations
+
+from convsynth_jax.testing.cache_race import start_together
+
+# a small corpus: the race is in how it is written and found, not in its size
+GENERATOR = {"seed": 1, "num_sessions": 2, "session_seconds": 10.0, "calibrate_rates": False,
+             "quota_planting": False, "glitches_per_minute": 0.0}
+
+
+def test_four_processes_on_one_empty_cache_compute_each_entry_once(tmp_path):
+    cache = tmp_path / "cache"
+    results = start_together({"cache": str(cache), "barrier": str(tmp_path / "barrier"), "out": str(tmp_path / "out"),
+                              "generator": GENERATOR}, processes=4)
+    # each entry computed by exactly one process
+    for what in ("corpus", "annotate", "kernel"):
+        assert sum(r["counts"][what] for r in results) == 1, (what, [r["counts"] for r in results])
+    # identical outputs: the same corpus bytes, annotation and kernel result in every process
+    assert len(results[0]["files"]) == 2 * 2 * 3
+    for r in results[1:]:
+        assert r["files"] == results[0]["files"]
+        assert r["annotation"] == results[0]["annotation"]
+        assert r["kernel"] == results[0]["kernel"]
+    # every cache file reads back intact, and no temporary file or old copy is left visible
+    import pickle
+
+    from convsynth_jax import kernel_cache
+
+    (ann,) = (cache / "loo_cache").glob("annotations_*.pkl")
+    assert pickle.loads(ann.read_bytes()) == results[0]["annotation"]
+    (kfile,) = (cache / "jax_kernels").glob("race_kernel-*.jaxexe")
+    key = kfile.name[len("race_kernel-"):-len(".jaxexe")]
+    kernel_cache.set_kernel_dir(kfile.parent)
+    try:
+        assert kernel_cache._read(kfile, key) is not None
+    finally:
+        kernel_cache.set_kernel_dir(None)
+    from jax._src import compilation_cache
+
+    entries = [p for p in (cache / "jax_cache").iterdir() if p.name.endswith("-cache")]
+    assert entries
+    for p in entries:
+        compilation_cache.decompress_executable(p.read_bytes())  # raises on a truncated entry
+    # JAX's own lock guards its folder (jax_cache.max_size_bytes); our entries have theirs
+    assert (cache / "jax_cache" / ".lockfile").exists()
+    leftovers = [p.name for p in cache.rglob(".*") if not p.name.endswith(".lock") and p.name != ".lockfile"]
+    assert not leftovers, leftovers

@@ -1,0 +1,336 @@
+"""Sharded, resumable, multi-device motion-graph construction (paper Section 6 at scale; ours).
+
+The same graph as :func:`convsynth_jax.graph.build.build_graph` (tests/test_graph_stream.py), built
+so that a database of millions of frames fits in bounded memory and a killed build resumes:
+
+1. the construction plan (w_v, key states, the fit of c(i, i+k) and the threshold;
+   :func:`~convsynth_jax.graph.build.construction_plan`) is computed as usual; it is deterministic;
+2. the source key states are tiled (k-d order of their pivot distances, as in graph/cost.py) and the
+   source tiles cut into *blocks* of ``block_tiles`` tiles. A block's candidate transitions
+   (Eq. 3-4: c(i, j) = D(i, j - 1) < threshold, against every destination tile not ruled out by
+   the triangle inequality) are computed tile pair batch by batch, filtered (per-edge filters and the
+   out-degree cap, all of which only look at one source's edges) and written as one shard
+   ``shards/edges_<block>.npz``; then the manifest (``manifest.json``: the plan's fingerprint and
+   every finished shard's sha256 and edge count) is rewritten. Both writes are atomic (temporary
+   name, then rename), so a build killed at any point (SIGKILL included) leaves only whole shards,
+   and the next run with the same database and parameters skips every shard whose checksum matches;
+3. the shards are read back (int32 frame indices) and the original transitions added; the largest
+   strongly connected component (scipy.sparse.csgraph) gives the graph, written as a memory-mappable
+   array folder (graph/store.py) that the search reads as it is.
+
+Memory: the edge stage holds the features, the tilings and one batch of tile costs per device, so
+it is bounded by the database size whatever the edge count; the assembly holds the edges (as the
+SCC needs them): about 20 bytes per edge at its peak.
+
+Devices: a batch of tile pairs is one call of a vmapped tile kernel under ``shard_map`` over a 1-D
+mesh of all (or the given) JAX devices, the pairs split evenly across them; every pair's costs are
+the same arithmetic on any device count, so the edges are the same (tests run it on 4 forced CPU
+devices). Across hosts, ``jax.distributed.initialize()`` before the build makes ``jax.devices()``
+span every process (docs/scale.md).
+
+``local_minima`` (a neighbourhood rule across sources) is not supported here.
+"""
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import logging
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+import jax
+import jax.numpy as jnp
+import numpy as np
+from jax.sharding import Mesh, PartitionSpec
+
+from ..errors import ConfigError, GraphError
+from ..utils import write_json_atomic
+from .build import _cap_degree, assemble_graph, construction_meta, construction_plan
+from .cost import BOUND_MARGIN, _sum_of_norms, _tile_lower_bounds, _tiling, pivot_embedding
+from .database import MotionDatabase
+from .params import GraphParams
+from .seams import apply_glitch_filter, frame_acceleration, seam_filter_mask
+from .store import file_sha256, load_graph_folder, save_graph_folder, save_npz_atomic
+from .types import MotionGraph
+
+try:  # jax >= 0.4.35
+    from jax import shard_map as _shard_map
+except ImportError:  # pragma: no cover - older jax
+    from jax.experimental.shard_map import shard_map as _shard_map
+
+log = logging.getLogger(__name__)
+
+FORMAT = "convsynth-sharded-graph-1"
+
+
+@dataclass(frozen=True)
+class ShardParams:
+    """How the sharded build cuts and dispatches the work (not what it computes: any values give
+    the same graph)."""
+
+    block_tiles: int = 64     # source tiles per shard (a shard's sources: block_tiles * graph.tile)
+    batch: int = 16           # tile pairs per device per kernel call
+    devices: int | None = None  # use the first this many JAX devices (None: all)
+
+    def __post_init__(self):
+        if int(self.block_tiles) < 1 or int(self.batch) < 1:
+            raise ConfigError(f"block_tiles and batch must be >= 1, got {self.block_tiles}, {self.batch}",
+                              where="shards")
+
+
+def _tile_costs_one(xa, xb, ia, ib, ca, cb, threshold, min_gap):
+    """:func:`~convsynth_jax.graph.cost.masked_tile_costs` of one gathered tile pair.
+    xa: (M, 3, T), xb: (M, 3, T); ia, ib, ca, cb: (T,) int32 -> (T, T) float32."""
+    d = _sum_of_norms(xa, xb)
+    near = (ca[:, None] == cb[None, :]) & (jnp.abs(ia[:, None] - ib[None, :]) <= min_gap)
+    ok = (d < threshold) & ~near & (ia[:, None] >= 0) & (ib[None, :] >= 0)
+    return jnp.where(ok, d, jnp.inf)
+
+
+_KERNELS: dict = {}
+
+
+def tile_kernel(devices):
+    """The jitted batch kernel over a 1-D mesh of ``devices``: (P, M, 3, T) x2, (P, T) int32 x4,
+    threshold, min_gap -> (P, T, T) float32, P a multiple of len(devices), split across them."""
+    key = tuple(d.id for d in devices)
+    if key not in _KERNELS:
+        mesh = Mesh(np.asarray(devices), ("tiles",))
+        spec, rep = PartitionSpec("tiles"), PartitionSpec()
+        body = jax.vmap(_tile_costs_one, in_axes=(0, 0, 0, 0, 0, 0, None, None))
+        _KERNELS[key] = jax.jit(_shard_map(body, mesh=mesh, in_specs=(spec,) * 6 + (rep, rep), out_specs=spec))
+    return _KERNELS[key]
+
+
+def _fingerprint(*parts) -> str:
+    h = hashlib.sha256()
+    for p in parts:
+        if isinstance(p, np.ndarray):
+            h.update(str((p.dtype, p.shape)).encode())
+            h.update(np.ascontiguousarray(p).tobytes())
+        else:
+            h.update(json.dumps(p, sort_keys=True, default=str).encode())
+    return h.hexdigest()
+
+
+class _EdgeStage:
+    """The tilings, live tile pairs and blocks of one build (deterministic from db, params, plan)."""
+
+    def __init__(self, db: MotionDatabase, params: GraphParams, plan, block_tiles: int):
+        keys, X = plan.keys, plan.features
+        src = np.flatnonzero(keys).astype(np.int64)
+        dst = src[db.frame[src] > 0] - 1  # j - 1 must be in the same clip
+        self.src, self.dst = src, dst
+        self.threshold = float(plan.threshold)
+        clip = np.asarray(db.clip, np.int64)
+        tile = int(params.tile)
+        if src.size == 0 or dst.size == 0 or not self.threshold > 0:
+            self.pairs = np.zeros((0, 2), np.int64)
+            self.blocks = []
+            self.ta = self.tb = None
+            self.pivots = 0
+            return
+        rng = np.random.default_rng(int(params.seed))
+        union = np.union1d(src, dst)
+        if int(params.n_pivots) > 0:
+            piv, emb_all = pivot_embedding(X, union, int(params.n_pivots), rng)
+        else:
+            piv, emb_all = np.zeros(0, np.int64), np.zeros((union.size, 0))
+        self.pivots = int(piv.size)
+        emb_of = lambda idx: emb_all[np.searchsorted(union, idx)]  # noqa: E731
+        ta = _tiling(X, src, emb_of(src), clip, tile)
+        tb = _tiling(X, dst, emb_of(dst), clip, tile)
+        lb = _tile_lower_bounds(ta, tb)
+        scale = float(np.nanmax(np.abs(emb_all))) if emb_all.size else 0.0
+        self.pairs = np.argwhere(lb < self.threshold + BOUND_MARGIN * (self.threshold + scale))
+        self.total_tile_pairs = int(lb.size)
+        del lb
+        nta = ta.ids.shape[0]
+        # host copies of the real tiles (the device stacks of _tiling are padded to a power of two)
+        self.ta = (ta.ids, np.asarray(ta.x)[:nta], np.asarray(ta.i32)[:nta], np.asarray(ta.c32)[:nta])
+        ntb = tb.ids.shape[0]
+        self.tb = (tb.ids, np.asarray(tb.x)[:ntb], np.asarray(tb.i32)[:ntb], np.asarray(tb.c32)[:ntb])
+        bt = int(block_tiles)
+        self.blocks = [(s, min(s + bt, nta)) for s in range(0, nta, bt)]
+        self.row_start = np.searchsorted(self.pairs[:, 0], [b[0] for b in self.blocks] + [nta])
+
+    def fingerprint(self) -> str:
+        if self.ta is None:
+            return _fingerprint(self.src, self.dst, self.threshold)
+        return _fingerprint(self.src, self.dst, self.threshold, self.ta[0], self.tb[0], self.pairs)
+
+    def block_pairs(self, b: int) -> np.ndarray:
+        return self.pairs[self.row_start[b]:self.row_start[b + 1]]
+
+
+def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, batch: int, min_gap: int):
+    """(a, b, cost) of every candidate transition in the tile pairs ``pairs`` (one device call per
+    batch of ``batch * ndev`` pairs, the next batch dispatched before the previous is compacted)."""
+    ids_a, xa, ia, ca = stage.ta
+    ids_b, xb, ib, cb = stage.tb
+    step = batch * ndev
+    thr, gap = np.float32(stage.threshold), np.int32(min_gap)
+    out_a, out_b, out_c = [], [], []
+
+    def launch(s):
+        ps = pairs[s:s + step]
+        n = ps.shape[0]
+        if n < step:  # pad with the first pair; the padding's results are not read
+            ps = np.concatenate([ps, np.repeat(ps[:1], step - n, 0)])
+        pa, pb = ps[:, 0], ps[:, 1]
+        return ps[:n], kernel(xa[pa], xb[pb], ia[pa], ib[pb], ca[pa], cb[pb], thr, gap)
+
+    def compact(ps, m):
+        m = np.asarray(m)[:ps.shape[0]]
+        t, r, c = np.nonzero(m < np.inf)
+        if t.size:
+            out_a.append(ids_a[ps[t, 0], r])
+            out_b.append(ids_b[ps[t, 1], c])
+            out_c.append(m[t, r, c])
+
+    pending = None
+    for s in range(0, pairs.shape[0], step):
+        nxt = launch(s)
+        if pending is not None:
+            compact(*pending)
+        pending = nxt
+    if pending is not None:
+        compact(*pending)
+    if not out_a:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32)
+    return (np.concatenate(out_a).astype(np.int64), np.concatenate(out_b).astype(np.int64),
+            np.concatenate(out_c).astype(np.float32))
+
+
+def _filters(db, params, acc):
+    """The per-edge filters of build_graph (seam, glitch) and the out-degree cap, applied to one
+    block's edges (each looks at one source's edges only, so blockwise equals whole)."""
+    def apply(a, j, c, counts):
+        if params.seam_filter_quantile is not None:
+            keep, limit = seam_filter_mask(db, a, j, params.seam_filter_quantile, int(params.seam_filter_radius), acc=acc)
+            counts["seam_dropped"] = counts.get("seam_dropped", 0) + int((~keep).sum())
+            a, j, c = a[keep], j[keep], c[keep]
+        m: dict = {}
+        a, j, c = apply_glitch_filter(db, a, j, c, params, meta=m)
+        if "glitch_filter" in m:
+            counts["glitch_dropped"] = counts.get("glitch_dropped", 0) + m["glitch_filter"]["dropped"]
+        if params.max_out_degree:
+            a, j, c = _cap_degree(a, j, c, int(params.max_out_degree))
+        return a, j, c
+    return apply
+
+
+def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | Path,
+                        shards: ShardParams | None = None, on_shard=None, timings: dict | None = None) -> MotionGraph:
+    """Build the motion graph of ``db`` into ``out_dir`` (``manifest.json``, ``shards/``, ``graph/``),
+    resuming from the finished shards of an earlier run with the same database and parameters.
+    Returns the graph (its arrays memory-mapped from ``out_dir/graph``). ``on_shard(block, n_blocks)``
+    is called after each shard is committed (progress; tests use it to kill the build)."""
+    sp = shards or ShardParams()
+    p = params
+    if p.local_minima:
+        raise ConfigError("graph.local_minima is not supported by the sharded build (its rule spans sources)",
+                          where="graph.local_minima")
+    out = Path(out_dir)
+    (out / "shards").mkdir(parents=True, exist_ok=True)
+    tm = timings if timings is not None else {}
+    t0 = time.perf_counter()
+    plan = construction_plan(db, p, tm)
+    t1 = time.perf_counter()
+    stage = _EdgeStage(db, p, plan, sp.block_tiles)
+    tm["tiling_s"] = time.perf_counter() - t1
+    graph_keys = {k: v for k, v in dataclasses.asdict(p).items() if k not in ("workers", "max_edges")}
+    fp = _fingerprint(np.asarray(db.positions[:: max(1, db.num_frames // 4096)]), np.asarray(db.clip[::997]),
+                      db.num_frames, graph_keys, int(sp.block_tiles), stage.fingerprint())
+    man_path = out / "manifest.json"
+    manifest = {"format": FORMAT, "fingerprint": fp, "num_blocks": len(stage.blocks), "shards": {}}
+    if man_path.is_file():
+        try:
+            old = json.loads(man_path.read_text())
+        except ValueError as e:
+            raise GraphError(f"unreadable build manifest ({e}); delete the folder to start over", man_path) from None
+        if old.get("fingerprint") != fp:
+            raise GraphError("this folder holds a build of another database or other parameters; use a new "
+                             "folder or delete it to start over", man_path)
+        manifest["shards"] = old.get("shards", {})
+    for stale in (out / "shards").glob(".edges_*"):  # temporaries of a killed write
+        stale.unlink(missing_ok=True)
+    devices = jax.devices()[: sp.devices] if sp.devices else jax.devices()
+    kernel = tile_kernel(devices)
+    acc = frame_acceleration(db) if p.seam_filter_quantile is not None else None
+    filt = _filters(db, p, acc)
+    t1 = time.perf_counter()
+    resumed = computed = 0
+    for b in range(len(stage.blocks)):
+        name = f"edges_{b:05d}.npz"
+        entry = manifest["shards"].get(str(b))
+        f = out / "shards" / name
+        if entry is not None and f.is_file() and file_sha256(f) == entry["sha256"]:
+            resumed += 1
+            continue
+        a, bb, c = _block_candidates(stage, stage.block_pairs(b), kernel, len(devices), int(sp.batch),
+                                     int(p.min_gap_frames))
+        found = int(a.size)
+        counts: dict = {}
+        a, j, c = filt(a, bb + 1, c, counts)
+        idx = np.int32 if db.num_frames < 2**31 - 1 else np.int64
+        sha = save_npz_atomic(f, a=a.astype(idx), j=j.astype(idx), c=c.astype(np.float32))
+        manifest["shards"][str(b)] = {"file": f"shards/{name}", "sha256": sha, "edges": int(a.size),
+                                      "candidates_found": found, "tile_pairs": int(stage.block_pairs(b).shape[0]),
+                                      **counts}
+        write_json_atomic(man_path, manifest)
+        computed += 1
+        log.info("shard %d/%d: %d tile pairs, %d edges", b + 1, len(stage.blocks), stage.block_pairs(b).shape[0], a.size)
+        if on_shard is not None:
+            on_shard(b, len(stage.blocks))
+    tm["edges_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    a, j, c = read_shards(out, manifest)
+    ent = manifest["shards"].values()
+    kstats = {"tiles_computed": int(stage.pairs.shape[0]),
+              "tiles_skipped": int(getattr(stage, "total_tile_pairs", 0) - stage.pairs.shape[0]),
+              "tile": int(p.tile), "pivots": stage.pivots, "symmetric": False,
+              "pairs_evaluated": int(stage.pairs.shape[0]) * int(p.tile) ** 2,
+              "candidates_found": int(sum(e["candidates_found"] for e in ent)),
+              "shards": len(stage.blocks), "shards_resumed": resumed, "shards_computed": computed,
+              "devices": len(devices)}
+    for k in ("seam_dropped", "glitch_dropped"):
+        if any(k in e for e in ent):
+            kstats[k] = int(sum(e.get(k, 0) for e in ent))
+    meta = construction_meta(db, p, plan, kstats)
+    g = assemble_graph(db, plan.keys, a, j, c, meta)
+    del a, j, c
+    tm["scc_s"] = time.perf_counter() - t1
+    g.meta["seconds"] = time.perf_counter() - t0
+    g.meta["timings"] = dict(tm)
+    save_graph_folder(g, out / "graph")
+    manifest["graph"] = {"folder": "graph", "num_states": g.num_states, "num_edges": g.num_edges}
+    write_json_atomic(man_path, manifest)
+    return load_graph_folder(out / "graph", mmap=True, verify=False)
+
+
+def read_shards(out_dir: str | Path, manifest: dict | None = None):
+    """(a, j, c) of every shard listed in the manifest, in block order, checksums verified."""
+    out = Path(out_dir)
+    manifest = manifest or json.loads((out / "manifest.json").read_text())
+    n = int(manifest["num_blocks"])
+    missing = [b for b in range(n) if str(b) not in manifest["shards"]]
+    if missing:
+        raise GraphError(f"{len(missing)} of {n} shards are not finished (first: {missing[0]})", out / "manifest.json")
+    total = sum(int(manifest["shards"][str(b)]["edges"]) for b in range(n))
+    a = np.empty(total, np.int64)
+    j = np.empty(total, np.int64)
+    c = np.empty(total, np.float32)
+    pos = 0
+    for b in range(n):
+        e = manifest["shards"][str(b)]
+        f = out / e["file"]
+        if file_sha256(f) != e["sha256"]:
+            raise GraphError("shard checksum mismatch (changed or truncated); delete it and build again", f)
+        with np.load(f) as z:
+            k = z["a"].size
+            a[pos:pos + k], j[pos:pos + k], c[pos:pos + k] = z["a"], z["j"], z["c"]
+        pos += k
+    return a, j, c

@@ -190,7 +190,8 @@ def make_scale_database(params: ScaleDBParams) -> MotionDatabase:
     base = bandai_clips(p.bandai_root, p.fps) if p.bandai_root else []
     base_frames = sum(len(c.P) for c in base)
     per_session = 2 * int(round(p.session_seconds * p.fps))
-    need = max(0, int(np.ceil(p.frames / len(VARIANTS))) - base_frames)
+    # the warps change lengths (speed factors of mean length about 1): a 10% margin of originals
+    need = max(0, int(np.ceil(1.1 * p.frames / len(VARIANTS))) - base_frames)
     n_sessions = max(1, int(np.ceil(need / per_session))) if need > 0 or not base else 0
     base = base + (synthetic_clips(n_sessions, p.seed, p.session_seconds, p.fps, p.calibrate) if n_sessions else [])
     clips, total = [], 0

@@ -44,10 +44,12 @@ import jax
 import jax.numpy as jnp
 import numpy as np
 from jax.sharding import Mesh, PartitionSpec
+from scipy.sparse import csr_matrix
+from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, GraphError
 from ..utils import write_json_atomic
-from .build import _cap_degree, assemble_graph, construction_meta, construction_plan
+from .build import _cap_degree, assemble_graph, construction_meta, construction_plan, scc_warning
 from .cost import BOUND_MARGIN, _sum_of_norms, _tile_lower_bounds, _tiling, pivot_embedding
 from .database import MotionDatabase
 from .params import GraphParams
@@ -245,7 +247,8 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
     fp = _fingerprint(np.asarray(db.positions[:: max(1, db.num_frames // 4096)]), np.asarray(db.clip[::997]),
                       db.num_frames, graph_keys, int(sp.block_tiles), stage.fingerprint())
     man_path = out / "manifest.json"
-    manifest = {"format": FORMAT, "fingerprint": fp, "num_blocks": len(stage.blocks), "shards": {}}
+    manifest = {"format": FORMAT, "fingerprint": fp, "num_frames": int(db.num_frames), "num_blocks": len(stage.blocks),
+                "shards": {}}
     if man_path.is_file():
         try:
             old = json.loads(man_path.read_text())
@@ -287,7 +290,6 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
             on_shard(b, len(stage.blocks))
     tm["edges_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
-    a, j, c = read_shards(out, manifest)
     ent = manifest["shards"].values()
     kstats = {"tiles_computed": int(stage.pairs.shape[0]),
               "tiles_skipped": int(getattr(stage, "total_tile_pairs", 0) - stage.pairs.shape[0]),
@@ -300,8 +302,7 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
         if any(k in e for e in ent):
             kstats[k] = int(sum(e.get(k, 0) for e in ent))
     meta = construction_meta(db, p, plan, kstats)
-    g = assemble_graph(db, plan.keys, a, j, c, meta)
-    del a, j, c
+    g = assemble_graph_compact(db, plan.keys, *read_shards(out, manifest), meta)  # no other reference to the edges
     tm["scc_s"] = time.perf_counter() - t1
     g.meta["seconds"] = time.perf_counter() - t0
     g.meta["timings"] = dict(tm)
@@ -309,6 +310,58 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
     manifest["graph"] = {"folder": "graph", "num_states": g.num_states, "num_edges": g.num_edges}
     write_json_atomic(man_path, manifest)
     return load_graph_folder(out / "graph", mmap=True, verify=False)
+
+
+def assemble_graph_compact(db: MotionDatabase, keys, a, j, c, meta: dict) -> MotionGraph:
+    """:func:`~convsynth_jax.graph.build.assemble_graph` (the same graph, tests compare) in about a
+    third of its memory: 32-bit edge arrays and edge numbers, the inputs consumed as it goes.
+    ``a``, ``j``, ``c``: the synthetic transitions (E,), released by the caller."""
+    n = db.num_frames
+    if n >= 2**31 - 1 or a.size + n >= 2**31 - 1:
+        return assemble_graph(db, keys, a, j, c, meta)
+    clip = np.asarray(db.clip)
+    t = np.flatnonzero(clip[:-1] == clip[1:]).astype(np.int32)
+    rows = np.concatenate([t, a.astype(np.int32)])
+    cols = np.concatenate([t + 1, j.astype(np.int32)])
+    del a, j
+    E = rows.size
+    meta = dict(meta, num_states_before_scc=int(n), num_edges_before_scc=int(E), num_synthetic_before_scc=int(E - t.size))
+    # CSR by the linear-time COO -> CSR conversion carrying each edge's number (+1) as its value
+    adj = csr_matrix((np.arange(1, E + 1, dtype=np.int32), (rows, cols)), shape=(n, n))
+    del rows, cols
+    adj.sort_indices()
+    if adj.nnz != E:
+        raise GraphError(f"duplicate transitions in the edge list ({E - adj.nnz})")
+    order = adj.data - 1
+    n_orig = t.size
+    cost = np.where(order < n_orig, np.float32(0), c[np.maximum(order - n_orig, 0)]).astype(np.float32)
+    syn = order >= n_orig
+    del order
+    ncomp, labels = connected_components(adj, directed=True, connection="strong")
+    keep = labels == int(np.argmax(np.bincount(labels)))
+    del labels
+    new_id = np.full(n, -1, np.int64)
+    new_id[keep] = np.arange(int(keep.sum()))
+    src = np.repeat(np.arange(n, dtype=np.int32), np.diff(adj.indptr))
+    e = keep[src] & keep[adj.indices]
+    r = src[e]
+    del src
+    cc, co, sy = new_id[adj.indices[e]], cost[e], syn[e]
+    del adj, cost, syn, e
+    S = int(keep.sum())
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(new_id[r], minlength=S))]).astype(np.int64)
+    del r
+    meta.update(num_states=S, num_edges=int(cc.size), num_synthetic_edges=int(sy.sum()), num_components=int(ncomp),
+                scc_warning=scc_warning(S, n, int(cc.size), meta.get("k")))
+    if meta["scc_warning"]:
+        log.warning("%s", meta["scc_warning"])
+    return MotionGraph(
+        clip_names=db.clip_names, fps=db.fps, clip=np.asarray(db.clip)[keep], frame=np.asarray(db.frame)[keep],
+        own_label=np.asarray(db.own.label)[keep], own_start=np.asarray(db.own.seg_start)[keep],
+        own_end=np.asarray(db.own.seg_end)[keep], own_peak=np.asarray(db.own.seg_peak)[keep],
+        partner_label=np.asarray(db.partner.label)[keep], partner_start=np.asarray(db.partner.seg_start)[keep],
+        partner_end=np.asarray(db.partner.seg_end)[keep], is_key=keys[keep],
+        indptr=indptr, indices=cc.astype(np.int64), cost=co, synthetic=sy, meta=meta)
 
 
 def read_shards(out_dir: str | Path, manifest: dict | None = None):
@@ -320,8 +373,9 @@ def read_shards(out_dir: str | Path, manifest: dict | None = None):
     if missing:
         raise GraphError(f"{len(missing)} of {n} shards are not finished (first: {missing[0]})", out / "manifest.json")
     total = sum(int(manifest["shards"][str(b)]["edges"]) for b in range(n))
-    a = np.empty(total, np.int64)
-    j = np.empty(total, np.int64)
+    idx = np.int32 if total < 2**31 - 1 and int(manifest.get("num_frames", 0)) < 2**31 - 1 else np.int64
+    a = np.empty(total, idx)
+    j = np.empty(total, idx)
     c = np.empty(total, np.float32)
     pos = 0
     for b in range(n):

@@ -85,11 +85,23 @@ def test_four_devices_and_resume_after_sigkill(small):
     assert four.meta["kernel"]["devices"] == 4
     assert_same_graph(g, four)
     man = json.loads((d / "killed" / "manifest.json").read_text())
-    assert sorted(man["shards"]) == ["0", "1"] and "graph" not in man
+    assert "graph" not in man
+    assert sorted(f.name for f in (d / "killed" / "shards").glob("*.json")) == ["edges_00000.json", "edges_00001.json"]
     assert not (d / "killed" / "graph").exists()
     h = build_graph_sharded(db, GP, d / "killed", SP)
     assert h.meta["kernel"]["shards_resumed"] == 2
     assert h.meta["kernel"]["shards_computed"] == h.meta["kernel"]["shards"] - 2
+    assert_same_graph(g, h)
+
+
+def test_two_processes_share_one_folder(small):
+    """Processes split the blocks (every second one); the first assembles once all are there."""
+    db, d, g = small
+    out = d / "two"
+    assert build_graph_sharded(db, GP, out, ShardParams(2, 4, process_index=0, process_count=2)) is None  # waits
+    assert build_graph_sharded(db, GP, out, ShardParams(2, 4, process_index=1, process_count=2)) is None
+    h = build_graph_sharded(db, GP, out, ShardParams(2, 4, process_index=0, process_count=2))
+    assert h.meta["kernel"]["shards_computed"] == 0 and h.meta["kernel"]["processes"] == 2
     assert_same_graph(g, h)
 
 

@@ -10,10 +10,10 @@ so that a database of millions of frames fits in bounded memory and a killed bui
    (Eq. 3-4: c(i, j) = D(i, j - 1) < threshold, against every destination tile not ruled out by
    the triangle inequality) are computed tile pair batch by batch, filtered (per-edge filters and the
    out-degree cap, all of which only look at one source's edges) and written as one shard
-   ``shards/edges_<block>.npz``; then the manifest (``manifest.json``: the plan's fingerprint and
-   every finished shard's sha256 and edge count) is rewritten. Both writes are atomic (temporary
-   name, then rename), so a build killed at any point (SIGKILL included) leaves only whole shards,
-   and the next run with the same database and parameters skips every shard whose checksum matches;
+   ``shards/edges_<block>.npz``, then its sidecar ``edges_<block>.json`` (sha256, edge count).
+   ``manifest.json`` holds the plan's fingerprint. Every write is atomic (temporary name, then
+   rename), so a build killed at any point (SIGKILL included) leaves only whole shards, and the next
+   run with the same database and parameters skips every shard whose sidecar checksum matches;
 3. the shards are read back (int32 frame indices) and the original transitions added; the largest
    strongly connected component (scipy.sparse.csgraph) gives the graph, written as a memory-mappable
    array folder (graph/store.py) that the search reads as it is.
@@ -25,8 +25,9 @@ SCC needs them): about 20 bytes per edge at its peak.
 Devices: a batch of tile pairs is one call of a vmapped tile kernel under ``shard_map`` over a 1-D
 mesh of all (or the given) JAX devices, the pairs split evenly across them; every pair's costs are
 the same arithmetic on any device count, so the edges are the same (tests run it on 4 forced CPU
-devices). Across hosts, ``jax.distributed.initialize()`` before the build makes ``jax.devices()``
-span every process (docs/scale.md).
+devices). Across hosts: one process per host (``jax.distributed.initialize()``, docs/scale.md), each
+on its own devices and every ``process_count``-th block, writing into one shared folder; after a
+barrier the first process assembles the graph.
 
 ``local_minima`` (a neighbourhood rule across sources) is not supported here.
 """
@@ -74,7 +75,12 @@ class ShardParams:
 
     block_tiles: int = 64     # source tiles per shard (a shard's sources: block_tiles * graph.tile)
     batch: int = 16           # tile pairs per device per kernel call
-    devices: int | None = None  # use the first this many JAX devices (None: all)
+    devices: int | None = None  # use the first this many of the process's JAX devices (None: all)
+    # several processes (hosts) on one build folder: process i computes blocks i, i + n, ...; the
+    # first assembles. None: jax.process_index() / jax.process_count() (1 process without
+    # jax.distributed)
+    process_index: int | None = None
+    process_count: int | None = None
 
     def __post_init__(self):
         if int(self.block_tiles) < 1 or int(self.batch) < 1:
@@ -224,17 +230,37 @@ def _filters(db, params, acc):
     return apply
 
 
+def _shard_entry(out: Path, b: int) -> dict | None:
+    """The sidecar of shard ``b`` if it and its shard file are whole (checksum), else None."""
+    side = out / "shards" / f"edges_{b:05d}.json"
+    if not side.is_file():
+        return None
+    try:
+        e = json.loads(side.read_text())
+    except ValueError:
+        return None
+    f = out / e.get("file", "")
+    return e if f.is_file() and file_sha256(f) == e.get("sha256") else None
+
+
 def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | Path,
-                        shards: ShardParams | None = None, on_shard=None, timings: dict | None = None) -> MotionGraph:
+                        shards: ShardParams | None = None, on_shard=None, timings: dict | None = None):
     """Build the motion graph of ``db`` into ``out_dir`` (``manifest.json``, ``shards/``, ``graph/``),
     resuming from the finished shards of an earlier run with the same database and parameters.
-    Returns the graph (its arrays memory-mapped from ``out_dir/graph``). ``on_shard(block, n_blocks)``
+    Returns the graph (its arrays memory-mapped from ``out_dir/graph``); or None in a process other
+    than the first of several (``ShardParams.process_count``), or in the first when shards of the
+    others are still missing (run it again once they have finished). ``on_shard(block, n_blocks)``
     is called after each shard is committed (progress; tests use it to kill the build)."""
     sp = shards or ShardParams()
     p = params
     if p.local_minima:
         raise ConfigError("graph.local_minima is not supported by the sharded build (its rule spans sources)",
                           where="graph.local_minima")
+    index, count = sp.process_index, sp.process_count
+    if index is None:
+        index, count = jax.process_index(), jax.process_count()
+    if not 0 <= int(index) < int(count):
+        raise ConfigError(f"process_index must lie in [0, process_count), got {index} of {count}", where="shards")
     out = Path(out_dir)
     (out / "shards").mkdir(parents=True, exist_ok=True)
     tm = timings if timings is not None else {}
@@ -247,8 +273,8 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
     fp = _fingerprint(np.asarray(db.positions[:: max(1, db.num_frames // 4096)]), np.asarray(db.clip[::997]),
                       db.num_frames, graph_keys, int(sp.block_tiles), stage.fingerprint())
     man_path = out / "manifest.json"
-    manifest = {"format": FORMAT, "fingerprint": fp, "num_frames": int(db.num_frames), "num_blocks": len(stage.blocks),
-                "shards": {}}
+    nb = len(stage.blocks)
+    manifest = {"format": FORMAT, "fingerprint": fp, "num_frames": int(db.num_frames), "num_blocks": nb}
     if man_path.is_file():
         try:
             old = json.loads(man_path.read_text())
@@ -257,58 +283,69 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
         if old.get("fingerprint") != fp:
             raise GraphError("this folder holds a build of another database or other parameters; use a new "
                              "folder or delete it to start over", man_path)
-        manifest["shards"] = old.get("shards", {})
+    else:
+        write_json_atomic(man_path, manifest)  # the same content from every process
     for stale in (out / "shards").glob(".edges_*"):  # temporaries of a killed write
         stale.unlink(missing_ok=True)
-    devices = jax.devices()[: sp.devices] if sp.devices else jax.devices()
+    # this process's devices (with jax.distributed, jax.devices() also lists the other hosts')
+    local = jax.local_devices()
+    devices = local[: sp.devices] if sp.devices else local
     kernel = tile_kernel(devices)
     acc = frame_acceleration(db) if p.seam_filter_quantile is not None else None
     filt = _filters(db, p, acc)
     t1 = time.perf_counter()
     resumed = computed = 0
-    for b in range(len(stage.blocks)):
-        name = f"edges_{b:05d}.npz"
-        entry = manifest["shards"].get(str(b))
-        f = out / "shards" / name
-        if entry is not None and f.is_file() and file_sha256(f) == entry["sha256"]:
+    idx = np.int32 if db.num_frames < 2**31 - 1 else np.int64
+    for b in range(int(index), nb, int(count)):
+        if _shard_entry(out, b) is not None:
             resumed += 1
             continue
+        name = f"edges_{b:05d}.npz"
         a, bb, c = _block_candidates(stage, stage.block_pairs(b), kernel, len(devices), int(sp.batch),
                                      int(p.min_gap_frames))
         found = int(a.size)
         counts: dict = {}
         a, j, c = filt(a, bb + 1, c, counts)
-        idx = np.int32 if db.num_frames < 2**31 - 1 else np.int64
-        sha = save_npz_atomic(f, a=a.astype(idx), j=j.astype(idx), c=c.astype(np.float32))
-        manifest["shards"][str(b)] = {"file": f"shards/{name}", "sha256": sha, "edges": int(a.size),
-                                      "candidates_found": found, "tile_pairs": int(stage.block_pairs(b).shape[0]),
-                                      **counts}
-        write_json_atomic(man_path, manifest)
+        sha = save_npz_atomic(out / "shards" / name, a=a.astype(idx), j=j.astype(idx), c=c.astype(np.float32))
+        write_json_atomic(out / "shards" / f"edges_{b:05d}.json",
+                          {"file": f"shards/{name}", "sha256": sha, "edges": int(a.size), "candidates_found": found,
+                           "tile_pairs": int(stage.block_pairs(b).shape[0]), **counts})
         computed += 1
-        log.info("shard %d/%d: %d tile pairs, %d edges", b + 1, len(stage.blocks), stage.block_pairs(b).shape[0], a.size)
+        log.info("shard %d/%d: %d tile pairs, %d edges", b + 1, nb, stage.block_pairs(b).shape[0], a.size)
         if on_shard is not None:
-            on_shard(b, len(stage.blocks))
+            on_shard(b, nb)
     tm["edges_s"] = time.perf_counter() - t1
+    if jax.process_count() > 1:
+        from jax.experimental import multihost_utils
+
+        multihost_utils.sync_global_devices("convsynth_jax sharded graph: shards written")
+    if int(index) != 0:
+        return None
+    entries = [_shard_entry(out, b) for b in range(nb)]
+    missing = [b for b, e in enumerate(entries) if e is None]
+    if missing:
+        log.info("%d of %d shards not finished yet (first: %d); run again to assemble the graph", len(missing), nb,
+                 missing[0])
+        return None
     t1 = time.perf_counter()
-    ent = manifest["shards"].values()
     kstats = {"tiles_computed": int(stage.pairs.shape[0]),
               "tiles_skipped": int(getattr(stage, "total_tile_pairs", 0) - stage.pairs.shape[0]),
               "tile": int(p.tile), "pivots": stage.pivots, "symmetric": False,
               "pairs_evaluated": int(stage.pairs.shape[0]) * int(p.tile) ** 2,
-              "candidates_found": int(sum(e["candidates_found"] for e in ent)),
-              "shards": len(stage.blocks), "shards_resumed": resumed, "shards_computed": computed,
-              "devices": len(devices)}
+              "candidates_found": int(sum(e["candidates_found"] for e in entries)),
+              "shards": nb, "shards_resumed": resumed, "shards_computed": computed,
+              "devices": len(devices), "processes": int(count)}
     for k in ("seam_dropped", "glitch_dropped"):
-        if any(k in e for e in ent):
-            kstats[k] = int(sum(e.get(k, 0) for e in ent))
+        if any(k in e for e in entries):
+            kstats[k] = int(sum(e.get(k, 0) for e in entries))
     meta = construction_meta(db, p, plan, kstats)
-    g = assemble_graph_compact(db, plan.keys, *read_shards(out, manifest), meta)  # no other reference to the edges
+    g = assemble_graph_compact(db, plan.keys, *read_shards(out, entries, db.num_frames), meta)  # no other reference
     tm["scc_s"] = time.perf_counter() - t1
     g.meta["seconds"] = time.perf_counter() - t0
     g.meta["timings"] = dict(tm)
     save_graph_folder(g, out / "graph")
-    manifest["graph"] = {"folder": "graph", "num_states": g.num_states, "num_edges": g.num_edges}
-    write_json_atomic(man_path, manifest)
+    write_json_atomic(man_path, {**manifest, "graph": {"folder": "graph", "num_states": g.num_states,
+                                                       "num_edges": g.num_edges}})
     return load_graph_folder(out / "graph", mmap=True, verify=False)
 
 
@@ -364,26 +401,17 @@ def assemble_graph_compact(db: MotionDatabase, keys, a, j, c, meta: dict) -> Mot
         indptr=indptr, indices=cc.astype(np.int64), cost=co, synthetic=sy, meta=meta)
 
 
-def read_shards(out_dir: str | Path, manifest: dict | None = None):
-    """(a, j, c) of every shard listed in the manifest, in block order, checksums verified."""
+def read_shards(out_dir: str | Path, entries: list, num_frames: int):
+    """(a, j, c) of the shards described by ``entries`` (their sidecars, in block order)."""
     out = Path(out_dir)
-    manifest = manifest or json.loads((out / "manifest.json").read_text())
-    n = int(manifest["num_blocks"])
-    missing = [b for b in range(n) if str(b) not in manifest["shards"]]
-    if missing:
-        raise GraphError(f"{len(missing)} of {n} shards are not finished (first: {missing[0]})", out / "manifest.json")
-    total = sum(int(manifest["shards"][str(b)]["edges"]) for b in range(n))
-    idx = np.int32 if total < 2**31 - 1 and int(manifest.get("num_frames", 0)) < 2**31 - 1 else np.int64
+    total = sum(int(e["edges"]) for e in entries)
+    idx = np.int32 if total < 2**31 - 1 and num_frames < 2**31 - 1 else np.int64
     a = np.empty(total, idx)
     j = np.empty(total, idx)
     c = np.empty(total, np.float32)
     pos = 0
-    for b in range(n):
-        e = manifest["shards"][str(b)]
-        f = out / e["file"]
-        if file_sha256(f) != e["sha256"]:
-            raise GraphError("shard checksum mismatch (changed or truncated); delete it and build again", f)
-        with np.load(f) as z:
+    for e in entries:
+        with np.load(out / e["file"]) as z:
             k = z["a"].size
             a[pos:pos + k], j[pos:pos + k], c[pos:pos + k] = z["a"], z["j"], z["c"]
         pos += k

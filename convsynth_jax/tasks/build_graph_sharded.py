@@ -26,7 +26,8 @@ class BuildGraphShardedSettings:
     out: Optional[str] = None       # build folder (None: <run dir>/graph_build)
     block_tiles: int = 64           # source tiles per shard
     batch: int = 16                 # tile pairs per device per kernel call
-    devices: Optional[int] = None   # the first this many JAX devices (None: all)
+    devices: Optional[int] = None   # the first this many of the process's JAX devices (None: all)
+    distributed: bool = False       # jax.distributed.initialize() first (one process per host, e.g. Slurm)
 
 
 def run(cfg, out_dir: Path) -> dict:
@@ -41,10 +42,16 @@ def run(cfg, out_dir: Path) -> dict:
         raise ConfigError("build_graph_sharded needs task.db=DIR (a folder written by task=make_scale_db)",
                           where="task.db")
     params = params_of(cfg)
+    if s.distributed:
+        import jax
+
+        jax.distributed.initialize()  # on Slurm: coordinator, process count and index from SLURM_* variables
     db = load_database(s.db)
     out = Path(s.out) if s.out else out_dir / "graph_build"
     t0, c0 = time.perf_counter(), time.process_time()
     g = build_graph_sharded(db, params.graph, out, ShardParams(s.block_tiles, s.batch, s.devices))
+    if g is None:  # another process assembles (or shards of others are missing)
+        return {"build": str(out), "assembled": False, "wall_seconds": time.perf_counter() - t0}
     res = {k: g.meta.get(k) for k in KEYS}
     res.update(build=str(out), wall_seconds=time.perf_counter() - t0, cpu_seconds=time.process_time() - c0)
     return res

@@ -50,8 +50,8 @@ from scipy.sparse.csgraph import connected_components
 
 from ..errors import ConfigError, GraphError
 from ..utils import write_json_atomic
-from .build import _cap_degree, assemble_graph, construction_meta, construction_plan, scc_warning
-from .cost import BOUND_MARGIN, _sum_of_norms, _tile_lower_bounds, _tiling, pivot_embedding
+from .build import assemble_graph, construction_meta, construction_plan, scc_warning
+from .cost import BOUND_MARGIN, _keep_cheapest, _sum_of_norms, _tile_lower_bounds, _tiling, pivot_embedding
 from .database import MotionDatabase
 from .params import GraphParams
 from .seams import apply_glitch_filter, frame_acceleration, seam_filter_mask
@@ -66,6 +66,8 @@ except ImportError:  # pragma: no cover - older jax
 log = logging.getLogger(__name__)
 
 FORMAT = "convsynth-sharded-graph-1"
+# with a cap on the out-degree, a block's candidate buffer is pruned to the cap whenever it passes this
+PRUNE_AT = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -173,14 +175,19 @@ class _EdgeStage:
         return self.pairs[self.row_start[b]:self.row_start[b + 1]]
 
 
-def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, batch: int, min_gap: int):
+def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, batch: int, min_gap: int,
+                      cap: int | None = None, limit: int | None = None, where: str = ""):
     """(a, b, cost) of every candidate transition in the tile pairs ``pairs`` (one device call per
-    batch of ``batch * ndev`` pairs, the next batch dispatched before the previous is compacted)."""
+    batch of ``batch * ndev`` pairs, the next batch dispatched before the previous is compacted),
+    and the number found. ``cap``: keep only each source's ``cap`` cheapest (ties: lower target),
+    pruned whenever the buffer passes a million candidates, so memory stays about sources x cap.
+    ``limit``: more candidates than this (without a cap) raise a GraphError naming ``where``."""
     ids_a, xa, ia, ca = stage.ta
     ids_b, xb, ib, cb = stage.tb
     step = batch * ndev
     thr, gap = np.float32(stage.threshold), np.int32(min_gap)
     out_a, out_b, out_c = [], [], []
+    held = [0, 0]  # candidates in the buffer, found in all
 
     def launch(s):
         ps = pairs[s:s + step]
@@ -197,6 +204,15 @@ def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, b
             out_a.append(ids_a[ps[t, 0], r])
             out_b.append(ids_b[ps[t, 1], c])
             out_c.append(m[t, r, c])
+            held[0] += int(t.size)
+            held[1] += int(t.size)
+        if cap and held[0] > PRUNE_AT:
+            a, b, cc = _keep_cheapest(np.concatenate(out_a), np.concatenate(out_b), np.concatenate(out_c), cap)
+            out_a[:], out_b[:], out_c[:] = [a], [b], [cc]
+            held[0] = int(a.size)
+        elif limit is not None and not cap and held[1] > limit:
+            raise GraphError(f"more than graph.max_edges={limit} candidate transitions in {where} (at least "
+                             f"{held[1]}); set graph.max_out_degree, or lower graph.quantile or graph.key_fraction")
 
     pending = None
     for s in range(0, pairs.shape[0], step):
@@ -207,14 +223,17 @@ def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, b
     if pending is not None:
         compact(*pending)
     if not out_a:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32)
-    return (np.concatenate(out_a).astype(np.int64), np.concatenate(out_b).astype(np.int64),
-            np.concatenate(out_c).astype(np.float32))
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32), 0
+    a, b, c = (np.concatenate(out_a).astype(np.int64), np.concatenate(out_b).astype(np.int64),
+               np.concatenate(out_c).astype(np.float32))
+    if cap:
+        a, b, c = _keep_cheapest(a, b, c, cap)
+    return a, b, c, held[1]
 
 
 def _filters(db, params, acc):
-    """The per-edge filters of build_graph (seam, glitch) and the out-degree cap, applied to one
-    block's edges (each looks at one source's edges only, so blockwise equals whole)."""
+    """The per-edge filters of build_graph (seam, glitch), applied to one block's edges after the
+    out-degree cap, in build_graph's order (each looks at one edge, so blockwise equals whole)."""
     def apply(a, j, c, counts):
         if params.seam_filter_quantile is not None:
             keep, limit = seam_filter_mask(db, a, j, params.seam_filter_quantile, int(params.seam_filter_radius), acc=acc)
@@ -224,8 +243,6 @@ def _filters(db, params, acc):
         a, j, c = apply_glitch_filter(db, a, j, c, params, meta=m)
         if "glitch_filter" in m:
             counts["glitch_dropped"] = counts.get("glitch_dropped", 0) + m["glitch_filter"]["dropped"]
-        if params.max_out_degree:
-            a, j, c = _cap_degree(a, j, c, int(params.max_out_degree))
         return a, j, c
     return apply
 
@@ -301,9 +318,9 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
             resumed += 1
             continue
         name = f"edges_{b:05d}.npz"
-        a, bb, c = _block_candidates(stage, stage.block_pairs(b), kernel, len(devices), int(sp.batch),
-                                     int(p.min_gap_frames))
-        found = int(a.size)
+        a, bb, c, found = _block_candidates(stage, stage.block_pairs(b), kernel, len(devices), int(sp.batch),
+                                            int(p.min_gap_frames), cap=p.max_out_degree, limit=p.max_edges,
+                                            where=f"shard {b} of {out}")
         counts: dict = {}
         a, j, c = filt(a, bb + 1, c, counts)
         sha = save_npz_atomic(out / "shards" / name, a=a.astype(idx), j=j.astype(idx), c=c.astype(np.float32))
@@ -327,6 +344,10 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
         log.info("%d of %d shards not finished yet (first: %d); run again to assemble the graph", len(missing), nb,
                  missing[0])
         return None
+    total = sum(int(e["edges"]) for e in entries)
+    if p.max_edges is not None and total > int(p.max_edges):
+        raise GraphError(f"the shards hold {total} synthetic transitions, more than graph.max_edges={p.max_edges}; "
+                         "set graph.max_out_degree, or lower graph.quantile or graph.key_fraction", out)
     t1 = time.perf_counter()
     kstats = {"tiles_computed": int(stage.pairs.shape[0]),
               "tiles_skipped": int(getattr(stage, "total_tile_pairs", 0) - stage.pairs.shape[0]),

@@ -54,14 +54,11 @@ def test_sharded_build_equals_build_graph(small):
     assert_same_graph(g, build_graph_sharded(db2, GP, d / "mapped", SP))
 
 
-def test_capped_and_filtered_build_equals_build_graph(small, monkeypatch):
-    """The out-degree cap (pruned while streaming: a tiny prune threshold forces it) and the seam
-    filter apply in build_graph's order; more candidates than max_edges stop with a GraphError."""
-    import convsynth_jax.graph.stream as stream
-
+def test_capped_and_filtered_build_equals_build_graph(small):
+    """The out-degree cap (kept per source while streaming) and the seam filter apply in
+    build_graph's order; more candidates than max_edges stop with a GraphError."""
     db, d, _ = small
     gp = GraphParams(tile=16, max_out_degree=2, seam_filter_quantile=0.9)
-    monkeypatch.setattr(stream, "PRUNE_AT", 10)
     h = build_graph_sharded(db, gp, d / "capped", SP)
     g = build_graph(db, gp)
     assert h.meta["kernel"]["seam_dropped"] > 0

@@ -66,8 +66,6 @@ except ImportError:  # pragma: no cover - older jax
 log = logging.getLogger(__name__)
 
 FORMAT = "convsynth-sharded-graph-1"
-# with a cap on the out-degree, a block's candidate buffer is pruned to the cap whenever it passes this
-PRUNE_AT = 1_000_000
 
 
 @dataclass(frozen=True)
@@ -175,19 +173,26 @@ class _EdgeStage:
         return self.pairs[self.row_start[b]:self.row_start[b + 1]]
 
 
-def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, batch: int, min_gap: int,
+def _block_candidates(stage: _EdgeStage, block: int, kernel, ndev: int, batch: int, min_gap: int,
                       cap: int | None = None, limit: int | None = None, where: str = ""):
-    """(a, b, cost) of every candidate transition in the tile pairs ``pairs`` (one device call per
-    batch of ``batch * ndev`` pairs, the next batch dispatched before the previous is compacted),
-    and the number found. ``cap``: keep only each source's ``cap`` cheapest (ties: lower target),
-    pruned whenever the buffer passes a million candidates, so memory stays about sources x cap.
+    """(a, b, cost) of the candidate transitions of block ``block`` (one device call per batch of
+    ``batch * ndev`` tile pairs, the next batch dispatched before the previous is compacted), and
+    the number found. ``cap``: only each source's ``cap`` cheapest (ties: lower target), kept in a
+    per-source table updated tile pair by tile pair, so memory stays sources x cap however many pass.
     ``limit``: more candidates than this (without a cap) raise a GraphError naming ``where``."""
+    pairs = stage.block_pairs(block)
+    r0, r1 = stage.blocks[block]
     ids_a, xa, ia, ca = stage.ta
     ids_b, xb, ib, cb = stage.tb
+    T = ids_a.shape[1]
     step = batch * ndev
     thr, gap = np.float32(stage.threshold), np.int32(min_gap)
     out_a, out_b, out_c = [], [], []
-    held = [0, 0]  # candidates in the buffer, found in all
+    found = [0]
+    if cap:
+        k = min(int(cap), ids_b.shape[1])
+        best_c = np.full(((r1 - r0) * T, int(cap)), np.inf, np.float32)
+        best_b = np.full(((r1 - r0) * T, int(cap)), -1, np.int64)
 
     def launch(s):
         ps = pairs[s:s + step]
@@ -199,20 +204,34 @@ def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, b
 
     def compact(ps, m):
         m = np.asarray(m)[:ps.shape[0]]
+        if cap:
+            fin = m < np.inf
+            found[0] += int(np.count_nonzero(fin))
+            live = np.flatnonzero(fin.any(axis=(1, 2)))
+            if live.size == 0:
+                return
+            m, ps = m[live], ps[live]
+            part = np.argpartition(m, k - 1, axis=2)[:, :, :k] if k < m.shape[2] else \
+                np.broadcast_to(np.arange(m.shape[2]), m.shape)
+            vals = np.take_along_axis(m, part, 2)
+            tgt = np.take_along_axis(ids_b[ps[:, 1]][:, None, :], part, 2)
+            for q in range(ps.shape[0]):
+                rows = slice((ps[q, 0] - r0) * T, (ps[q, 0] - r0 + 1) * T)
+                allc = np.concatenate([best_c[rows], vals[q]], 1)
+                allb = np.concatenate([best_b[rows], tgt[q]], 1)
+                keep = np.argpartition(allc, cap - 1, axis=1)[:, :cap]
+                best_c[rows] = np.take_along_axis(allc, keep, 1)
+                best_b[rows] = np.take_along_axis(allb, keep, 1)
+            return
         t, r, c = np.nonzero(m < np.inf)
         if t.size:
             out_a.append(ids_a[ps[t, 0], r])
             out_b.append(ids_b[ps[t, 1], c])
             out_c.append(m[t, r, c])
-            held[0] += int(t.size)
-            held[1] += int(t.size)
-        if cap and held[0] > PRUNE_AT:
-            a, b, cc = _keep_cheapest(np.concatenate(out_a), np.concatenate(out_b), np.concatenate(out_c), cap)
-            out_a[:], out_b[:], out_c[:] = [a], [b], [cc]
-            held[0] = int(a.size)
-        elif limit is not None and not cap and held[1] > limit:
+            found[0] += int(t.size)
+        if limit is not None and found[0] > limit:
             raise GraphError(f"more than graph.max_edges={limit} candidate transitions in {where} (at least "
-                             f"{held[1]}); set graph.max_out_degree, or lower graph.quantile or graph.key_fraction")
+                             f"{found[0]}); set graph.max_out_degree, or lower graph.quantile or graph.key_fraction")
 
     pending = None
     for s in range(0, pairs.shape[0], step):
@@ -222,13 +241,17 @@ def _block_candidates(stage: _EdgeStage, pairs: np.ndarray, kernel, ndev: int, b
         pending = nxt
     if pending is not None:
         compact(*pending)
-    if not out_a:
-        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32), 0
+    if cap:
+        src = ids_a[r0:r1].reshape(-1)
+        r, c = np.nonzero(best_c < np.inf)
+        out_a, out_b, out_c = [src[r]], [best_b[r, c]], [best_c[r, c]]
+    if not out_a or out_a[0].size == 0 and len(out_a) == 1:
+        return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32), found[0]
     a, b, c = (np.concatenate(out_a).astype(np.int64), np.concatenate(out_b).astype(np.int64),
                np.concatenate(out_c).astype(np.float32))
     if cap:
         a, b, c = _keep_cheapest(a, b, c, cap)
-    return a, b, c, held[1]
+    return a, b, c, found[0]
 
 
 def _filters(db, params, acc):
@@ -318,7 +341,7 @@ def build_graph_sharded(db: MotionDatabase, params: GraphParams, out_dir: str | 
             resumed += 1
             continue
         name = f"edges_{b:05d}.npz"
-        a, bb, c, found = _block_candidates(stage, stage.block_pairs(b), kernel, len(devices), int(sp.batch),
+        a, bb, c, found = _block_candidates(stage, b, kernel, len(devices), int(sp.batch),
                                             int(p.min_gap_frames), cap=p.max_out_degree, limit=p.max_edges,
                                             where=f"shard {b} of {out}")
         counts: dict = {}

@@ -18,9 +18,10 @@ so that a database of millions of frames fits in bounded memory and a killed bui
    strongly connected component (scipy.sparse.csgraph) gives the graph, written as a memory-mappable
    array folder (graph/store.py) that the search reads as it is.
 
-Memory: the edge stage holds the features, the tilings and one batch of tile costs per device, so
-it is bounded by the database size whatever the edge count; the assembly holds the edges (as the
-SCC needs them): about 20 bytes per edge at its peak.
+Memory: the edge stage holds the features, the tilings and one block's candidates (with
+``graph.max_out_degree``: a per-source table of the cap cheapest; without: every candidate, at most
+``graph.max_edges`` or a GraphError naming the shard), so it does not grow with the edge count; the
+assembly holds the kept synthetic transitions (the SCC needs them): about 35 bytes each at its peak.
 
 Devices: a batch of tile pairs is one call of a vmapped tile kernel under ``shard_map`` over a 1-D
 mesh of all (or the given) JAX devices, the pairs split evenly across them; every pair's costs are

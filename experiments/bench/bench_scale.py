@@ -11,8 +11,11 @@ each character of synthetic session 1 (its planted conversation): the first call
 of the warm calls. Goals: 1M-frame construction <= 600 s, peak RSS <= 8 GB, warm search <= 1 s.
 
     python experiments/bench/bench_scale.py [--frames 54067,216268,1000000] [--work DIR] [--repeats 3]
+        [--graph graph.max_out_degree=32] [--skip-search] [--search-only FRAMES] [--name bench_scale]
 
-Writes experiments/results/bench_scale.json (+ manifest) and bench_scale.md.
+``--graph``: graph overrides for every build; ``--search-only``: only the search, on the graph
+already built for that size. Databases are made once into ``--work`` (default data_cache/scale) and
+reused. Writes experiments/results/<name>.json (+ manifest) and <name>.md.
 """
 import argparse
 import dataclasses

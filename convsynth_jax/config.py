@@ -59,6 +59,7 @@ SCHEMA_GROUPS = ("corpus", "features", "annotate", "stats", "graph", "search", "
 # the task's run()
 TASKS = {
     "build_graph": "convsynth_jax.tasks.build_graph:BuildGraphSettings",
+    "build_graph_sharded": "convsynth_jax.tasks.build_graph_sharded:BuildGraphShardedSettings",
     "cdbn_eval": "convsynth_jax.tasks.cdbn_eval:CDBNEvalSettings",
     "cdbn_make_data": "convsynth_jax.tasks.cdbn_make_data:CDBNMakeDataSettings",
     "cdbn_synthesize": "convsynth_jax.tasks.cdbn_synthesize:CDBNSynthesizeSettings",
@@ -70,6 +71,7 @@ TASKS = {
     "loo": "convsynth_jax.tasks.loo:LooSettings",
     "main": "convsynth_jax.tasks.main:MainSettings",
     "make_corpus": "convsynth_jax.tasks.make_corpus:MakeCorpusSettings",
+    "make_scale_db": "convsynth_jax.tasks.make_scale_db:MakeScaleDBSettings",
     "render": "convsynth_jax.tasks.render:RenderSettings",
     "synthesize": "convsynth_jax.tasks.synthesize:SynthesizeSettings",
     "table2": "convsynth_jax.tasks.table2:Table2Settings",

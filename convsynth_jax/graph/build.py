@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import logging
 import time
+from typing import NamedTuple
 
 import numpy as np
 from scipy.sparse import csr_matrix
@@ -210,12 +211,25 @@ def scc_warning(kept_states: int, states: int, kept_edges: int, k=None) -> str:
             f"synthetic transitions fall below the threshold; raise graph.quantile or graph.k")
 
 
-def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: dict | None = None) -> MotionGraph:
-    """The full construction on a database. ``edge_fn`` swaps the edge kernel (the reference
-    builder passes the NumPy one). ``meta['seconds']`` is the construction wall time."""
+class ConstructionPlan(NamedTuple):
+    """What the edge search needs, computed before it (deterministic for a database and params):
+    w_v (Eq. 3), the key states and keyframe step, the scaled features X (N, M, 3) float32, the fit
+    of c(i, i+k) and the threshold."""
+
+    w_v: float
+    keys: np.ndarray
+    keyframe_step: float
+    features: np.ndarray
+    fit: object
+    threshold: float
+
+
+def construction_plan(db: MotionDatabase, params: GraphParams, timings: dict | None = None) -> ConstructionPlan:
+    """w_v, key states, the k-step cost fit and the threshold: the stages before the edge search,
+    shared by :func:`build_graph` and the sharded builder (graph/stream.py)."""
     p = params
-    t0 = time.perf_counter()
     tm = timings if timings is not None else {}
+    t0 = time.perf_counter()
     w_v = auto_w_v(db, p.k, seed=p.seed) if str(p.w_v) == "auto" else p.w_v
     tm["w_v_s"] = time.perf_counter() - t0
     t1 = time.perf_counter()
@@ -230,31 +244,48 @@ def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: 
                             seed=p.seed)
     threshold = fit.quantile(p.quantile)
     tm["threshold_s"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    kstats: dict = {}
-    a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats, features=X)
-    a, j, c = apply_seam_filter(db, a, j, c, p, meta=kstats)  # ours, off by default (graph/seams.py)
-    a, j, c = apply_glitch_filter(db, a, j, c, p, meta=kstats)  # ours, on by default (graph/seams.py)
-    tm["edges_s"] = time.perf_counter() - t1
-    t1 = time.perf_counter()
-    meta = {
+    return ConstructionPlan(float(w_v), keys, float(step), X, fit, float(threshold))
+
+
+def construction_meta(db: MotionDatabase, params: GraphParams, plan: ConstructionPlan, kernel: dict) -> dict:
+    """``MotionGraph.meta`` before the SCC: every choice of the construction."""
+    p, fit, keys = params, plan.fit, plan.keys
+    return {
         "k": p.k, "quantile": p.quantile, "distribution": fit.chosen,
-        "distribution_params": list(fit.params), "threshold": float(threshold), "w_v": float(w_v),
+        "distribution_params": list(fit.params), "threshold": float(plan.threshold), "w_v": float(plan.w_v),
         "w_v_rule": "mean d(p_i,p_i+k-1) / mean d(v_i,v_i+k-1) over k-step pairs" if str(p.w_v) == "auto" else "config",
         "fit_table": [{"distribution": r.distribution, "rss": float(r.rss), "params": list(r.params)}
                       for r in fit.table.itertuples()],
         "joint_names": list(db.joint_names), "joint_weights": [float(x) for x in db.weights],
-        "key_fraction": float(keys.mean()), "num_key_states": int(keys.sum()), "keyframe_step": float(step),
-        "num_frames": int(db.num_frames), "min_gap_frames": p.min_gap_frames, "kernel": kstats,
+        "key_fraction": float(keys.mean()), "num_key_states": int(keys.sum()), "keyframe_step": float(plan.keyframe_step),
+        "num_frames": int(db.num_frames), "min_gap_frames": p.min_gap_frames, "kernel": kernel,
         **db.meta,
     }
+
+
+def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: dict | None = None) -> MotionGraph:
+    """The full construction on a database. ``edge_fn`` swaps the edge kernel (the reference
+    builder passes the NumPy one). ``meta['seconds']`` is the construction wall time."""
+    p = params
+    t0 = time.perf_counter()
+    tm = timings if timings is not None else {}
+    plan = construction_plan(db, p, tm)
+    keys, threshold, w_v = plan.keys, plan.threshold, plan.w_v
+    t1 = time.perf_counter()
+    kstats: dict = {}
+    a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats, features=plan.features)
+    a, j, c = apply_seam_filter(db, a, j, c, p, meta=kstats)  # ours, off by default (graph/seams.py)
+    a, j, c = apply_glitch_filter(db, a, j, c, p, meta=kstats)  # ours, on by default (graph/seams.py)
+    tm["edges_s"] = time.perf_counter() - t1
+    t1 = time.perf_counter()
+    meta = construction_meta(db, p, plan, kstats)
     g = assemble_graph(db, keys, a, j, c, meta)
     tm["scc_s"] = time.perf_counter() - t1
     g.meta["seconds"] = time.perf_counter() - t0
     g.meta["timings"] = dict(tm)
     log.info("motion graph: %d frames, %d key states (%.2f%%), threshold %.4g (%s, k=%d, q=%.3f), w_v %.4g; "
              "%d synthetic candidates; after SCC %d states, %d edges; %.2f s",
-             db.num_frames, meta["num_key_states"], 100 * meta["key_fraction"], threshold, fit.chosen, meta["k"],
+             db.num_frames, meta["num_key_states"], 100 * meta["key_fraction"], threshold, plan.fit.chosen, meta["k"],
              meta["quantile"], w_v, a.size, g.num_states, g.num_edges, g.meta["seconds"])
     return g
 

@@ -7,11 +7,7 @@ import csv
 import io
 import os
 import signal
-import socket
 import sqlite3
-import subprocess
-import sys
-import time
 
 import numpy as np
 import pandas as pd
@@ -24,7 +20,7 @@ pytest.importorskip("fastapi")
 from fastapi.testclient import TestClient  # noqa: E402
 
 from convsynth_jax.study.server import create_app  # noqa: E402
-from convsynth_jax.testing.study import answer_all, make_fake_study, sign_up  # noqa: E402
+from convsynth_jax.testing.study import answer_all, free_port, make_fake_study, serve_subprocess, sign_up  # noqa: E402
 
 ADMIN = "a-long-admin-token-0123456789"
 
@@ -216,33 +212,14 @@ def test_security_headers(client):
 
 
 # ------------------------------------------------------------------------------------------ SIGKILL
-def _free_port() -> int:
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def _serve(study, db, port):
-    code = ("import sys, uvicorn; from convsynth_jax.study.server import create_app; "
-            f"uvicorn.run(create_app(sys.argv[1], sys.argv[2], admin_token={ADMIN!r}), host='127.0.0.1', port={port}, "
-            "log_level='error')")
-    p = subprocess.Popen([sys.executable, "-c", code, str(study), str(db)], start_new_session=True)
-    import httpx
-
-    for _ in range(300):
-        try:
-            if httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=1.0).status_code == 200:
-                return p
-        except httpx.HTTPError:
-            time.sleep(0.1)
-    p.kill()
-    raise RuntimeError("server did not start")
+    return serve_subprocess(study, db, port, ADMIN)
 
 
 def test_server_killed_with_sigkill_loses_no_acknowledged_answer(fake_study, tmp_path):
     import httpx
 
-    db, port = tmp_path / "answers.sqlite", _free_port()
+    db, port = tmp_path / "answers.sqlite", free_port()
     proc = _serve(fake_study, db, port)
     acked = []
     try:

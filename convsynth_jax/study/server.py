@@ -47,7 +47,7 @@ CSS = """
 body { font-family: system-ui, sans-serif; max-width: 960px; margin: 2em auto; padding: 0 1em; color: #222; }
 .progress { background: #ddd; height: 10px; border-radius: 5px; margin: 0.5em 0 1em; }
 .progress > div { background: #3a6fb0; height: 10px; border-radius: 5px; }
-video { width: 100%; background: #000; }
+video { width: 100%; max-height: 62vh; background: #000; }
 .choices { display: flex; justify-content: space-between; margin-top: 1em; }
 .choices button, .play { font-size: 1.2em; padding: 0.6em 2em; }
 button:disabled { opacity: 0.4; }

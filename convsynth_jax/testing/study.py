@@ -68,3 +68,36 @@ def sign_up(client) -> str:
     if r.status_code != 303:
         raise RuntimeError(f"/start answered {r.status_code}")
     return r.headers["location"].split("/p/")[1].split("/")[0]
+
+
+def free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
+
+
+def serve_subprocess(study, db, port: int, admin_token: str, extra: str = ""):
+    """A uvicorn process serving ``study`` on 127.0.0.1:``port`` (its own session, so the caller
+    can SIGKILL it alone); returns the Popen once /healthz answers."""
+    import subprocess
+    import sys
+    import time
+
+    import httpx
+
+    code = ("import sys, uvicorn; from convsynth_jax.study.server import create_app; "
+            f"uvicorn.run(create_app(sys.argv[1], sys.argv[2], admin_token={admin_token!r}{extra}), host='127.0.0.1', "
+            f"port={int(port)}, log_level='error')")
+    p = subprocess.Popen([sys.executable, "-c", code, str(study), str(db)], start_new_session=True)
+    for _ in range(600):
+        if p.poll() is not None:
+            raise RuntimeError(f"the study server exited with {p.returncode}")
+        try:
+            if httpx.get(f"http://127.0.0.1:{port}/healthz", timeout=1.0).status_code == 200:
+                return p
+        except httpx.HTTPError:
+            time.sleep(0.1)
+    p.kill()
+    raise RuntimeError("the study server did not start within 60 s")

@@ -38,8 +38,9 @@ def main():
     exe = [sys.executable, "-m", "convsynth_jax.config"]
     env = {**os.environ, "CONVSYNTH_CACHE": str(prepared)}
     t0, c0 = time.perf_counter(), _cpu_children()
-    subprocess.run([*exe, "task=cooccurrence", "progress=false", "hydra.run.dir=" + tempfile.mkdtemp()], check=True, env=env,
-                   cwd=REPO, stdout=subprocess.DEVNULL)
+    prepare = ("from convsynth_jax.config import default_params; from convsynth_jax.tasks.common import annotated_corpus; "
+               "annotated_corpus(default_params(['progress=false']))")
+    subprocess.run([sys.executable, "-c", prepare], check=True, env=env, cwd=REPO)
     prep = {"wall_s": time.perf_counter() - t0, "cpu_s": _cpu_children() - c0}
     corpus = prepared / "synthetic_default"
     with tempfile.TemporaryDirectory() as tmp:

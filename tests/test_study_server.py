@@ -298,3 +298,20 @@ def test_read_answers_names_the_bad_line(tmp_path):
     pd.DataFrame(rows).to_csv(tmp_path / "a.csv", index=False)
     with pytest.raises(FormatError, match="line 3"):
         read_answers(tmp_path / "a.csv")
+
+
+def test_study_serve_settings(fake_study, monkeypatch):
+    from convsynth_jax.tasks.study_serve import StudyServeSettings, make_app
+
+    with pytest.raises(ConfigError, match="task.study"):
+        make_app(StudyServeSettings())
+    with pytest.raises(ConfigError, match="16 characters"):
+        make_app(StudyServeSettings(study=str(fake_study), admin_token="short"))
+    monkeypatch.setenv("CONVSYNTH_STUDY_ADMIN_TOKEN", ADMIN)
+    app, db, export = make_app(StudyServeSettings(study=str(fake_study), db=str(fake_study.parent / "serve.sqlite"),
+                                                  root_path="/study"))
+    assert export and db.name == "serve.sqlite"
+    with TestClient(app) as c:
+        assert "action='/study/start'" in c.get("/").text
+        assert c.post("/start", follow_redirects=False).headers["location"].startswith("/study/p/")
+        assert c.get("/admin/export.csv", headers={"Authorization": f"Bearer {ADMIN}"}).status_code == 200

@@ -147,6 +147,9 @@ def build_study(system, annotations: dict, params, out_dir: str | Path, *, pairs
     """Build the study folder (see the module docstring); returns the manifest dict."""
     t0 = time.perf_counter()
     out = Path(out_dir)
+    if (out / "manifest.json").exists():
+        raise ConfigError("the folder already holds a built study (and perhaps its answers); choose another task.out",
+                          out, "manifest.json")
     conds = design.conditions_needed(pairs)
     sweep_ok = solved_in_sweep(sweep_cases, conds) if sweep_cases is not None else None
     segs, rejected = find_segments(system, annotations, params, conds, segments, seed, folds, sweep_ok, cache_dir)

@@ -48,9 +48,11 @@ def test_sides_are_balanced_per_pair_and_attention_checks_expect_the_moving_side
     segs = [{"segment": k} for k in range(5)]
     st = design.plan_stimuli(segs, design.PAPER_PAIRS, attention=3, seed=4)
     assert [s["id"] for s in st] == [f"s{i:03d}" for i in range(23)]
-    for p in design.PAPER_PAIRS:
+    for j, p in enumerate(design.PAPER_PAIRS):
         a_left = [s["left"] == p.a for s in st if s["pair"] == p.name]
-        assert len(a_left) == 5 and sum(a_left) == 3          # ceil(5 / 2) with a on the left
+        assert len(a_left) == 5 and sum(a_left) == (3, 2)[j % 2]   # ceil / floor of 5 / 2, alternating over pairs
+    one = design.plan_stimuli(segs[:1], design.PAPER_PAIRS, attention=0, seed=4)
+    assert sum(s["left"] == s["condition_a"] for s in one) == 2
     for s in st[-3:]:
         assert s["kind"] == "attention" and s[s["expected"]] == design.GROUND_TRUTH
         assert {s["left"], s["right"]} == {design.GROUND_TRUTH, design.FROZEN}

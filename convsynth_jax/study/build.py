@@ -27,7 +27,7 @@ from ..errors import ConfigError
 from ..seeding import derive_seed
 from ..utils import atomic_path, write_json_atomic
 from . import design
-from .render import body_from_motion, frozen, render_pair_video
+from .render import PanelRenderer, body_from_motion, frozen, join_panels, write_video
 
 log = logging.getLogger(__name__)
 
@@ -175,15 +175,29 @@ def build_study(system, annotations: dict, params, out_dir: str | Path, *, pairs
         return bodies[(seg, cond)]
 
     t1 = time.perf_counter()
-    records = []
-    for s in stimuli:
-        rel = f"media/{s['id']}.mp4"
-        path = render_pair_video(bodies_of(s["segment"], s["left"]), bodies_of(s["segment"], s["right"]), fps, out / rel,
-                                 audio=audio[s["segment"]], width=width, height=height, render_fps=render_fps,
-                                 yaw_deg=yaw_deg, pitch_deg=pitch_deg)
-        records.append({**{k: s.get(k) for k in MANIFEST_COLUMNS if k in s}, "file": rel, "sha256": sha256_of(path),
-                        "bytes": path.stat().st_size})
-        log.info("stimulus %s: %s | %s (%s)", s["id"], s["left"], s["right"], s["pair"])
+    step = max(1, int(round(fps / render_fps)))
+    done = {}
+    for seg in range(len(segs)):
+        # one camera per segment; each condition's panels drawn once and reused by every pair showing it
+        mine = [s for s in stimuli if s["segment"] == seg]
+        conds = sorted({c for s in mine for c in (s["left"], s["right"])})
+        if not mine:
+            continue
+        panel = PanelRenderer([bodies_of(seg, c) for c in conds], width, height, step, yaw_deg, pitch_deg)
+        frames: dict = {}
+        for k, s in enumerate(mine):
+            for c in (s["left"], s["right"]):
+                if c not in frames:
+                    frames[c] = panel.frames(bodies_of(seg, c))
+            rel = f"media/{s['id']}.mp4"
+            path = write_video(join_panels(frames[s["left"]], frames[s["right"]]), fps / step, out / rel, audio[seg])
+            done[s["id"]] = {**{k2: s.get(k2) for k2 in MANIFEST_COLUMNS if k2 in s}, "file": rel, "sha256": sha256_of(path),
+                             "bytes": path.stat().st_size}
+            later = {c for x in mine[k + 1:] for c in (x["left"], x["right"])}
+            for c in [c for c in frames if c not in later]:
+                del frames[c]                                   # memory: only what later stimuli need
+            log.info("stimulus %s: %s | %s (%s)", s["id"], s["left"], s["right"], s["pair"])
+    records = [done[s["id"]] for s in stimuli]
     t_render = time.perf_counter() - t1
     manifest = {
         "study": {**(settings or {}), "seed": int(seed), "system": system.name, "fps": fps,

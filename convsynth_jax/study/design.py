@@ -78,16 +78,17 @@ def plan_stimuli(segments: list[dict], pairs, attention: int, seed: int) -> list
 
     segments: dicts with at least ``segment`` (index); copied into each stimulus. Per pair, a
     seeded permutation of the segments puts condition ``a`` on the left for the first half
-    (``ceil(n/2)``) and on the right for the rest. Attention checks take segments in turn; the
+    (``ceil(n/2)`` in even-numbered pairs, ``floor(n/2)`` in odd ones, so sides balance over pairs
+    too) and on the right for the rest. Attention checks take segments in turn; the
     moving side is random. Stimulus ids: ``s000``.. in order; each has kind ("pair" or
     "attention"), pair, left, right, condition_a/b and expected (attention: the side to choose)."""
     rng = np.random.default_rng([int(seed), 7])
     out = []
     n = len(segments)
-    for p in pairs:
+    for j, p in enumerate(pairs):
         order = rng.permutation(n)
         a_left = np.zeros(n, bool)
-        a_left[order[: (n + 1) // 2]] = True
+        a_left[order[: (n + 1 - j % 2) // 2]] = True       # odd n: pairs alternate which side gets the extra one
         for i, seg in enumerate(segments):
             left, right = (p.a, p.b) if a_left[i] else (p.b, p.a)
             out.append({**seg, "kind": "pair", "pair": p.name, "condition_a": p.a, "condition_b": p.b,

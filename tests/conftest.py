@@ -124,9 +124,12 @@ def main_run(tiny_corpus_dir, tiny_cache_dir, _shared_dir):
     from convsynth_jax.config import compose, run_task
 
     def build(out: Path) -> None:
+        cache = tiny_cache_dir('main_cache')
         run_task(compose(["corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
-                          f"cache_dir={tiny_cache_dir('main_cache')}", "progress=false", "loo.max_windows=2",
+                          f"cache_dir={cache}", "progress=false", "loo.max_windows=2",
                           "task.paper_ks=[2,3]"]), out)
+        # its fitted graphs and compiled kernels, for tests that run more of the same (tests/test_study_e2e.py)
+        (out / "cache_dir.txt").write_text(str(cache))
 
     out = _build_once(_shared_dir, "main_run", build)
     return out, json.loads((out / "summary.json").read_text())

@@ -1,7 +1,8 @@
 """Task ``user_study``: Figure 6 from forced-choice counts (CSV: comparison, method_a, method_b,
 preferred_a, total; default: the paper's counts). Two-sample test for equality of proportions with
-continuity correction (R's prop.test) per comparison; writes a table (CSV, Markdown) and a stacked
-bar chart."""
+continuity correction (R's prop.test) and the exact binomial test per comparison
+(:func:`convsynth_jax.study.analyze.forced_choice_table`); writes a table (CSV, Markdown) and a
+stacked bar chart."""
 from __future__ import annotations
 
 import logging
@@ -13,37 +14,12 @@ import pandas as pd
 
 from ..errors import FormatError
 from ..evaluation.summaries import to_markdown
-from ..stats.hypothesis import proportion_test
+from ..study.analyze import forced_choice_table as analyse  # noqa: F401  (the tests' and scripts' name)
 from ..utils import atomic_path, write_text_atomic
 
 log = logging.getLogger(__name__)
 
 PAPER_CSV = Path(__file__).resolve().parent.parent / "resources" / "user_study_paper.csv"
-
-
-def analyse(df: pd.DataFrame, path=None, alpha: float = 0.03) -> pd.DataFrame:
-    """One row per comparison: the input columns plus preferred_b, share_a, chi2, df, p_value and
-    significant (p < alpha; the paper stars p < 0.03). Bad rows raise FormatError naming the line."""
-    need = {"comparison", "preferred_a", "total"}
-    if not need <= set(df.columns):
-        raise FormatError(f"user-study CSV needs columns {sorted(need)}, has {list(df.columns)}", path, "line 1")
-    rows = []
-    for i, r in df.reset_index(drop=True).iterrows():
-        try:
-            a_f, n_f = float(r["preferred_a"]), float(r["total"])
-        except (TypeError, ValueError):
-            a_f = n_f = float("nan")
-        if not (a_f == a_f and n_f == n_f) or a_f != int(a_f) or n_f != int(n_f):
-            raise FormatError(f"preferred_a and total must be integers, got {r['preferred_a']!r}, {r['total']!r}",
-                              path, f"line {i + 2}")
-        a, n = int(a_f), int(n_f)
-        if not 0 <= a <= n or n <= 0:
-            raise FormatError(f"preferred_a={a} and total={n} are inconsistent (need 0 <= preferred_a <= total)",
-                              path, f"line {i + 2}")
-        t = proportion_test(a, n - a, n)
-        rows.append({**r.to_dict(), "preferred_b": n - a, "share_a": a / n, "chi2": t.chi2, "df": t.df,
-                     "p_value": t.p_value, "significant": bool(t.p_value < alpha)})
-    return pd.DataFrame(rows)
 
 
 @dataclass(frozen=True)

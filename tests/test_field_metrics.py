@@ -85,11 +85,13 @@ def test_beat_consistency_matches_reference():
     rng = np.random.default_rng(5)
     t = np.arange(300) / FPS
     p = np.concatenate([_path_with_speed(2.0 + np.sin(2 * np.pi * f * t + k) + 0.2 * rng.normal(size=t.size))
-                        for k, f in enumerate((0.7, 1.1, 0.4))], axis=1)
+                        for k, f in enumerate((0.7, 1.1, 0.4))]
+                       + [_path_with_speed(1.0 + 0.9 * np.sin(2 * np.pi * 0.9 * t))], axis=1)  # its pauses fall below the threshold
     audio = np.sort(rng.uniform(0, 10, 25))
     bp = BeatParams()
     mb = beat.motion_beats(p, FPS, bp)
-    assert all(len(m) for m in mb)
+    assert all(len(m) for m in mb[:3])
+    assert len(mb[3]) == 0   # its near-still pauses (speed ratio 0.1) are not beats
     mine = beat.beat_consistency(mb, audio, 10.0, bp)
     theirs = ref.beat_consistency_loop(p, FPS, audio, 10.0, bp.sigma, bp.order, bp.threshold, bp.trim)
     assert np.isfinite(mine) and mine == pytest.approx(theirs, rel=1e-12)

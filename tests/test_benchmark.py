@@ -110,3 +110,26 @@ def test_failures_and_missing_windows_are_rows(tmp_path, tiny_annotations):
     g = board[(board["system"] == bm.GROUND_TRUTH) & (board["scope"] == "body")].set_index("metric")["value"]
     assert g["fgd_raw"] == pytest.approx(0.0, abs=1e-6) and g["hellinger_speed"] == 0.0
     assert g["cca_m"] == pytest.approx(1.0, abs=1e-6)
+
+
+def test_benchmark_task_writes_leaderboard(tmp_path, tiny_corpus_dir, tiny_cache_dir):
+    """The task end to end on one window of one fold with random playback (the autoencoder, one
+    epoch, trains on the tiny corpus itself here: a wiring test, not a valid FGD)."""
+    import json
+
+    from convsynth_jax.config import compose, run_task
+
+    cfg = compose(["task=benchmark", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
+                   f"cache_dir={tiny_cache_dir('bench_cache')}", "progress=false", "loo.max_windows=1",
+                   "task.folds=[0]", "task.only=random_playback", f"task.autoencoder_corpus={tiny_corpus_dir}",
+                   "+task.metrics.autoencoder.epochs=1", "+task.metrics.autoencoder.window_frames=[30]",
+                   "+task.metrics.bootstrap=10", "+task.metrics.bootstrap_set_level=3"])
+    summary = run_task(cfg, tmp_path)
+    for name in ("benchmark.csv", "leaderboard.csv", "leaderboard.md", "leaderboard.png", "summary.json"):
+        assert (tmp_path / name).is_file(), name
+    rows = pd.read_csv(tmp_path / "benchmark.csv")
+    assert set(rows["system"]) == {bm.GROUND_TRUTH, bm.MISMATCHED, "random_playback"}
+    assert set(rows["scope"]) == {"body", "head"} and len(rows) == 3 * 2 * 2
+    board = pd.read_csv(tmp_path / "leaderboard.csv")
+    assert {"fgd_raw", "fgd_ae30", "beat_consistency", "gac"} <= set(board["metric"])
+    assert json.loads((tmp_path / "summary.json").read_text())["num_cases"] == summary["num_cases"] == 2

@@ -31,6 +31,7 @@ from .field import score
 from .field.autoencoder import TrainedAutoencoder, train_autoencoder
 from .field.beat import audio_beats
 from .field.cca import speech_features
+from .field.coverage import covered_cells
 from .field.params import FieldMetricParams
 from .field.views import SCOPES, motion_view
 from .windows import Window
@@ -243,6 +244,8 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
         gt_views = {c.key: (c.session, motion_view(gt_sys.motions[c.key][2], scope, params.joints, annotate_params))
                     for c in cases}
         refs[scope] = score.reference_moments(gt_views, params, aes, fps)
+        gt_cells = ({k: covered_cells(v.relative, v.parents, params.coverage) for k, (_, v) in gt_views.items()}
+                    if scope == "body" else {})
         for sysm in systems:
             if scope not in sysm.scopes:
                 continue
@@ -257,7 +260,8 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
                     try:
                         view = motion_view(motion, scope, params.joints, annotate_params)
                         m = score.score_window(view, gt_views[c.key][1], beats[c.key], speech[c.key], fps,
-                                               c.num_frames / fps, params, scope, mom, c.session, aes)
+                                               c.num_frames / fps, params, scope, mom, c.session,
+                                               gt_cells.get(c.key))
                         base.update(m)
                         encoded.append((c.session, view.relative))
                     except Exception as e:  # a window the metrics cannot read is recorded, not fatal
@@ -320,6 +324,9 @@ def leaderboard(rows: pd.DataFrame, set_moments: dict, refs: dict, params: Field
             key = np.abs(v - (float(ref.iloc[0]) if len(ref) else np.nan))
         else:
             key = v if direction == "low" else -v
+        # values equal to 6 significant digits (or both below 1e-8: round-off of a zero) tie
+        key = np.where(np.abs(key) < 1e-8, 0.0, key)
+        key = np.array([float(f"{k:.6g}") if np.isfinite(k) else np.nan for k in key])
         board.loc[g.index, "rank"] = pd.Series(key, index=g.index).rank(method="min", na_option="keep")
     return board
 

@@ -101,10 +101,10 @@ def _get(d: dict, k, make):
 
 def score_window(view: MotionView, gt: MotionView, audio_beats: Optional[np.ndarray], speech: Optional[np.ndarray],
                  fps: float, duration: float, params: FieldMetricParams, scope: str, moments: SetMoments,
-                 session: str, autoencoders: Dict[int, TrainedAutoencoder]) -> dict:
+                 session: str, gt_cells: Optional[np.ndarray] = None) -> dict:
     """The per-window metrics of one system's window against its ground truth window, adding the
     window's contributions to the set's moments (the autoencoder codes are added in batches by
-    :func:`add_codes`)."""
+    :func:`add_codes`). ``gt_cells``: the ground truth window's covered cells, when already known."""
     hp = params.histogram
     n = min(len(view.relative), len(gt.relative))
     row = {"jerk": kinematic.average_jerk(view.global_positions, fps),
@@ -121,8 +121,12 @@ def score_window(view: MotionView, gt: MotionView, audio_beats: Optional[np.ndar
     else:
         row["beat_consistency"] = float("nan")
     row["l1_diversity"] = coverage.l1_diversity(view.relative)
-    row["gac"] = (coverage.gesture_area_coverage(view.relative, gt.relative, view.parents, params.coverage)
-                  if scope == "body" else float("nan"))
+    if scope == "body":
+        if gt_cells is None:
+            gt_cells = coverage.covered_cells(gt.relative, gt.parents, params.coverage)
+        row["gac"] = coverage.dice(coverage.covered_cells(view.relative, view.parents, params.coverage), gt_cells)
+    else:
+        row["gac"] = float("nan")
     fp = params.fgd
     _get(moments.raw, session, _Moments).add(raw_window_features(view.relative, fp.raw_window_frames, fp.raw_frame_step))
     # CCA moments of frames centred within the window: the pooled fit then measures how the streams

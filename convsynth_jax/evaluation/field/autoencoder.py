@@ -132,7 +132,10 @@ def train_autoencoder(relative: Sequence[np.ndarray], window: int, params: Autoe
     data = _windows(relative, window)
     n, _, dim = data.shape
     mean = data.reshape(-1, dim).mean(axis=0)
-    std = np.maximum(data.reshape(-1, dim).std(axis=0), 1e-6)
+    std = data.reshape(-1, dim).std(axis=0)
+    # a coordinate that never moves in training (the root at the origin) keeps unit scale: dividing by
+    # its ~0 SD would blow any deviation of evaluated motion up by orders of magnitude
+    std = np.where(std > 1e-3 * max(float(std.max()), 1e-12), std, 1.0)
     x = (data - mean) / std
     model = _module(window, dim, params)
     rng = jax.random.PRNGKey(params.seed)

@@ -58,6 +58,7 @@ SCHEMA_GROUPS = ("corpus", "features", "annotate", "stats", "graph", "search", "
 # task name (conf/task/<name>.yaml) -> "module:Dataclass" of its settings (``cfg.task``), defined beside
 # the task's run()
 TASKS = {
+    "benchmark": "convsynth_jax.tasks.benchmark:BenchmarkSettings",
     "build_graph": "convsynth_jax.tasks.build_graph:BuildGraphSettings",
     "build_graph_sharded": "convsynth_jax.tasks.build_graph_sharded:BuildGraphShardedSettings",
     "cdbn_eval": "convsynth_jax.tasks.cdbn_eval:CDBNEvalSettings",

@@ -1,0 +1,62 @@
+"""GENEA numerical evaluations of motion statistics (Kucherenko et al., GENEA Challenge 2020/2022
+``genea_numerical_evaluations``): average jerk and acceleration, histograms of moving distance and
+the Hellinger distance between them. Float64 NumPy; positions ``(frames, joints, 3)`` in the BVH's
+units, fps frames per second.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from .params import HistogramParams
+
+
+def moving_distance(positions: np.ndarray, fps: float, order: int) -> np.ndarray:
+    """(F - order, J) norm of the order-th difference of each joint's position times fps**order:
+    speed (order 1, units/s), acceleration (2, units/s^2), jerk (3, units/s^3)."""
+    d = np.diff(np.asarray(positions, dtype=np.float64), n=order, axis=0)
+    return np.linalg.norm(d, axis=-1) * float(fps) ** order
+
+
+def average_derivative(positions: np.ndarray, fps: float, order: int) -> float:
+    """GENEA's average jerk (order 3) or acceleration (order 2): the order-th derivative's norm per
+    joint, mean over frames, then mean over joints. NaN for a window shorter than order + 1 frames."""
+    m = moving_distance(positions, fps, order)
+    if m.size == 0:
+        return float("nan")
+    return float(m.mean(axis=0).mean())
+
+
+def average_jerk(positions: np.ndarray, fps: float) -> float:
+    return average_derivative(positions, fps, 3)
+
+
+def average_acceleration(positions: np.ndarray, fps: float) -> float:
+    return average_derivative(positions, fps, 2)
+
+
+def histogram(values: np.ndarray, bin_width: float, max_value: float) -> np.ndarray:
+    """Counts of ``values`` (any shape: every joint pooled, GENEA's sum over joints) in bins
+    [k w, (k + 1) w) for k < ceil(max / w), plus a last overflow bin for values >= the last edge."""
+    v = np.asarray(values, dtype=np.float64).ravel()
+    nbins = int(np.ceil(max_value / bin_width - 1e-9))
+    idx = np.floor(v / bin_width).astype(np.int64)
+    idx = np.clip(idx, 0, nbins)   # negative cannot happen for norms; >= nbins -> overflow bin
+    return np.bincount(idx, minlength=nbins + 1).astype(np.float64)
+
+
+def hellinger(p: np.ndarray, q: np.ndarray) -> float:
+    """Hellinger distance sqrt(1 - sum_k sqrt(p_k q_k)) of two histograms normalised to sum 1 (in
+    [0, 1]; 0 for identical distributions). NaN when either is empty."""
+    p, q = np.asarray(p, np.float64), np.asarray(q, np.float64)
+    if p.sum() <= 0 or q.sum() <= 0:
+        return float("nan")
+    bc = np.sum(np.sqrt(p / p.sum() * q / q.sum()))
+    gap = 1.0 - bc
+    return float(np.sqrt(gap)) if gap > 1e-12 else 0.0   # round-off of identical histograms is 0
+
+
+def motion_histograms(positions: np.ndarray, fps: float, params: HistogramParams) -> dict:
+    """{"speed": counts, "acceleration": counts} of one window, every joint pooled."""
+    return {"speed": histogram(moving_distance(positions, fps, 1), params.speed_bin_width, params.speed_max),
+            "acceleration": histogram(moving_distance(positions, fps, 2), params.acceleration_bin_width,
+                                      params.acceleration_max)}

@@ -42,10 +42,10 @@ def tiny_study(tiny_corpus_dir, main_run, tmp_path_factory):
 
 def test_study_build_writes_balanced_stimuli_with_h264_aac_videos_and_hashes(tiny_study):
     from convsynth_jax.render import probe_streams
-    from convsynth_jax.study.build import load_manifest, sha256_of
+    from convsynth_jax.study.build import load_study_manifest, sha256_of
 
     study, summary = tiny_study
-    m = load_manifest(study)
+    m = load_study_manifest(study)
     st = m["stimuli"]
     assert summary["num_stimuli"] == 5 == len(st) and summary["num_attention"] == 1
     pairs = [s for s in st if s["kind"] == "pair"]
@@ -83,11 +83,11 @@ def test_headless_chromium_participants_and_analysis_match_the_clicks(tiny_study
     from selenium.webdriver.support.ui import WebDriverWait
 
     from convsynth_jax.config import compose, run_task
-    from convsynth_jax.study.build import load_manifest
+    from convsynth_jax.study.build import load_study_manifest
     from convsynth_jax.testing.study import free_port, serve_subprocess
 
     study, _ = tiny_study
-    stim = {s["id"]: s for s in load_manifest(study)["stimuli"]}
+    stim = {s["id"]: s for s in load_study_manifest(study)["stimuli"]}
     port = free_port()
     proc = serve_subprocess(study, tmp_path / "answers.sqlite", port, ADMIN)
     base = f"http://127.0.0.1:{port}"

@@ -258,9 +258,9 @@ def _export(client):
 
 def test_analysis_counts_clicks_and_excludes_attention_failures(client, fake_study):
     from convsynth_jax.study.analyze import analyze_answers
-    from convsynth_jax.study.build import load_manifest
+    from convsynth_jax.study.build import load_study_manifest
 
-    stim = {s["id"]: s for s in load_manifest(fake_study)["stimuli"]}
+    stim = {s["id"]: s for s in load_study_manifest(fake_study)["stimuli"]}
     store = client.app.state.store
     toks = [sign_up(client) for _ in range(3)]
     expected = {p.name: [0, 0] for p in design.PAPER_PAIRS[:2]}

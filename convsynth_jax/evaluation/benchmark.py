@@ -30,7 +30,7 @@ from ..errors import ConfigError
 from .field import score
 from .field.autoencoder import TrainedAutoencoder, train_autoencoder
 from .field.beat import audio_beats
-from .field.cca import speech_features
+from .field.cca import speech_cca_features
 from .field.coverage import covered_cells
 from .field.params import FieldMetricParams
 from .field.views import SCOPES, motion_view
@@ -234,7 +234,7 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
     for c in cases:
         a = audio.get(c.key)
         beats[c.key] = audio_beats(a, params.beat) if a is not None else None
-        speech[c.key] = speech_features(a, c.num_frames, fps, params.cca) if a is not None else None
+        speech[c.key] = speech_cca_features(a, c.num_frames, fps, params.cca) if a is not None else None
     t_audio = time.perf_counter() - t0
     rows: List[dict] = []
     set_moments: Dict[tuple, score.SetMoments] = {}

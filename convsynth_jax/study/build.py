@@ -216,7 +216,7 @@ def build_study(system, annotations: dict, params, out_dir: str | Path, *, pairs
     return manifest
 
 
-def load_manifest(study_dir: str | Path) -> dict:
+def load_study_manifest(study_dir: str | Path) -> dict:
     """The manifest of a built study folder; MissingFileError / FormatError name the file."""
     from ..errors import FormatError, MissingFileError
 

@@ -30,7 +30,7 @@ BACKGROUND_TOP, BACKGROUND_FLOOR = (236, 238, 242), (205, 203, 198)
 
 
 @dataclass(frozen=True)
-class Body:
+class DrawnBody:
     """One character to draw. positions: (frames, joints, 3) world positions (Y up); parents:
     (joints,) parent index (-1 root); head, hands: joint indices (None where the rig has none);
     torso: indices of joints on the root-to-head chain (their bones are drawn thicker)."""
@@ -42,8 +42,8 @@ class Body:
     torso: frozenset
 
 
-def body_from_motion(motion) -> Body:
-    """A :class:`Body` from a :class:`~convsynth_jax.skeleton.Motion` (forward kinematics and the
+def body_from_motion(motion) -> DrawnBody:
+    """A :class:`DrawnBody` from a :class:`~convsynth_jax.skeleton.Motion` (forward kinematics and the
     rig's roles, :func:`convsynth_jax.rig.find_role`). Joints below a hand (fingers) are dropped:
     the hand disc stands for them."""
     from ..kinematics import forward_kinematics
@@ -68,13 +68,13 @@ def body_from_motion(motion) -> Body:
                 break
             q = parents[q]
     kept = tuple(-2 if j in below_hand else p for j, p in enumerate(parents))   # -2: not drawn
-    return Body(pos, kept, head, hands, frozenset(torso))
+    return DrawnBody(pos, kept, head, hands, frozenset(torso))
 
 
-def frozen(body: Body, frame: int = 0) -> Body:
+def frozen(body: DrawnBody, frame: int = 0) -> DrawnBody:
     """``body`` held at ``frame`` for its whole length (attention checks)."""
     pos = np.repeat(body.positions[frame:frame + 1], body.positions.shape[0], axis=0)
-    return Body(pos, body.parents, body.head, body.hands, body.torso)
+    return DrawnBody(pos, body.parents, body.head, body.hands, body.torso)
 
 
 @dataclass(frozen=True)

@@ -27,7 +27,7 @@ from pathlib import Path
 
 from ..errors import ConfigError
 from . import design
-from .build import load_manifest
+from .build import load_study_manifest
 from .store import AnswerConflict, Store
 
 log = logging.getLogger(__name__)
@@ -111,7 +111,7 @@ def create_app(study_dir: str | Path, db_path: str | Path, *, admin_token: str |
 
     R = html.escape(root_path.rstrip("/"), quote=True)
     study_dir = Path(study_dir).resolve()
-    manifest = load_manifest(study_dir)
+    manifest = load_study_manifest(study_dir)
     info = manifest["study"]
     stimuli = {s["id"]: s for s in manifest["stimuli"]}
     media = {Path(s["file"]).name: study_dir / s["file"] for s in manifest["stimuli"]}

@@ -56,7 +56,7 @@ class AnswerConflict(ConvSynthError):
 
 
 @dataclass(frozen=True)
-class Participant:
+class StudyParticipant:
     token: str
     trials: tuple[str, ...]
     completed: bool
@@ -102,7 +102,7 @@ class Store:
         return out
 
     # ----------------------------------------------------------------------------- participants
-    def create_participant(self, choose_trials) -> Participant:
+    def create_participant(self, choose_trials) -> StudyParticipant:
         """A new participant whose trials are ``choose_trials(counts, index)`` (counts: stimulus ->
         participants assigned so far; index: participants before this one), chosen and recorded in
         the same transaction, so concurrent sign-ups see each other's assignments."""
@@ -119,16 +119,16 @@ class Store:
             return trials
 
         trials = self._write(tx)
-        return Participant(token, tuple(trials), False, None)
+        return StudyParticipant(token, tuple(trials), False, None)
 
-    def participant(self, token: str) -> Participant | None:
+    def participant(self, token: str) -> StudyParticipant | None:
         if not isinstance(token, str) or not token:
             return None
         row = self._con().execute("SELECT trials, completed, completion_code FROM participants WHERE token = ?",
                                   (token,)).fetchone()
         if row is None:
             return None
-        return Participant(token, tuple(json.loads(row[0])), row[1] is not None, row[2])
+        return StudyParticipant(token, tuple(json.loads(row[0])), row[1] is not None, row[2])
 
     def answered(self, token: str) -> dict[int, dict]:
         """trial index -> answer row of one participant."""

@@ -37,13 +37,13 @@ def run(cfg, out_dir: Path) -> dict:
     from ..figures.motion_graph import figure6_figure
     from ..study import design
     from ..study.analyze import analyze_answers, read_answers
-    from ..study.build import load_manifest
+    from ..study.build import load_study_manifest
     from .common import params_of
 
     s = task_settings(cfg)
     if not s.answers or not s.study:
         raise ConfigError("task=study_analyze needs task.answers=CSV and task.study=DIR", where="task")
-    manifest = load_manifest(s.study)
+    manifest = load_study_manifest(s.study)
     pairs = design.pairs_from_config(manifest["study"]["pairs"])
     answers = read_answers(s.answers)
     unknown = set(answers["stimulus"]) - {x["id"] for x in manifest["stimuli"]}

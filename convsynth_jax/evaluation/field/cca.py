@@ -5,7 +5,7 @@ known pitfall: the score then rewards almost any motion). Here one CCA is fitted
 system's windows pooled (:func:`fit_cca`): its first canonical correlation is the set's score, and
 each window is scored by the correlation of its frames under that one pair of projections
 (:func:`projected_correlation`). CCA_m compares synthesized with ground-truth motion, CCA_ms speech
-with motion (Sadoughi and Busso, Sec. VIII-A; speech features: :func:`speech_features`).
+with motion (Sadoughi and Busso, Sec. VIII-A; speech features: :func:`speech_cca_features`).
 """
 from __future__ import annotations
 
@@ -74,7 +74,7 @@ def projected_correlation(fit: CCAFit, x: np.ndarray, y: np.ndarray) -> float:
     return float(a @ b / den) if den > 0 else float("nan")
 
 
-def speech_features(audio, num_frames: int, fps: float, params) -> np.ndarray:
+def speech_cca_features(audio, num_frames: int, fps: float, params) -> np.ndarray:
     """(num_frames, 4) speech features at the motion frame rate: F0 (Hz; unvoiced frames
     interpolated, 0 for a window without voice), log RMS energy (dB) and their first derivatives
     per second (the prosodic features of Sadoughi and Busso's CCA_ms). ``params``: :class:`CCAParams`."""

@@ -38,7 +38,7 @@ DIRECTION = {
     "fgd_raw": "low", "cca_m_set": "high", "cca_ms_set": "high", "hellinger_speed_set": "low",
     "hellinger_acceleration_set": "low",
 }
-SPEECH_DIM = 4   # cca.speech_features: F0, energy and their derivatives
+SPEECH_DIM = 4   # cca.speech_cca_features: F0, energy and their derivatives
 WINDOW_METRICS = ("jerk", "acceleration", "hellinger_speed", "hellinger_acceleration", "beat_consistency",
                   "l1_diversity", "gac", "cca_m", "cca_ms")
 
@@ -178,7 +178,8 @@ def set_metrics(sys_m: SetMoments, ref_m: SetMoments, weights: Dict[str, float],
     """Set-level metrics of one system from per-session moments, each session weighted by
     ``weights`` (1 each for the point estimate; bootstrap counts for a resample). ``fast``: the
     symmetric-eigenvalue form of the Fréchet distance (bootstrap resamples), with the reference's
-    Gaussian and square root kept in ``cache`` (shared by the systems compared with one reference)."""
+    Gaussian and square root kept in ``cache`` (shared by the systems compared with one reference; one dict per
+    reference, never shared between references)."""
     out = {}
     wkey = tuple(sorted(weights.items()))
 
@@ -186,7 +187,7 @@ def set_metrics(sys_m: SetMoments, ref_m: SetMoments, weights: Dict[str, float],
         ps = _pool([(weights.get(k, 0.0), v.tuple()) for k, v in sd.items()])
         if ps[0] < 2:
             return float("nan")
-        ck = (name, id(rd), wkey)
+        ck = (name, wkey)  # one cache per reference (the caller's contract), so its name and the weights identify it
         if cache is None or ck not in cache:
             pr = _pool([(weights.get(k, 0.0), v.tuple()) for k, v in rd.items()])
             ref = None

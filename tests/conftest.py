@@ -14,11 +14,6 @@ SHARED_DATA = SHARED / "data"
 # pytest-xdist already keeps every core busy: per-session work runs in the test's own process unless a
 # test asks for worker processes (tests/test_parallel.py).
 os.environ.setdefault("CONVSYNTH_WORKERS", "1")
-# Tests compile many small kernels and run each a few times: XLA's CPU backend without its LLVM
-# optimisation passes compiles them faster than the optimised code would save (docs/testing.md).
-# The results are the same to the tolerances the tests use; a benchmark never runs under this flag.
-if "xla_backend_optimization_level" not in os.environ.get("XLA_FLAGS", ""):
-    os.environ["XLA_FLAGS"] = (os.environ.get("XLA_FLAGS", "") + " --xla_backend_optimization_level=0").strip()
 
 
 def shared_path(*parts: str) -> Path:

@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import hashlib
 import json
-import os
 import shutil
 import tempfile
 from pathlib import Path
@@ -19,7 +18,7 @@ import numpy as np
 
 from ..annotate.types import FrameAudio
 from ..errors import GraphError, MissingFileError
-from ..utils import atomic_path
+from ..utils import atomic_path, replace_dir
 from .database import MotionDatabase
 from .types import MotionGraph
 
@@ -59,13 +58,7 @@ def write_array_folder(folder: str | Path, arrays: dict, meta: dict) -> Path:
             np.save(f, arr, allow_pickle=False)
             entries[name] = {"file": f.name, "sha256": file_sha256(f), "shape": list(arr.shape), "dtype": str(arr.dtype)}
         (tmp / MANIFEST).write_text(json.dumps({"arrays": entries, "meta": meta}, indent=1, default=float) + "\n")
-        old = None
-        if folder.exists():
-            old = folder.parent / f".{folder.name}.old-{os.getpid()}"
-            os.replace(folder, old)
-        os.replace(tmp, folder)
-        if old is not None:
-            shutil.rmtree(old, ignore_errors=True)
+        replace_dir(tmp, folder)
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -270,20 +270,7 @@ def _packed_terms(initial, transitions, log_liks, cons, T, rows, dtype):
 
     from convsynth_jax.cdbn.hmm import _smoother
 
-    K = log_liks[0].shape[1]
-    ll = np.zeros((rows, T, K))
-    cc = np.zeros((rows, T), np.int32)
-    resets = np.zeros((rows, T), bool)
-    resets[:, 0] = True
-    lengths = np.zeros(rows, np.int32)
-    r = 0
-    for le, c in zip(log_liks, cons):
-        if lengths[r] + len(le) > T:
-            r += 1
-        a = lengths[r]
-        ll[r, a:a + len(le)], cc[r, a:a + len(le)], resets[r, a] = le, c, True
-        lengths[r] += len(le)
-    ll[np.arange(T)[None, :] >= lengths[:, None]] = 7.0      # padding frames: arbitrary emissions
+    ll, cc, lengths, resets = _packed_rows(log_liks, cons, T, rows)
     f = jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, 0))
     _, _, _, terms = f(jnp.asarray(initial, dtype), jnp.asarray(transitions, dtype), jnp.asarray(ll, dtype),
                        jnp.asarray(cc), jnp.asarray(lengths), jnp.asarray(resets))

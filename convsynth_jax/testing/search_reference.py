@@ -68,15 +68,18 @@ def _paper_channel(c, t, frame_arrs, codes, x_seg, y_seg, synthetic, first, flag
 
 
 def reference_beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0,
-                          temperature: float | None = None) -> ReferenceBeamResult:
+                          temperature: float | None = None, feas: np.ndarray | None = None) -> ReferenceBeamResult:
     """One attempt at ``temperature`` (default ``search.temperature``), as ``beam._beam_search_once``;
     with ``search.lookahead`` as ``beam.beam_search`` does it: candidates outside the look-ahead
     (:func:`reference_feasibility`) are dropped, and an unsolvable
-    window gets one attempt without it."""
+    window gets one attempt without it. ``feas``: that look-ahead when the caller already computed it
+    with :func:`reference_feasibility` for this graph, these constraints and ``search.max_degree``
+    (it does not depend on the beam's sizes or temperature, so tests share it across them)."""
     if temperature is None:
         temperature = float(params.temperature)
-    feas = None
-    if params.lookahead:
+    if not params.lookahead:
+        feas = None
+    elif feas is None:
         feas = reference_feasibility(graph, constraints, int(params.max_degree))
     return _reference_once(graph, constraints, params, seed, temperature, feas)
 

@@ -101,14 +101,16 @@ def tiny_annotations(_tiny_annotation_cache, tiny_corpus_dir) -> dict:
 
 @pytest.fixture(scope="session")
 def tiny_cache_dir(_tiny_annotation_cache, tmp_path_factory):
-    """A factory of fresh cache folders that already hold the tiny corpus's annotation, so a task run
-    on the tiny corpus does not annotate it again (everything else in the folder starts empty)."""
+    """A factory of fresh folders for ``cache_dir=`` that already hold the tiny corpus's annotation
+    where tasks look for it (``<cache_dir>/loo_cache``, :func:`convsynth_jax.tasks.common.cache_dir`),
+    so a task run on the tiny corpus does not annotate it again (everything else starts empty)."""
     import shutil
 
     def make(name: str = "cache") -> Path:
         out = tmp_path_factory.mktemp(name)
+        (out / "loo_cache").mkdir()
         for f in _tiny_annotation_cache.glob("annotations_*.pkl"):
-            shutil.copy2(f, out / f.name)
+            shutil.copy2(f, out / "loo_cache" / f.name)
         return out
 
     return make

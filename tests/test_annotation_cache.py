@@ -28,3 +28,19 @@ def test_cache_is_not_reused_after_the_corpus_files_change(tmp_path, monkeypatch
     os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     changed = ann_cache.annotate_corpus_cached(corpus, p.annotate, 30.0, cdir, progress=False)
     assert changed == {"n": 2} and len(calls) == 2
+
+
+def test_seeded_cache_folder_serves_a_task_without_annotating(tiny_corpus_dir, tiny_cache_dir, monkeypatch):
+    """The test fixture ``tiny_cache_dir`` seeds the annotation where tasks read it: a task's corpus
+    step on a seeded folder annotates nothing (it once copied the file beside ``loo_cache``, and every
+    task-running test annotated the tiny corpus again)."""
+    from convsynth_jax.tasks.common import annotated_corpus
+
+    def no_annotation(*a, **k):
+        raise AssertionError("annotated again")
+
+    monkeypatch.setattr(ann_cache, "annotate_corpus", no_annotation)
+    p = default_params(["corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
+                        f"cache_dir={tiny_cache_dir('seeded')}", "progress=false"])
+    _, ann = annotated_corpus(p)
+    assert set(ann) == {s.name for s in open_corpus(p).sessions}

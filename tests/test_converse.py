@@ -85,8 +85,8 @@ def test_plan_covers_the_input_and_moves_cuts_to_pauses():
 
 # ---------------------------------------------------------------------------------------------- the task
 @pytest.fixture(scope="module")
-def cache(tmp_path_factory):
-    return tmp_path_factory.mktemp("converse_cache")
+def cache(tiny_cache_dir):
+    return tiny_cache_dir("converse_cache")
 
 
 @pytest.fixture(scope="module")

@@ -104,12 +104,12 @@ def test_movement_runs_find_planted_movements():
 
 
 @pytest.fixture(scope="module")
-def synthesized_dir(tiny_corpus_dir, tmp_path_factory):
+def synthesized_dir(tiny_corpus_dir, tiny_cache_dir, tmp_path_factory):
     """task=synthesize on the tiny corpus: one BVH per character (relaxed matching, so the window
     is solved)."""
     syn = tmp_path_factory.mktemp("syn")
     s = run_task(compose(["task=synthesize", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}",
-                          f"cache_dir={tmp_path_factory.mktemp('cache')}", "progress=false", "task.start=14",
+                          f"cache_dir={tiny_cache_dir('synthesize_cache')}", "progress=false", "task.start=14",
                           "task.duration=10", "search.matching=labels"]), syn)
     assert s["success"]
     return syn

@@ -61,6 +61,11 @@ def test_stored_kernel_equals_jitted_and_is_stored(kdir):
     again = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 3})
     np.testing.assert_array_equal(np.asarray(again[0]), np.asarray(want[0]))
     assert len(_files(kdir)) == 3
+    shutil.rmtree(kdir)                    # safe to delete: compiled and stored again
+    kernel_cache._LOADED.clear()
+    again = kernel_cache.call(_toy, "toy", (x, pair), {"scale": 3})
+    np.testing.assert_array_equal(np.asarray(again[0]), np.asarray(want[0]))
+    assert len(_files(kdir)) == 1
 
 
 @pytest.mark.parametrize("damage", ["truncate", "flip", "other_key", "garbage"])
@@ -115,8 +120,9 @@ def test_stale_source_gives_another_key(kdir, monkeypatch):
 
 @pytest.mark.parametrize("matching", ["paper", "labels"])
 def test_search_through_stored_kernels_equals_the_jitted_search(kdir, matching):
-    """The look-ahead and the beam kernels through their stored executables: the same bits and the same
-    path as the jitted kernels; after the folder is deleted the search stores them again and agrees."""
+    """The look-ahead and the beam kernels through their stored executables, as written and as read back
+    from the files: the same bits and the same path as the jitted kernels (deleting the folder is
+    checked on the toy kernel, test_stored_kernel_equals_jitted_and_is_stored)."""
     g, audio = hub_graph(np.random.default_rng(3))
     own, par = input_from_clip(audio, "c3", 40)
     cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, retry_temperatures=[], retry_beam_size=0,
@@ -126,7 +132,7 @@ def test_search_through_stored_kernels_equals_the_jitted_search(kdir, matching):
     want_feas, want_ok = lookahead(g, cons, 24)
     want = beam_search(g, cons, cfg, seed=3)
     kernel_cache.set_kernel_dir(kdir)
-    for _ in range(2):
+    for _ in range(2):   # compiled and written, then read back from the files
         feas, ok = lookahead(g, cons, 24)
         res = beam_search(g, cons, cfg, seed=3)
         assert {p.name.split("-")[0] for p in _files(kdir)} == {"feasible", "lookahead_beam"}
@@ -135,7 +141,6 @@ def test_search_through_stored_kernels_equals_the_jitted_search(kdir, matching):
         if want.success:
             np.testing.assert_array_equal(res.path, want.path)
             assert res.cost == want.cost
-        shutil.rmtree(kdir)                # safe to delete
         kernel_cache._LOADED.clear()
     kernel_cache.set_kernel_dir(None)
     want = beam_search(g, cons, dataclasses.replace(cfg, lookahead=False), seed=3)
@@ -217,13 +222,14 @@ def _hub_search_path():
 def test_stored_kernels_with_the_persistent_compilation_cache(tmp_path):
     """With JAX's persistent compilation cache on (as in every task): a kernel folder written by one
     process, a second folder written by another process after the first populated the compilation
-    cache, and both read back by fresh processes give the jitted search's path. (A stored executable
+    cache and read back by a fresh process give the jitted search's path (a folder written with an
+    empty compilation cache read by a fresh process: test_a_fresh_process_uses_the_stored_kernel). (A stored executable
     that came out of the compilation cache lost its compiled functions on this backend: the third
     process failed with "Function ... not found" before kernels were compiled afresh for storing.)"""
     want = _hub_search_path()
     code = _SEARCH.format(tests=str(REPO / "tests"), jc=str(tmp_path / "jax_cache"))
     env = dict(os.environ, PYTHONPATH=str(REPO))
-    for k, folder in enumerate(["k1", "k2", "k2", "k1"]):
+    for k, folder in enumerate(["k1", "k2", "k2"]):   # the third process failed before the fix
         out = tmp_path / f"path{k}.npy"
         r = subprocess.run([sys.executable, "-c", code, str(tmp_path / folder), str(out)], env=env,
                            capture_output=True, text=True, cwd=str(REPO))

@@ -16,6 +16,39 @@ SHARED_DATA = SHARED / "data"
 os.environ.setdefault("CONVSYNTH_WORKERS", "1")
 
 
+def pytest_configure(config):
+    """One JAX persistent compilation cache for the whole test run (``CONVSYNTH_JAX_CACHE``, which the
+    config's ``jax_cache.dir`` defaults to when set): the pytest-xdist workers, the processes tests
+    start and the tasks they run compile a kernel once, not once per process. Set in the controlling
+    process before the workers start, so they inherit it; a folder of the caller's own is kept."""
+    if os.environ.get("PYTEST_XDIST_WORKER") or "CONVSYNTH_JAX_CACHE" in os.environ:
+        return
+    import tempfile
+
+    config._convsynth_jax_cache = tempfile.mkdtemp(prefix="convsynth-tests-")
+    os.environ["CONVSYNTH_JAX_CACHE"] = os.path.join(config._convsynth_jax_cache, "jax_cache")
+
+
+def pytest_unconfigure(config):
+    folder = getattr(config, "_convsynth_jax_cache", None)
+    if folder:
+        import shutil
+
+        shutil.rmtree(folder, ignore_errors=True)
+        os.environ.pop("CONVSYNTH_JAX_CACHE", None)
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _session_compilation_cache():
+    """Kernels that tests compile in their own process go to the run's compilation cache too (a task
+    run points JAX at its ``jax_cache.dir``, the same folder unless a test moves or disables it)."""
+    from convsynth_jax import kernel_cache
+
+    if os.environ.get("CONVSYNTH_JAX_CACHE"):
+        kernel_cache.enable_compilation_cache(kernel_cache.JaxCacheParams(dir=os.environ["CONVSYNTH_JAX_CACHE"]))
+    yield
+
+
 def shared_path(*parts: str) -> Path:
     """Path under ../shared/data, or skip the calling test if it does not exist."""
     p = SHARED_DATA.joinpath(*parts)

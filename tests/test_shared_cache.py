@@ -11,7 +11,8 @@ GENERATOR = {"seed": 1, "num_sessions": 2, "session_seconds": 10.0, "calibrate_r
              "quota_planting": False, "glitches_per_minute": 0.0}
 
 
-def test_four_processes_on_one_empty_cache_compute_each_entry_once(tmp_path):
+def test_four_processes_on_one_empty_cache_compute_each_entry_once(tmp_path, monkeypatch):
+    monkeypatch.delenv("CONVSYNTH_JAX_CACHE", raising=False)   # their own <cache>/jax_cache, empty
     cache = tmp_path / "cache"
     results = start_together({"cache": str(cache), "barrier": str(tmp_path / "barrier"), "out": str(tmp_path / "out"),
                               "generator": GENERATOR}, processes=4)

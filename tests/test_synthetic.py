@@ -9,6 +9,7 @@ from scipy import stats
 from convsynth_jax.data import ensure_synthetic_corpus, make_synthetic_corpus, resolve_config
 from convsynth_jax.errors import ConfigError
 from convsynth_jax.io import load_bvh, load_corpus
+from conftest import _build_once
 from tolerances import F0_RELATIVE
 
 SMALL = {"num_sessions": 2, "session_seconds": 20.0}
@@ -19,10 +20,11 @@ EASY = {"p_clause_pause": 1.0, "final_lengthening": 1.0, "p_backchannel_overlap"
         "posture_shift_sd": 0.0, "calibrate_rates": False, "quota_planting": False}
 
 
-@pytest.fixture(scope="module")
-def motion_corpus(tmp_path_factory):
-    """A moderately sized corpus without audio (a few seconds to write): rates and kinematics."""
-    return make_synthetic_corpus(tmp_path_factory.mktemp("synth") / "c", MOTION_ONLY)
+@pytest.fixture(scope="session")
+def motion_corpus(_shared_dir):
+    """A moderately sized corpus without audio (several seconds to write, once per test run, shared by
+    the pytest-xdist workers; read it, never write into it): rates and kinematics."""
+    return _build_once(_shared_dir, "synthetic_motion_corpus", lambda out: make_synthetic_corpus(out / "c", MOTION_ONLY)) / "c"
 
 
 def test_same_seed_same_bytes_other_seed_differs(tmp_path):
@@ -53,10 +55,11 @@ def test_invalid_probabilities_rejected():
         resolve_config({"characters": {"main-agent": {"p_pc_either": 0.3}}})
 
 
-@pytest.fixture(scope="module")
-def easy_corpus(tmp_path_factory):
-    """The same size without the difficulty knobs (independent Bernoulli planting)."""
-    return make_synthetic_corpus(tmp_path_factory.mktemp("synth") / "e", {**MOTION_ONLY, **EASY})
+@pytest.fixture(scope="session")
+def easy_corpus(_shared_dir):
+    """The same size without the difficulty knobs (independent Bernoulli planting); shared as above."""
+    return _build_once(_shared_dir, "synthetic_easy_corpus",
+                       lambda out: make_synthetic_corpus(out / "e", {**MOTION_ONLY, **EASY})) / "e"
 
 
 def test_tiny_config_is_the_easy_corpus():

@@ -182,6 +182,22 @@ def edge_or(A, src, tgt, S: int):
     return out
 
 
+def same_rule(reqs, pw, reset, check, paper_arrs, paper: bool):
+    """(Tp,) bool: the arrival rule of frame u is the rule of frame u + 1 (False at the last frame): every
+    per-frame input equal, and for ``paper`` no entry window open on either channel at u (inside one the
+    placement check depends on u itself). Operators only."""
+    fields = [*reqs, pw, reset, check]
+    no_window = jnp.ones(pw.shape[0], bool)
+    if paper:
+        own_a, par_a = paper_arrs[0], paper_arrs[1]
+        fields += [*own_a, *par_a]
+        no_window = (own_a.kind < 0) & (par_a.kind < 0)
+    same = no_window[:-1]
+    for a in fields:
+        same &= a[:-1] == a[1:]
+    return jnp.concatenate([same, jnp.zeros(1, bool)])
+
+
 @partial(jax.jit, static_argnames=("F", "paper"))
 def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states, F: int,
                      paper: bool):
@@ -193,15 +209,21 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     Per frame t, with G[t] as one byte of F bits per state:
 
     * arriving in y at frame t with flags f is completable, A[y, f] = label_ok_t(y) and ok_t(y, f) and
-      G[t][y, f'_t(y, f)]; label_ok of every frame is computed before the scan ((Tp, S) bool: one
-      wide elementwise pass is cheaper than Tp narrow ones). For ``labels`` ok/f' depend on y only
-      through its peak flag (elementwise).
+      G[t][y, f'_t(y, f)]; label_ok is computed per frame, fused into this pass (a (Tp, S) table
+      of it would be one more pass over memory than the table it serves). For ``labels`` ok/f' depend
+      on y only through its peak flag (elementwise).
       For ``paper`` they depend on y only where y enters a source segment (offset 0: the ``entry``
       states); for every other state the channel rule is the frame's: f' = f and not reset, ok = not
       check or f'. So A is computed for all states with that rule and recomputed with
       ``paper_channel_step`` for the entry states only;
     * G[t-1][x] = A[x + 1] where x has its original transition (a shift), OR the bitwise OR of the
-      bytes A[y] over x's other edges (:func:`edge_or` over the dense rows)."""
+      bytes A[y] over x's other edges (:func:`edge_or` over the dense rows);
+    * fixed points: when frame t's rule is frame t + 1's (:func:`same_rule`: the same per-frame inputs,
+      no entry window open) and G[t] came out equal to G[t + 1], then G[t - 1] = G[t] without a pass
+      over the graph (a rule applied to its own fixed point gives it back). Unconstrained stretches of
+      a window cost one comparison per frame once their bits settle; the bits are unchanged.
+
+    The scan runs backwards (``reverse=True``) so each frame's row lands in place in the (Tp, S) table."""
 
     has_next, src, tgt, entry = edges
     own_y, par_y, peak_y = unpack_code(state_code)
@@ -215,11 +237,12 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         two = jnp.array([[False, True]])                                  # a channel's flag values
         no = jnp.zeros((entry.shape[0], 1), bool)
     all_ones = u8((1 << F) - 1)
-    # the label rule of every frame at once (Tp, S): one wide elementwise pass instead of one per frame
-    labs = label_ok(own_y[None, :], par_y[None, :], tuple(r[:, None] for r in reqs))
+    Tp = pw.shape[0]
+    same_op = same_rule(reqs, pw, reset, check, paper_arrs, paper)
 
-    def step(G_next, t):
-        lab = labs[t]                                                      # (S,)
+    def rule(G_next, t):
+        """G[t - 1] of G[t] = G_next by the arrival rule of frame t."""
+        lab = label_ok(own_y, par_y, tuple(r[t] for r in reqs))          # (S,)
         A = jnp.zeros(S, u8)
         if paper:
             oa, pa = EntryWindows(*(a[t] for a in own_a)), EntryWindows(*(a[t] for a in par_a))
@@ -251,12 +274,20 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         A = jax.lax.optimization_barrier(A)
         G = edge_or(A, src, tgt, S)
         G = G | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
-        G = jnp.where(t - 1 >= num_frames - 1, all_ones, G)
-        return G, G
+        return G
 
-    Tp = pw.shape[0]
-    _, out = jax.lax.scan(step, jnp.full(S, all_ones), jnp.arange(Tp - 1, 0, -1, dtype=jnp.int32))
-    feas = jnp.concatenate([out[::-1], jnp.full((1, S), all_ones)])
+    def step(carry, t):
+        G_next, still = carry     # G[t + 1]; still: G[t + 1] == G[t + 2], computed by frame t + 2's rule
+        u = jnp.minimum(t + 1, Tp - 1)                                    # the arrival frame
+        pad = t >= num_frames - 1
+        # a rule applied to its own fixed point gives it back: no pass over the graph
+        skip = pad | (still & same_op[u])
+        G = jax.lax.cond(skip, lambda g: jnp.where(pad, all_ones, g), lambda g: rule(g, u), G_next)
+        return (G, ~pad & (skip | jnp.all(G == G_next))), G
+
+    # reverse=True: frame t's row is written at t (no reversed copy of the (Tp, S) table)
+    _, feas = jax.lax.scan(step, (jnp.full(S, all_ones), jnp.bool_(False)), jnp.arange(Tp, dtype=jnp.int32),
+                           reverse=True)
     valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
     return feas, jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
 

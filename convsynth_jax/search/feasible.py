@@ -209,13 +209,14 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     Per frame t, with G[t] as one byte of F bits per state:
 
     * arriving in y at frame t with flags f is completable, A[y, f] = label_ok_t(y) and ok_t(y, f) and
-      G[t][y, f'_t(y, f)]; label_ok is computed per frame, fused into this pass (a (Tp, S) table
-      of it would be one more pass over memory than the table it serves). For ``labels`` ok/f' depend
-      on y only through its peak flag (elementwise).
+      G[t][y, f'_t(y, f)]. For ``labels`` ok/f' depend on y only through its peak flag.
       For ``paper`` they depend on y only where y enters a source segment (offset 0: the ``entry``
       states); for every other state the channel rule is the frame's: f' = f and not reset, ok = not
       check or f'. So A is computed for all states with that rule and recomputed with
-      ``paper_channel_step`` for the entry states only;
+      ``paper_channel_step`` for the entry states only. That rule depends on a state only through
+      the low 9 bits of its code (labels, peak) and its byte G[t][y]: per frame it is tabulated for
+      the 512 x 2^F combinations and looked up per state (one gather from a small table instead of
+      a dozen elementwise passes over S);
     * G[t-1][x] = A[x + 1] where x has its original transition (a shift), OR the bitwise OR of the
       bytes A[y] over x's other edges (:func:`edge_or` over the dense rows);
     * fixed points: when frame t's rule is frame t + 1's (:func:`same_rule`: the same per-frame inputs,
@@ -238,21 +239,38 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         no = jnp.zeros((entry.shape[0], 1), bool)
     all_ones = u8((1 << F) - 1)
     Tp = pw.shape[0]
+    # the rule of a non-entry state depends on its code's low 9 bits (labels, peak) and its byte G[t] only:
+    # per frame a (512, 2^F) table of it, looked up per state (cheaper than the rule's passes over S)
+    c_own, c_par, c_peak = unpack_code(jnp.arange(512, dtype=jnp.int32)[:, None])
+    c_g = jnp.arange(1 << F, dtype=jnp.int32)[None, :].astype(u8)
+    lut_index = (state_code & 511) << F
     same_op = same_rule(reqs, pw, reset, check, paper_arrs, paper)
 
     def rule(G_next, t):
         """G[t - 1] of G[t] = G_next by the arrival rule of frame t."""
-        lab = label_ok(own_y, par_y, tuple(r[t] for r in reqs))          # (S,)
-        A = jnp.zeros(S, u8)
+        req_t = tuple(r[t] for r in reqs)
         if paper:
             oa, pa = EntryWindows(*(a[t] for a in own_a)), EntryWindows(*(a[t] for a in par_a))
-            fo = (fl & 1).astype(bool) & ~oa.reset                       # flags after the frame's resets
-            fp = (fl >> 1).astype(bool) & ~pa.reset
-            ok = (~oa.check | fo) & (~pa.check | fp)                      # (F,): the flag checks
-            f1 = fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
-            for f in range(F):
-                A |= (ok[f] & (((G_next >> f1[f].astype(u8)) & 1) == 1)).astype(u8) << f
-            # the entry states: the full rule (constraints.paper_channel_step), gathered and scattered back
+
+        def plain(own, par, peak, G):   # the rule of a state that enters no source segment (broadcasts)
+            A = jnp.zeros(jnp.broadcast_shapes(own.shape, G.shape), u8)
+            if paper:
+                fo = (fl & 1).astype(bool) & ~oa.reset                   # flags after the frame's resets
+                fp = (fl >> 1).astype(bool) & ~pa.reset
+                ok = (~oa.check | fo) & (~pa.check | fp)                  # (F,): the flag checks
+                f1 = fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
+                for f in range(F):
+                    A |= (ok[f] & (((G >> f1[f].astype(u8)) & 1) == 1)).astype(u8) << f
+            else:
+                for f in range(F):
+                    g1 = (bool(f) & ~reset[t]) | (pw[t] & peak)
+                    okf = (~check[t] | g1) & (((G >> g1.astype(u8)) & 1) == 1)
+                    A |= okf.astype(u8) << f
+            return jnp.where(label_ok(own, par, req_t), A, u8(0))
+
+        table = plain(c_own, c_par, c_peak, c_g).reshape(-1)
+        A = table[lut_index | G_next.astype(jnp.int32)]
+        if paper:   # the entry states: the full rule (constraints.paper_channel_step), gathered and scattered back
             Ge = G_next[entry]
             ok_o, go = paper_channel_step(own_e, info_e[..., 0], info_e[..., 1], own_e, info_e[..., 0],
                                           info_e[..., 1], info_e[..., 2], no, no, t, two, oa, codes[0], tol)  # (n, 2)
@@ -263,13 +281,9 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
                 g1 = go[:, f & 1].astype(u8) | (gp[:, f >> 1].astype(u8) << 1)
                 okf = ok_o[:, f & 1] & ok_p[:, f >> 1] & (((Ge >> g1) & 1) == 1)
                 Ae |= okf.astype(u8) << f
+            Ae = jnp.where(label_ok(own_e[:, 0], par_e[:, 0], req_t), Ae, u8(0))
             A = A.at[entry].set(Ae)
-        else:
-            for f in range(F):
-                g1 = (bool(f) & ~reset[t]) | (pw[t] & peak_y)               # (S,)
-                okf = (~check[t] | g1) & (((G_next >> g1.astype(u8)) & 1) == 1)
-                A |= okf.astype(u8) << f
-        A = jnp.where(lab, A, u8(0)).at[last].set(0)                      # the padding state of missing edges
+        A = A.at[last].set(0)                                             # the padding state of missing edges
         # materialized once per frame: else XLA may fuse the rule into the edge gathers (per edge)
         A = jax.lax.optimization_barrier(A)
         G = edge_or(A, src, tgt, S)

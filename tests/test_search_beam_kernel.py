@@ -381,3 +381,27 @@ def test_shared_shapes_give_the_same_searches(monkeypatch, matching):
     assert all(s[0] for s in shared)
     for a, s in zip(alone, shared):
         assert a[:3] == s[:3]                               # the same searches
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_same_rule_marks_frames_whose_arrival_rule_repeats(matching):
+    """feasible.same_rule (the look-ahead skips a frame whose rule repeats once its bits settle) against a
+    frame-by-frame comparison of the padded inputs: equal inputs at u and u + 1, and for ``paper`` no
+    entry window open at u; never at the last frame."""
+    from convsynth_jax.search.beam_kernel import padded_inputs
+    from convsynth_jax.search.feasible import same_rule
+
+    g, audio = hub_graph(np.random.default_rng(0))
+    own, par = input_from_clip(audio, "c0", 30)
+    cons = build_constraints(own, par, 30, FPS, SearchParams(max_degree=24, matching=matching))
+    reqs, pw, reset, check, paper = padded_inputs(cons)
+    fields = [*reqs, pw, reset, check] + ([*paper.own, *paper.partner] if paper is not None else [])
+    Tp = pw.shape[0]
+    want = np.zeros(Tp, bool)
+    for u in range(Tp - 1):
+        want[u] = all(np.asarray(a)[u] == np.asarray(a)[u + 1] for a in fields)
+        if paper is not None:
+            want[u] &= paper.own.kind[u] < 0 and paper.partner.kind[u] < 0
+    got = np.asarray(same_rule(reqs, pw, reset, check, paper, paper is not None))
+    np.testing.assert_array_equal(got, want)
+    assert want.any() and not want.all()          # both kinds of frames occur in the window

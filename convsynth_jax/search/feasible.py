@@ -182,6 +182,22 @@ def edge_or(A, src, tgt, S: int):
     return out
 
 
+def same_rule(reqs, pw, reset, check, paper_arrs, paper: bool):
+    """(Tp,) bool: the arrival rule of frame u is the rule of frame u + 1 (False at the last frame): every
+    per-frame input equal, and for ``paper`` no entry window open on either channel at u (inside one the
+    placement check depends on u itself). Operators only."""
+    fields = [*reqs, pw, reset, check]
+    no_window = jnp.ones(pw.shape[0], bool)
+    if paper:
+        own_a, par_a = paper_arrs[0], paper_arrs[1]
+        fields += [*own_a, *par_a]
+        no_window = (own_a.kind < 0) & (par_a.kind < 0)
+    same = no_window[:-1]
+    for a in fields:
+        same &= a[:-1] == a[1:]
+    return jnp.concatenate([same, jnp.zeros(1, bool)])
+
+
 @partial(jax.jit, static_argnames=("F", "paper"))
 def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states, F: int,
                      paper: bool):
@@ -193,15 +209,22 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     Per frame t, with G[t] as one byte of F bits per state:
 
     * arriving in y at frame t with flags f is completable, A[y, f] = label_ok_t(y) and ok_t(y, f) and
-      G[t][y, f'_t(y, f)]; label_ok of every frame is computed before the scan ((Tp, S) bool: one
-      wide elementwise pass is cheaper than Tp narrow ones). For ``labels`` ok/f' depend on y only
-      through its peak flag (elementwise).
+      G[t][y, f'_t(y, f)]. For ``labels`` ok/f' depend on y only through its peak flag.
       For ``paper`` they depend on y only where y enters a source segment (offset 0: the ``entry``
       states); for every other state the channel rule is the frame's: f' = f and not reset, ok = not
       check or f'. So A is computed for all states with that rule and recomputed with
-      ``paper_channel_step`` for the entry states only;
+      ``paper_channel_step`` for the entry states only. That rule depends on a state only through
+      the low 9 bits of its code (labels, peak) and its byte G[t][y]: per frame it is tabulated for
+      the 512 x 2^F combinations and looked up per state (one gather from a small table instead of
+      a dozen elementwise passes over S);
     * G[t-1][x] = A[x + 1] where x has its original transition (a shift), OR the bitwise OR of the
-      bytes A[y] over x's other edges (:func:`edge_or` over the dense rows)."""
+      bytes A[y] over x's other edges (:func:`edge_or` over the dense rows);
+    * fixed points: when frame t's rule is frame t + 1's (:func:`same_rule`: the same per-frame inputs,
+      no entry window open) and G[t] came out equal to G[t + 1], then G[t - 1] = G[t] without a pass
+      over the graph (a rule applied to its own fixed point gives it back). Unconstrained stretches of
+      a window cost one comparison per frame once their bits settle; the bits are unchanged.
+
+    The scan runs backwards (``reverse=True``) so each frame's row lands in place in the (Tp, S) table."""
 
     has_next, src, tgt, entry = edges
     own_y, par_y, peak_y = unpack_code(state_code)
@@ -215,21 +238,39 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         two = jnp.array([[False, True]])                                  # a channel's flag values
         no = jnp.zeros((entry.shape[0], 1), bool)
     all_ones = u8((1 << F) - 1)
-    # the label rule of every frame at once (Tp, S): one wide elementwise pass instead of one per frame
-    labs = label_ok(own_y[None, :], par_y[None, :], tuple(r[:, None] for r in reqs))
+    Tp = pw.shape[0]
+    # the rule of a non-entry state depends on its code's low 9 bits (labels, peak) and its byte G[t] only:
+    # per frame a (512, 2^F) table of it, looked up per state (cheaper than the rule's passes over S)
+    c_own, c_par, c_peak = unpack_code(jnp.arange(512, dtype=jnp.int32)[:, None])
+    c_g = jnp.arange(1 << F, dtype=jnp.int32)[None, :].astype(u8)
+    lut_index = (state_code & 511) << F
+    same_op = same_rule(reqs, pw, reset, check, paper_arrs, paper)
 
-    def step(G_next, t):
-        lab = labs[t]                                                      # (S,)
-        A = jnp.zeros(S, u8)
+    def rule(G_next, t):
+        """G[t - 1] of G[t] = G_next by the arrival rule of frame t."""
+        req_t = tuple(r[t] for r in reqs)
         if paper:
             oa, pa = EntryWindows(*(a[t] for a in own_a)), EntryWindows(*(a[t] for a in par_a))
-            fo = (fl & 1).astype(bool) & ~oa.reset                       # flags after the frame's resets
-            fp = (fl >> 1).astype(bool) & ~pa.reset
-            ok = (~oa.check | fo) & (~pa.check | fp)                      # (F,): the flag checks
-            f1 = fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
-            for f in range(F):
-                A |= (ok[f] & (((G_next >> f1[f].astype(u8)) & 1) == 1)).astype(u8) << f
-            # the entry states: the full rule (constraints.paper_channel_step), gathered and scattered back
+
+        def plain(own, par, peak, G):   # the rule of a state that enters no source segment (broadcasts)
+            A = jnp.zeros(jnp.broadcast_shapes(own.shape, G.shape), u8)
+            if paper:
+                fo = (fl & 1).astype(bool) & ~oa.reset                   # flags after the frame's resets
+                fp = (fl >> 1).astype(bool) & ~pa.reset
+                ok = (~oa.check | fo) & (~pa.check | fp)                  # (F,): the flag checks
+                f1 = fo.astype(jnp.int32) | (fp.astype(jnp.int32) << 1)
+                for f in range(F):
+                    A |= (ok[f] & (((G >> f1[f].astype(u8)) & 1) == 1)).astype(u8) << f
+            else:
+                for f in range(F):
+                    g1 = (bool(f) & ~reset[t]) | (pw[t] & peak)
+                    okf = (~check[t] | g1) & (((G >> g1.astype(u8)) & 1) == 1)
+                    A |= okf.astype(u8) << f
+            return jnp.where(label_ok(own, par, req_t), A, u8(0))
+
+        table = plain(c_own, c_par, c_peak, c_g).reshape(-1)
+        A = table[lut_index | G_next.astype(jnp.int32)]
+        if paper:   # the entry states: the full rule (constraints.paper_channel_step), gathered and scattered back
             Ge = G_next[entry]
             ok_o, go = paper_channel_step(own_e, info_e[..., 0], info_e[..., 1], own_e, info_e[..., 0],
                                           info_e[..., 1], info_e[..., 2], no, no, t, two, oa, codes[0], tol)  # (n, 2)
@@ -240,23 +281,27 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
                 g1 = go[:, f & 1].astype(u8) | (gp[:, f >> 1].astype(u8) << 1)
                 okf = ok_o[:, f & 1] & ok_p[:, f >> 1] & (((Ge >> g1) & 1) == 1)
                 Ae |= okf.astype(u8) << f
+            Ae = jnp.where(label_ok(own_e[:, 0], par_e[:, 0], req_t), Ae, u8(0))
             A = A.at[entry].set(Ae)
-        else:
-            for f in range(F):
-                g1 = (bool(f) & ~reset[t]) | (pw[t] & peak_y)               # (S,)
-                okf = (~check[t] | g1) & (((G_next >> g1.astype(u8)) & 1) == 1)
-                A |= okf.astype(u8) << f
-        A = jnp.where(lab, A, u8(0)).at[last].set(0)                      # the padding state of missing edges
+        A = A.at[last].set(0)                                             # the padding state of missing edges
         # materialized once per frame: else XLA may fuse the rule into the edge gathers (per edge)
         A = jax.lax.optimization_barrier(A)
         G = edge_or(A, src, tgt, S)
         G = G | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
-        G = jnp.where(t - 1 >= num_frames - 1, all_ones, G)
-        return G, G
+        return G
 
-    Tp = pw.shape[0]
-    _, out = jax.lax.scan(step, jnp.full(S, all_ones), jnp.arange(Tp - 1, 0, -1, dtype=jnp.int32))
-    feas = jnp.concatenate([out[::-1], jnp.full((1, S), all_ones)])
+    def step(carry, t):
+        G_next, still = carry     # G[t + 1]; still: G[t + 1] == G[t + 2], computed by frame t + 2's rule
+        u = jnp.minimum(t + 1, Tp - 1)                                    # the arrival frame
+        pad = t >= num_frames - 1
+        # a rule applied to its own fixed point gives it back: no pass over the graph
+        skip = pad | (still & same_op[u])
+        G = jax.lax.cond(skip, lambda g: jnp.where(pad, all_ones, g), lambda g: rule(g, u), G_next)
+        return (G, ~pad & (skip | jnp.all(G == G_next))), G
+
+    # reverse=True: frame t's row is written at t (no reversed copy of the (Tp, S) table)
+    _, feas = jax.lax.scan(step, (jnp.full(S, all_ones), jnp.bool_(False)), jnp.arange(Tp, dtype=jnp.int32),
+                           reverse=True)
     valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
     return feas, jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
 

@@ -326,6 +326,7 @@ def test_edge_or_is_a_bitwise_or_over_each_states_edges():
     src = np.concatenate([src, extra_src]).astype(np.int32); tgt = np.concatenate([tgt, extra_tgt]).astype(np.int32)
     widths = row_widths(300)
     assert widths == (4, 8, 16, 32, 64, 128, 256, 512)
+    jitted_edge_or = jax.jit(edge_or, static_argnums=3)   # as inside the look-ahead kernel; one program, not op by op
     for F in (4, 2):
         a = A & np.uint8((1 << F) - 1)
         want = np.zeros(S, np.uint8)
@@ -336,8 +337,8 @@ def test_edge_or_is_a_bitwise_or_over_each_states_edges():
         assert all(x.shape[0] >= 300 for x in padded.src) and all(x.shape[0] >= 300 for x in padded.tgt)
         for s_rows, t_rows in ((s_rows, t_rows), (padded.src, padded.tgt)):
             assert sum(int((t < pad).sum()) for t in t_rows) == src.size      # every edge listed once
-            got = np.asarray(edge_or(jnp.asarray(a), tuple(map(jnp.asarray, s_rows)), tuple(map(jnp.asarray, t_rows)),
-                                     S))
+            got = np.asarray(jitted_edge_or(jnp.asarray(a), tuple(map(jnp.asarray, s_rows)),
+                                            tuple(map(jnp.asarray, t_rows)), S))
             np.testing.assert_array_equal(got, want)
         if F == 4:
             assert got[0] == 0b1110 and got[4] == 0b1111

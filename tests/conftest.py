@@ -38,14 +38,19 @@ def pytest_unconfigure(config):
         os.environ.pop("CONVSYNTH_JAX_CACHE", None)
 
 
-@pytest.fixture(scope="session", autouse=True)
+@pytest.fixture(autouse=True)
 def _session_compilation_cache():
-    """Kernels that tests compile in their own process go to the run's compilation cache too (a task
-    run points JAX at its ``jax_cache.dir``, the same folder unless a test moves or disables it)."""
-    from convsynth_jax import kernel_cache
+    """Kernels that tests compile in their own process go to the run's compilation cache too; a test
+    that moved or disabled the cache (a task run points JAX at its ``jax_cache.dir``) gets it back for
+    the next test."""
+    folder = os.environ.get("CONVSYNTH_JAX_CACHE")
+    if folder:
+        import jax
 
-    if os.environ.get("CONVSYNTH_JAX_CACHE"):
-        kernel_cache.enable_compilation_cache(kernel_cache.JaxCacheParams(dir=os.environ["CONVSYNTH_JAX_CACHE"]))
+        from convsynth_jax import kernel_cache
+
+        if jax.config.jax_compilation_cache_dir != str(Path(folder).resolve()) or kernel_cache.kernel_dir() is not None:
+            kernel_cache.enable_compilation_cache(kernel_cache.JaxCacheParams(dir=folder))
     yield
 
 

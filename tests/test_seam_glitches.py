@@ -8,6 +8,7 @@ from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
+import pandas as pd
 from scipy.spatial.transform import Rotation
 
 from convsynth_jax.data.skeleton_seated import seated_skeleton
@@ -70,6 +71,12 @@ def test_detector_flags_a_faded_in_glitch_and_not_a_held_one():
     assert not on[1]["touches_glitch_played"] and on[1]["touches_glitch_nominal"]
     assert not off[0]["touches_glitch_played"]                           # a's continuation is clean
     assert off[1]["seam_ratio"] > 2 * on[1]["seam_ratio"]
+    key = {"fold": 0, "condition": "all", "character": "x", "window": 0}
+    rows = mod.touching_rows(pd.DataFrame([{**key, **s} for s in off]), B, 3)
+    assert [(r["where"], r["frame"], r["offset"], r["in_seam_measure"]) for r in rows] == [
+        ("continuation", 12, 0, True), ("continuation", 13, 1, True)]
+    held = mod.touching_rows(pd.DataFrame([{**key, **s} for s in on]), B, 3)
+    assert {r["where"] for r in held} == {"continuation, held (not played)"}
 
 
 def test_frames_played_from_a_glitch_are_counted():

@@ -139,6 +139,79 @@ def summarize(seams: pd.DataFrame, windows: pd.DataFrame, top: int) -> dict:
     }
 
 
+def _frames(cell) -> list:
+    return [] if pd.isna(cell) or cell == "" else [x for x in str(cell).split(";") if x]
+
+
+def touching_rows(seams: pd.DataFrame, blend: int, radius: int) -> list[dict]:
+    """Each seam whose blend span touches a glitch, with every glitch frame's place: the output frame
+    offset from the transition (u - t; None where another transition of the window lies between, so
+    the offset is not known from the seam table) and whether the seam measure reads it (its
+    accelerations at |u - t| <= ``radius`` are central differences, so they read |u - t| <= radius + 1).
+    ``raw after t``: the new clip's own frames, played by the path at the blend's
+    new-source weight; ``raw before t``: the left clip's frames before the transition;
+    ``continuation``: the left clip's continuation faded out by the blend."""
+    out = []
+    keys = ["fold", "condition", "character", "window"]
+    for _, s in seams[seams["touches_glitch_nominal"] | seams["touches_glitch_played"]].iterrows():
+        ts = sorted(seams.loc[(seams[keys] == s[keys]).all(axis=1), "t"])
+        t = int(s["t"])
+        places = []
+        for item in _frames(s["glitch_raw"]):
+            clip, ff = item.rsplit(":", 1)
+            ff = int(ff)
+            if clip == s["new_clip"] and 0 <= ff - int(s["new_frame"]) < blend:
+                k = ff - int(s["new_frame"])
+                known = not any(t < x <= t + k for x in ts)
+                places.append(("raw after t", clip, ff, k if known else None))
+            elif clip == s["left_clip"] and 0 <= int(s["left_frame"]) - ff < blend:
+                k = -(int(s["left_frame"]) - ff) - 1
+                known = not any(t + k < x < t for x in ts)
+                places.append(("raw before t", clip, ff, k if known else None))
+            else:
+                places.append(("raw", clip, ff, None))
+        played = set(_frames(s["glitch_continuation_played"]))
+        for ff in _frames(s["glitch_continuation_nominal"]):
+            if ff in played:
+                places.append(("continuation", s["left_clip"], int(ff), int(ff) - int(s["left_frame"]) - 1))
+            else:
+                places.append(("continuation, held (not played)", s["left_clip"], int(ff), None))
+        for where, clip, ff, k in places:
+            out.append({"fold": int(s["fold"]), "condition": str(s["condition"]), "character": str(s["character"]),
+                        "window": int(s["window"]), "t": t, "seam_ratio": float(s["seam_ratio"]), "where": where,
+                        "clip": clip, "frame": ff, "offset": k,
+                        "in_seam_measure": None if k is None else bool(abs(k) <= radius + 1)})
+    return out
+
+
+def report_touching(name: str, overrides) -> None:
+    """<name>_touching.{json,md}: where the glitch frames of every seam touching one lie (from
+    <name>_seams.csv and <name>.json of a finished sweep)."""
+    import json
+
+    res = json.loads((RESULTS / f"{name}.json").read_text())
+    seams = pd.read_csv(RESULTS / f"{name}_seams.csv")
+    rows = touching_rows(seams, int(res["blend_frames"]), int(res["seam_radius"]))
+    seen = {(r["fold"], r["condition"], r["character"], r["window"], r["t"]) for r in rows}
+    in_measure = {(r["fold"], r["condition"], r["character"], r["window"], r["t"]) for r in rows if r["in_seam_measure"]}
+    summary = {"source": f"{name}_seams.csv", "seams_total": int(len(seams)), "seams_touching_glitch_any": len(seen),
+               "seams_with_a_glitch_frame_in_the_seam_measure": len(in_measure),
+               "seams_with_a_played_continuation_glitch": len({(r["fold"], r["condition"], r["character"], r["window"],
+                                                                r["t"]) for r in rows if r["where"] == "continuation"}),
+               "glitch_frames": rows}
+    write(f"{name}_touching", summary, overrides=overrides)
+    lines = [f"Seams of `{name}` whose blend span touches a planted glitch ({len(seen)} of {len(seams)}; "
+             f"{len(in_measure)} with a glitch frame the seam measure reads: within {int(res['seam_radius']) + 1} frames), one row per "
+             "glitch frame; offset: output frame minus the transition's.", "",
+             "| fold | condition | character | window | t | seam ratio | where | clip:frame | offset | in seam measure |",
+             "|---" * 10 + "|"]
+    for r in rows:
+        lines.append(f"| {r['fold']} | {r['condition']} | {r['character']} | {r['window']} | {r['t']} | "
+                     f"{r['seam_ratio']:.2f} | {r['where']} | {r['clip']}:{r['frame']} | "
+                     f"{'?' if r['offset'] is None else r['offset']} | {r['in_seam_measure']} |")
+    write_markdown(f"{name}_touching", lines, overrides=overrides)
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--folds", type=int, default=None, help="the first N folds (default: all)")
@@ -147,8 +220,13 @@ if __name__ == "__main__":
     ap.add_argument("--cache", default=str(REPO / "data_cache"))
     ap.add_argument("--name", default="seam_glitches")
     ap.add_argument("--top", type=int, default=10)
+    ap.add_argument("--touching-only", action="store_true",
+                    help="only write <name>_touching.{json,md} from a finished sweep's <name>_seams.csv")
     ap.add_argument("overrides", nargs="*", help="config overrides after search.matching=labels")
     args = ap.parse_args()
+    if args.touching_only:
+        report_touching(args.name, ["search.matching=labels", *args.overrides])
+        sys.exit(0)
     t0 = time.perf_counter()
     overrides = ["search.matching=labels", *args.overrides]
     params = default_params([f"cache_dir={args.cache}", "progress=false", *overrides])
@@ -212,3 +290,4 @@ if __name__ == "__main__":
                      f"{w['seam_ratio']:.2f} | {w['left_clip']}:{w['left_frame']} | {w['new_clip']}:{w['new_frame']} | "
                      f"{'yes' if w['touches_glitch_played'] else 'no'} |")
     write_markdown(args.name, lines, overrides=overrides)
+    report_touching(args.name, overrides)

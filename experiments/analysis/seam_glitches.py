@@ -118,7 +118,12 @@ def window_seams(res, gt_motion, motions: dict, glitches: dict, max_step: float,
     return out, from_glitch
 
 
-def summarize(seams: pd.DataFrame, windows: pd.DataFrame, top: int) -> dict:
+def summarize(seams: pd.DataFrame, windows: pd.DataFrame | None, top: int) -> dict:
+    """The figures of a sweep; ``windows`` None: those counted per window are None (not kept)."""
+    if windows is None:
+        out = summarize(seams, pd.DataFrame({"frames": [], "frames_from_glitch": []}), top)
+        return {**out, **{k: None for k in ("windows_synthesized", "windows_from_glitch_frames", "output_frames",
+                                            "output_frames_from_glitch_frames")}}
     ok = seams.dropna(subset=["seam_ratio"]) if len(seams) else seams
     worst = ok.sort_values("seam_ratio", ascending=False).head(top) if len(ok) else ok
     cols = ["fold", "condition", "character", "window", "t", "seam_ratio", "left_clip", "left_frame", "new_clip",
@@ -190,7 +195,7 @@ def report_touching(name: str, overrides) -> None:
     import json
 
     res = json.loads((RESULTS / f"{name}.json").read_text())
-    seams = pd.read_csv(RESULTS / f"{name}_seams.csv")
+    seams = read_seams(RESULTS / f"{name}_seams.csv")
     rows = touching_rows(seams, int(res["blend_frames"]), int(res["seam_radius"]))
     seen = {(r["fold"], r["condition"], r["character"], r["window"], r["t"]) for r in rows}
     in_measure = {(r["fold"], r["condition"], r["character"], r["window"], r["t"]) for r in rows if r["in_seam_measure"]}
@@ -212,6 +217,53 @@ def report_touching(name: str, overrides) -> None:
     write_markdown(f"{name}_touching", lines, overrides=overrides)
 
 
+def header(params, corpus, overrides, folds, conditions) -> dict:
+    return {"overrides": overrides, "folds": folds, "conditions": conditions,
+            "continuation_max_step_deg": float(params.synth.continuation_max_step_deg),
+            "glitch_max_step_deg": float(params.graph.glitch_max_step_deg),
+            "blend_frames": int(params.synth.blend_frames), "seam_radius": metrics.SEAM_RADIUS,
+            "planted_glitches": int(len(pd.read_csv(Path(corpus.root) / "glitches.csv")))}
+
+
+def finish(name: str, seams: pd.DataFrame, windows: pd.DataFrame | None, head: dict, top: int, t0: float,
+           note: str = "") -> None:
+    """<name>.json/.md, <name>_seams.csv and <name>_touching.{json,md}."""
+    seams.to_csv(RESULTS / f"{name}_seams.csv", index=False)
+    overrides, folds, conditions = head["overrides"], head["folds"], head["conditions"]
+    r = {**head, **summarize(seams, windows, top), "note": note or None,
+         "seconds": time.perf_counter() - t0, "load_avg_1_5_15_at_end": list(os.getloadavg())}
+    write(name, r, overrides=overrides)
+
+    def n(x):
+        return "not kept" if x is None else x
+
+    lines = [f"Seams of the leave-one-out sweep ({len(folds)} folds x {len(conditions)} conditions, both characters; "
+             f"overrides `{' '.join(overrides)}`; `graph.glitch_max_step_deg` {r['glitch_max_step_deg']:g}, "
+             f"`synth.continuation_max_step_deg` {r['continuation_max_step_deg']:g}, blend {r['blend_frames']} frames) "
+             f"against the {r['planted_glitches']} planted glitches of the corpus (`glitches.csv`). {note}", "",
+             "| windows | output frames | frames played from a glitch | seams | seams touching a glitch (played) | "
+             "(nominal continuation) | seams > 1 |", "|---" * 7 + "|",
+             f"| {n(r['windows_synthesized'])} | {n(r['output_frames'])} | {n(r['output_frames_from_glitch_frames'])} "
+             f"({n(r['windows_from_glitch_frames'])} windows) | {r['seams_total']} | {r['seams_touching_glitch_played']} | "
+             f"{r['seams_touching_glitch_nominal']} | {r['seams_over_1']} |", "",
+             "Worst seams:", "", "| fold | condition | character | window | t | seam ratio | left clip:frame | "
+             "new clip:frame | glitch |", "|---" * 9 + "|"]
+    for w in r["worst_seams"]:
+        lines.append(f"| {w['fold']} | {w['condition']} | {w['character']} | {w['window']} | {w['t']} | "
+                     f"{w['seam_ratio']:.2f} | {w['left_clip']}:{w['left_frame']} | {w['new_clip']}:{w['new_frame']} | "
+                     f"{'yes' if w['touches_glitch_played'] else 'no'} |")
+    write_markdown(name, lines, overrides=overrides)
+    report_touching(name, overrides)
+
+
+def read_seams(path: Path) -> pd.DataFrame:
+    cols = ("glitch_raw", "glitch_continuation_nominal", "glitch_continuation_played")
+    d = pd.read_csv(path, dtype={c: str for c in cols})
+    for c in cols:
+        d[c] = d[c].fillna("")
+    return d
+
+
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--folds", type=int, default=None, help="the first N folds (default: all)")
@@ -222,6 +274,8 @@ if __name__ == "__main__":
     ap.add_argument("--top", type=int, default=10)
     ap.add_argument("--touching-only", action="store_true",
                     help="only write <name>_touching.{json,md} from a finished sweep's <name>_seams.csv")
+    ap.add_argument("--from-partial", action="store_true",
+                    help="write the results of a cut-short sweep from its <name>.partial*.csv (same overrides)")
     ap.add_argument("overrides", nargs="*", help="config overrides after search.matching=labels")
     args = ap.parse_args()
     if args.touching_only:
@@ -230,6 +284,17 @@ if __name__ == "__main__":
     t0 = time.perf_counter()
     overrides = ["search.matching=labels", *args.overrides]
     params = default_params([f"cache_dir={args.cache}", "progress=false", *overrides])
+    if args.from_partial:  # a cut-short sweep: its folds so far, from the files rewritten after each fold
+        from convsynth_jax.tasks.common import open_corpus
+
+        seams = read_seams(RESULTS / f"{args.name}.partial.csv")
+        wpath = RESULTS / f"{args.name}.partial_windows.csv"
+        windows = pd.read_csv(wpath) if wpath.exists() else None
+        done = sorted(int(f) for f in seams["fold"].unique())
+        conds = args.conditions or list(make_system(params, params.system).conditions)
+        finish(args.name, seams, windows, header(params, open_corpus(params), overrides, done, conds), args.top, t0,
+               note=f"Cut short: folds {done} of the sweep only.")
+        sys.exit(0)
     fps = float(params.features.fps)
     system = KeepResults(make_system(params, params.system))
     corpus, ann = annotated_corpus(params)
@@ -260,34 +325,10 @@ if __name__ == "__main__":
             print(f"fold {fold} {cond}: {seconds[f'{fold}/{cond}']:.1f} s, {len(seam_rows)} seams so far, "
                   f"{sum(s['touches_glitch_played'] for s in seam_rows)} touching a glitch", flush=True)
         pd.DataFrame(seam_rows).to_csv(RESULTS / f"{args.name}.partial.csv", index=False)
+        pd.DataFrame(window_rows).to_csv(RESULTS / f"{args.name}.partial_windows.csv", index=False)
     seams = pd.DataFrame(seam_rows)
     windows = pd.DataFrame(window_rows)
-    seams.to_csv(RESULTS / f"{args.name}_seams.csv", index=False)
-    partial = RESULTS / f"{args.name}.partial.csv"
-    if partial.exists():
-        partial.unlink()
-    result = {"overrides": overrides, "folds": folds, "conditions": conditions,
-              "continuation_max_step_deg": max_step, "glitch_max_step_deg": float(params.graph.glitch_max_step_deg),
-              "blend_frames": int(params.synth.blend_frames), "seam_radius": metrics.SEAM_RADIUS,
-              "planted_glitches": int(len(pd.read_csv(Path(corpus.root) / "glitches.csv"))),
-              **summarize(seams, windows, args.top),
-              "seconds": time.perf_counter() - t0, "load_avg_1_5_15_at_end": list(os.getloadavg())}
-    write(args.name, result, overrides=overrides)
-    r = result
-    lines = [f"Seams of the leave-one-out sweep ({len(folds)} folds x {len(conditions)} conditions, both characters; "
-             f"overrides `{' '.join(overrides)}`; `graph.glitch_max_step_deg` {r['glitch_max_step_deg']:g}, "
-             f"`synth.continuation_max_step_deg` {max_step:g}, blend {r['blend_frames']} frames) against the "
-             f"{r['planted_glitches']} planted glitches of the corpus (`glitches.csv`).", "",
-             "| windows | output frames | frames played from a glitch | seams | seams touching a glitch (played) | "
-             "(nominal continuation) | seams > 1 |", "|---" * 7 + "|",
-             f"| {r['windows_synthesized']} | {r['output_frames']} | {r['output_frames_from_glitch_frames']} "
-             f"({r['windows_from_glitch_frames']} windows) | {r['seams_total']} | {r['seams_touching_glitch_played']} | "
-             f"{r['seams_touching_glitch_nominal']} | {r['seams_over_1']} |", "",
-             "Worst seams:", "", "| fold | condition | character | window | t | seam ratio | left clip:frame | "
-             "new clip:frame | glitch |", "|---" * 9 + "|"]
-    for w in r["worst_seams"]:
-        lines.append(f"| {w['fold']} | {w['condition']} | {w['character']} | {w['window']} | {w['t']} | "
-                     f"{w['seam_ratio']:.2f} | {w['left_clip']}:{w['left_frame']} | {w['new_clip']}:{w['new_frame']} | "
-                     f"{'yes' if w['touches_glitch_played'] else 'no'} |")
-    write_markdown(args.name, lines, overrides=overrides)
-    report_touching(args.name, overrides)
+    for suffix in (".partial.csv", ".partial_windows.csv"):
+        if (RESULTS / f"{args.name}{suffix}").exists():
+            (RESULTS / f"{args.name}{suffix}").unlink()
+    finish(args.name, seams, windows, header(params, corpus, overrides, folds, conditions), args.top, t0)

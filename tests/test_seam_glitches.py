@@ -14,6 +14,7 @@ from scipy.spatial.transform import Rotation
 from convsynth_jax.data.skeleton_seated import seated_skeleton
 from convsynth_jax.skeleton import Motion
 from convsynth_jax.synth.realize import realize
+from test_realize import _with_glitch as _glitch  # one planted marker swap for the glitch tests
 
 SCRIPT = Path(__file__).resolve().parents[1] / "experiments" / "analysis" / "seam_glitches.py"
 
@@ -35,15 +36,6 @@ def _clip(skel, name, z_deg, n=40, spin=0.0):
     trans = np.broadcast_to(skel.offsets, (n, J, 3)).copy()
     trans[:, 0, 1] = 90.0
     return Motion(skel, rot, trans, 30.0, name)
-
-
-def _glitch(m, joint, frames, degrees):
-    rot = np.array(m.rotations, copy=True)
-    j = m.skeleton.names.index(joint)
-    kick = Rotation.from_euler("Z", degrees, degrees=True)
-    for f in frames:
-        rot[f, j] = (kick * Rotation.from_quat(rot[f, j][[1, 2, 3, 0]])).as_quat()[[3, 0, 1, 2]]
-    return Motion(m.skeleton, rot, np.array(m.translations), m.fps, m.name)
 
 
 def test_detector_flags_a_faded_in_glitch_and_not_a_held_one():

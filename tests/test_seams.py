@@ -14,6 +14,7 @@ from convsynth_jax.graph.seams import frame_acceleration, near_fast_frames, seam
 from convsynth_jax.kinematics import forward_kinematics
 from convsynth_jax.skeleton import Motion
 from convsynth_jax.synth.realize import realize
+from test_realize import _with_glitch  # one planted marker swap for the glitch tests
 
 N = 150
 FLICK = 75  # clip "b": the left wrist flicks here (moves only the finger joints, weight 0 in Eq. 4)
@@ -178,15 +179,6 @@ def test_bad_seam_options_are_config_errors_naming_the_key(override, key):
 
     with pytest.raises(ConfigError, match=key):
         default_params([override])
-
-
-def _with_glitch(m, joint: str, frames, degrees: float):
-    rot = np.array(m.rotations, copy=True)
-    j = m.skeleton.names.index(joint)
-    kick = Rotation.from_euler("Z", degrees, degrees=True)
-    for f in frames:
-        rot[f, j] = (kick * Rotation.from_quat(rot[f, j][[1, 2, 3, 0]])).as_quat()[[3, 0, 1, 2]]
-    return Motion(m.skeleton, rot, np.array(m.translations), m.fps, m.name)
 
 
 def test_glitch_filter_drops_transitions_next_to_a_planted_marker_swap():

@@ -308,7 +308,7 @@ def test_edge_or_is_a_bitwise_or_over_each_states_edges():
     feasible.edge_rows) against np.bitwise_or.at: flag sets that are not nested (own entry flag only
     0b1010, partner flag only 0b1100: 0b1110; a segment_max over the bytes, used before, gave 0b1100),
     random bytes of 4 and 2 bits, states with 1 to 300 edges (every row width, more than the 255 the
-    byte-lane sum of last session allowed) and rows padded to more than needed."""
+    byte-lane sum used before allowed) and rows padded to more than needed."""
     import jax.numpy as jnp
 
     from convsynth_jax.search.feasible import LookaheadEdges, edge_or, edge_rows, pad_lookahead, row_widths

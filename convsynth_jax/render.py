@@ -324,22 +324,31 @@ def render_video(panels, timelines, fps: float, path: str | Path, audio: str | P
     on, frames are drawn by matplotlib, :func:`_rgb_frames`; off, by :func:`_raster_frames`).
     ``ground_axis``: the horizontal axis of the view, 0 = X or 2 = Z (None: the axis along which the
     roots spread the most, :func:`_axes_of`)."""
-    import imageio_ffmpeg
-
     path = Path(path)
     scene = _Scene(panels, timelines, fps, width=width, dpi=dpi, clock=clock, ground_axis=ground_axis)
     step = max(1, int(round(fps / render_fps)))
     frames = list(range(0, scene.n, step))
     gen = (_rgb_frames if clock else _raster_frames)(scene, frames)
     first = next(gen)
+    return write_mp4(path, first, gen, fps / step, audio, macro_block_size=1)
+
+
+def write_mp4(path: Path, first, rest, fps: float, audio: str | Path | None = None, **writer_options) -> Path:
+    """Write the RGB frames ``first`` and then ``rest`` to the MP4 ``path`` (atomically: a temporary file
+    renamed into place), with the WAV ``audio`` muxed in as AAC when given. ``writer_options``: further
+    keyword arguments of ``imageio_ffmpeg.write_frames`` (codec, pixel format, block size)."""
+    import imageio_ffmpeg
+
+    path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path, suffix=".mp4") as tmp:
-        w = imageio_ffmpeg.write_frames(str(tmp), (first.shape[1], first.shape[0]), fps=fps / step, macro_block_size=1,
+        w = imageio_ffmpeg.write_frames(str(tmp), (first.shape[1], first.shape[0]), fps=fps,
                                         audio_path=None if audio is None else str(audio),
-                                        audio_codec=None if audio is None else "aac", ffmpeg_log_level="error")
+                                        audio_codec=None if audio is None else "aac", ffmpeg_log_level="error",
+                                        **writer_options)
         w.send(None)
         w.send(first)
-        for img in gen:
+        for img in rest:
             w.send(img)
         w.close()
     return path

@@ -20,7 +20,7 @@ from pathlib import Path
 import numpy as np
 
 from ..errors import ConvSynthError
-from ..utils import atomic_path
+from ..render import write_mp4
 
 log = logging.getLogger(__name__)
 
@@ -233,26 +233,13 @@ def side_by_side_frames(left, right, width: int, height: int, step: int = 1, yaw
 def write_video(frames, fps: float, path: str | Path, audio: str | Path | None = None) -> Path:
     """Write ``frames`` (an iterable of uint8 (H, W, 3), even H and W) to ``path``: MP4, H.264 yuv420p
     with ``+faststart``, plus the WAV ``audio`` as AAC when given. Written atomically."""
-    import imageio_ffmpeg
-
     path = Path(path)
     gen = iter(frames)
     first = next(gen)
     if first.shape[0] % 2 or first.shape[1] % 2:
         raise ConvSynthError(f"H.264 frames need an even width and height, got {first.shape[1]} x {first.shape[0]}", path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    with atomic_path(path, suffix=".mp4") as tmp:
-        w = imageio_ffmpeg.write_frames(str(tmp), (first.shape[1], first.shape[0]), fps=fps, macro_block_size=2,
-                                        codec="libx264", pix_fmt_out="yuv420p",
-                                        output_params=["-movflags", "+faststart"],
-                                        audio_path=None if audio is None else str(audio),
-                                        audio_codec=None if audio is None else "aac", ffmpeg_log_level="error")
-        w.send(None)
-        w.send(first)
-        for img in gen:
-            w.send(img)
-        w.close()
-    return path
+    return write_mp4(path, first, gen, fps, audio, macro_block_size=2, codec="libx264", pix_fmt_out="yuv420p",
+                     output_params=["-movflags", "+faststart"])
 
 
 def render_pair_video(left, right, fps: float, path: str | Path, audio: str | Path | None = None, width: int = 320,

@@ -1,11 +1,11 @@
 """Forward kinematics, the root-relative pose features of the paper's transition cost, and time
 derivatives of positions (velocities, jerk): the project's one home for each.
 
-Shapes: F frames, J joints. One recursion (:func:`_chain`) serves the jitted kernel (:func:`fk_kernel`,
-float32 by default, one FK call for many clips in :func:`padded_global_transforms`) and the float64
-NumPy path (:func:`global_transforms_np`, no compilation per clip length). Kernels are jitted with the
-skeleton topology (parents) static, the frame axis is vectorized, and the joint loop is unrolled at
-trace time (J is small).
+Shapes: F frames, J joints. The forward-kinematics recursion has two forms: the jitted kernel
+(:func:`fk_kernel`, float32 by default, one FK call for many clips in :func:`padded_global_transforms`),
+which scans over the joints, and the float64 NumPy path (:func:`global_transforms_np`, no compilation
+per clip length), which loops over them (:func:`_chain`). Kernels are jitted with the skeleton topology
+(parents) static and the frame axis vectorized.
 """
 from __future__ import annotations
 
@@ -20,12 +20,11 @@ from .rotations import quat_conjugate, quat_multiply, quat_rotate, quat_to_matri
 from .skeleton import Motion
 
 
-def _chain(mats, translations, parents: tuple[int, ...], xp):
-    """The forward-kinematics recursion, parent before child: global rotation matrices
+def _chain(mats, translations, parents: tuple[int, ...]):
+    """The forward-kinematics recursion in NumPy, parent before child: global rotation matrices
     g_j = g_parent(j) @ R_j and positions p_j = p_parent(j) + g_parent(j) t_j, as two lists of J
     arrays ((F, 3, 3) and (F, 3)). mats: (F, J, 3, 3) local rotation matrices; translations:
-    (F, J, 3). ``xp`` is ``jax.numpy`` (the jitted kernel) or ``numpy`` (the float64 path): one
-    recursion, two array libraries."""
+    (F, J, 3)."""
     g_mats = [None] * len(parents)
     g_pos = [None] * len(parents)
     for j, p in enumerate(parents):
@@ -34,7 +33,7 @@ def _chain(mats, translations, parents: tuple[int, ...], xp):
             g_pos[j] = translations[:, j]
         else:
             g_mats[j] = g_mats[p] @ mats[:, j]
-            g_pos[j] = g_pos[p] + xp.einsum("fab,fb->fa", g_mats[p], translations[:, j])
+            g_pos[j] = g_pos[p] + np.einsum("fab,fb->fa", g_mats[p], translations[:, j])
     return g_mats, g_pos
 
 
@@ -44,15 +43,31 @@ def fk_kernel(rotations, translations, parents: tuple[int, ...]):
 
     rotations: (F, J, 4) local quaternions; translations: (F, J, 3) local translations;
     parents: static tuple, parent precedes child. Returns (positions (F, J, 3), rotations (F, J, 4)).
+
+    The recursion of :func:`_chain` as a ``lax.scan`` over the joints (one compiled step, not J
+    unrolled ones: compiling the unrolled chain took seconds even for a 22-joint rig). A root joint
+    takes its local transform as it is; global rotations are the product chain of the local
+    quaternions (exact, no matrix->quaternion round trip).
     """
-    mats = quat_to_matrix(rotations)  # (F, J, 3, 3)
-    _, g_pos = _chain(mats, translations, parents, jnp)
-    positions = jnp.stack(g_pos, axis=1)
-    # Global quaternions via the product chain (exact, no matrix->quat round trip).
-    g_q = [None] * len(parents)
-    for j, p in enumerate(parents):
-        g_q[j] = rotations[:, j] if p < 0 else quat_multiply(g_q[p], rotations[:, j])
-    return positions, jnp.stack(g_q, axis=1)
+    J = len(parents)
+    mats = jnp.moveaxis(quat_to_matrix(rotations), 1, 0)     # (J, F, 3, 3): a joint's frames contiguous
+    tr = jnp.moveaxis(translations, 1, 0)                     # (J, F, 3)
+    q = jnp.moveaxis(rotations, 1, 0)                         # (J, F, 4)
+    joint = jnp.arange(J, dtype=jnp.int32)
+    parent = jnp.asarray([max(p, 0) for p in parents], jnp.int32)
+    root = jnp.asarray([p < 0 for p in parents])
+
+    def step(carry, x):
+        g_mats, g_pos, g_q = carry
+        j, p, is_root = x
+        pm = g_mats[p]
+        g_mats = g_mats.at[j].set(jnp.where(is_root, mats[j], pm @ mats[j]))
+        g_pos = g_pos.at[j].set(jnp.where(is_root, tr[j], g_pos[p] + jnp.einsum("fab,fb->fa", pm, tr[j])))
+        g_q = g_q.at[j].set(jnp.where(is_root, q[j], quat_multiply(g_q[p], q[j])))
+        return (g_mats, g_pos, g_q), None
+
+    (_, g_pos, g_q), _ = jax.lax.scan(step, (mats, tr, q), (joint, parent, root))
+    return jnp.moveaxis(g_pos, 0, 1), jnp.moveaxis(g_q, 0, 1)
 
 
 def forward_kinematics(motion: Motion, dtype=jnp.float32) -> jax.Array:
@@ -77,7 +92,7 @@ def global_transforms_np(motion: Motion) -> tuple[np.ndarray, np.ndarray]:
     """
     mats = quat_to_matrix_np(motion.rotations)
     tr = np.asarray(motion.translations, dtype=np.float64)
-    g_mats, g_pos = _chain(mats, tr, tuple(motion.skeleton.parents), np)
+    g_mats, g_pos = _chain(mats, tr, tuple(motion.skeleton.parents))
     return np.stack(g_pos, axis=1), np.stack(g_mats, axis=1)
 
 
@@ -85,7 +100,7 @@ def forward_kinematics_np(motion: Motion) -> np.ndarray:
     """Global joint positions (F, J, 3), float64 NumPy (see :func:`global_transforms_np`)."""
     mats = quat_to_matrix_np(motion.rotations)
     tr = np.asarray(motion.translations, dtype=np.float64)
-    return np.stack(_chain(mats, tr, tuple(motion.skeleton.parents), np)[1], axis=1)
+    return np.stack(_chain(mats, tr, tuple(motion.skeleton.parents))[1], axis=1)
 
 
 def padded_global_transforms(motions):

@@ -14,10 +14,11 @@ arguments, the package version and the source of every module in the kernel's fo
 search kernels ``convsynth_jax/search/``, where their helpers live; for the construction's
 ``convsynth_jax/graph/`` or ``convsynth_jax/``) and of this module, the JAX and jaxlib
 versions, the backend, the machine and its CPU feature flags, and the JAX settings that change what a
-kernel computes (64-bit mode, the PRNG implementation). So a file is never used for other code,
-other shapes or another machine: an edited source file gives new keys (the old files are simply not
-read again). A file holds a magic line, the key and a SHA-256 of its payload; one that does not check
-out (truncated, corrupt, another key) is ignored and written anew, never loaded. Like JAX's cache the
+kernel computes (64-bit mode, the PRNG implementation), and ``XLA_FLAGS`` (code generation, forced
+device count). So a file is never used for other code, other shapes, other XLA flags or another
+machine: an edited source file gives new keys (the old files are simply not read again). A file
+holds a magic line, the key and a SHA-256 of its payload; one that does not check out (truncated,
+corrupt, another key) is ignored and written anew, never loaded. Like JAX's cache the
 folder holds executable code: keep it where only you can write. It is safe to delete. Writes are
 atomic (temporary file, then rename). Within a process the loaded kernel is kept per key; loading
 and compiling are serialized by a lock (the construction calls its tile kernel from several threads).
@@ -31,6 +32,7 @@ from __future__ import annotations
 import contextlib
 import hashlib
 import logging
+import os
 import pickle
 import sys
 import threading
@@ -80,7 +82,8 @@ def _cpu_flags() -> str:
 def _environment(fun) -> str:
     """The source of the kernel's package folder (every ``.py`` beside the module that defines ``fun``,
     where a kernel's helpers live) and of this module, the package version, JAX/jaxlib versions,
-    backend, machine, and the settings kernels depend on."""
+    backend, machine, the settings kernels depend on, and ``XLA_FLAGS`` (XLA's code generation and
+    device count: an executable compiled under other flags is not this process's)."""
     mod = sys.modules.get(getattr(fun, "__module__", None) or "")
     folder = Path(mod.__file__).resolve().parent if getattr(mod, "__file__", None) else None
     if folder not in _ENV:
@@ -94,7 +97,7 @@ def _environment(fun) -> str:
             h.update(p.name.encode() + b"\0" + p.read_bytes() + b"\0")
         _ENV[folder] = repr((__version__, h.hexdigest(), jax.__version__, jaxlib.__version__, jax.default_backend(),
                              _cpu_flags(), bool(jax.config.jax_enable_x64), str(jax.config.jax_default_prng_impl),
-                             bool(jax.config.jax_threefry_partitionable)))
+                             bool(jax.config.jax_threefry_partitionable), os.environ.get("XLA_FLAGS", "")))
     return _ENV[folder]
 
 

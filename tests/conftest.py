@@ -15,6 +15,15 @@ SHARED_DATA = SHARED / "data"
 # test asks for worker processes (tests/test_parallel.py).
 os.environ.setdefault("CONVSYNTH_WORKERS", "1")
 
+# XLA's CPU code generation for the suite: the older LLVM fusion emitters instead of the default MLIR ones.
+# Compiling is about half of the suite's time, and this flag takes about a third off it (docs/testing.md);
+# tests/test_codegen.py checks that kernels give the same results under XLA's default. Set before any JAX
+# backend starts (XLA reads XLA_FLAGS then); the pytest-xdist workers and the processes tests start
+# inherit it. A flag of the caller's own for the emitters is kept.
+SUITE_XLA_FLAG = "--xla_cpu_use_fusion_emitters=false"
+if "xla_cpu_use_fusion_emitters" not in os.environ.get("XLA_FLAGS", ""):
+    os.environ["XLA_FLAGS"] = f"{os.environ.get('XLA_FLAGS', '')} {SUITE_XLA_FLAG}".strip()
+
 
 def pytest_configure(config):
     """One JAX persistent compilation cache for the whole test run (``CONVSYNTH_JAX_CACHE``, which the

@@ -91,7 +91,8 @@ def test_four_devices_and_resume_after_sigkill(small):
     starts another build and SIGKILLs itself after its second shard; the build run again here (one
     device) resumes from those shards and gives the uninterrupted graph."""
     db, d, g = small
-    env = dict(os.environ, XLA_FLAGS="--xla_force_host_platform_device_count=4", JAX_PLATFORMS="cpu")
+    env = dict(os.environ, XLA_FLAGS=f"{os.environ.get('XLA_FLAGS', '')} --xla_force_host_platform_device_count=4",
+               JAX_PLATFORMS="cpu")
     r = subprocess.run([sys.executable, "-c", textwrap.dedent(CHILD), str(d)], env=env, cwd=REPO,
                        capture_output=True, text=True, timeout=300)
     assert r.returncode == -9, r.stderr[-3000:]

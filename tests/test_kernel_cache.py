@@ -118,6 +118,17 @@ def test_stale_source_gives_another_key(kdir, monkeypatch):
     assert kernel_cache.kernel_key(edited, "beam", (x,), {}) != k1
 
 
+def test_other_xla_flags_give_another_key(monkeypatch):
+    """XLA_FLAGS changes what XLA compiles (code generation, the forced device count): a kernel stored by
+    a process with other flags is not loaded."""
+    x = np.arange(3, dtype=np.float32)
+    monkeypatch.setattr(kernel_cache, "_ENV", {})
+    k0 = kernel_cache.kernel_key(_toy, "toy", (x, ()), {"scale": 1})
+    monkeypatch.setenv("XLA_FLAGS", os.environ.get("XLA_FLAGS", "") + " --xla_force_host_platform_device_count=4")
+    monkeypatch.setattr(kernel_cache, "_ENV", {})
+    assert kernel_cache.kernel_key(_toy, "toy", (x, ()), {"scale": 1}) != k0
+
+
 @pytest.mark.parametrize("matching", ["paper", "labels"])
 def test_search_through_stored_kernels_equals_the_jitted_search(kdir, matching):
     """The look-ahead and the beam kernels through their stored executables, as written and as read back

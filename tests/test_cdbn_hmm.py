@@ -262,6 +262,16 @@ def test_float32_emissions_match_the_float64_reference(offset):
     assert np.max(np.abs(got - want) / np.maximum(1.0, np.abs(want))) < 5e-5
 
 
+def _jit(fun, **static):
+    """A kernel helper of cdbn.hmm with its static keywords bound, jitted (the library calls it inside its
+    jitted kernels): one compiled program instead of one per operation."""
+    import functools
+
+    import jax
+
+    return jax.jit(functools.partial(fun, **static))
+
+
 def _packed_terms(initial, transitions, log_liks, cons, T, rows, dtype):
     """Sequences (log emissions (T_i, K) and constraints) packed back to back into ``rows`` rows of T
     frames (resets at each start, padding after) -> the batch's TransitionTerms, flattened."""
@@ -271,7 +281,7 @@ def _packed_terms(initial, transitions, log_liks, cons, T, rows, dtype):
     from convsynth_jax.cdbn.hmm import _smoother
 
     ll, cc, lengths, resets = _packed_rows(log_liks, cons, T, rows)
-    f = jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, 0))
+    f = jax.jit(jax.vmap(_smoother, in_axes=(None, None, 0, 0, 0, 0)))   # one program (as in the library), not op by op
     _, _, _, terms = f(jnp.asarray(initial, dtype), jnp.asarray(transitions, dtype), jnp.asarray(ll, dtype),
                        jnp.asarray(cc), jnp.asarray(lengths), jnp.asarray(resets))
     return jax.tree_util.tree_map(lambda a: a.reshape((rows * T,) + a.shape[2:]), terms)
@@ -303,10 +313,11 @@ def test_expected_transitions_match_reference(x64, fast_span):
     with enable_x64() if x64 else contextlib.nullcontext():
         dtype = jnp.float64 if x64 else jnp.float32
         terms = _packed_terms(initial, trans, inert, cons, 96, 3, dtype)
-        kw = {} if fast_span is None else {"fast_span": fast_span}
-        got = np.asarray(expected_transitions(terms, jnp.asarray(trans, dtype), **kw), np.float64)
+        xi = _jit(expected_transitions)
+        got = np.asarray(xi(terms, jnp.asarray(trans, dtype)) if fast_span is None
+                         else xi(terms, jnp.asarray(trans, dtype), fast_span), np.float64)
         if fast_span is None:
-            fast = np.asarray(expected_transitions(terms, jnp.asarray(trans, dtype), fast_span=np.inf), np.float64)
+            fast = np.asarray(xi(terms, jnp.asarray(trans, dtype), np.inf), np.float64)
             np.testing.assert_array_equal(got, fast)
     assert got.shape == (3, 8, 8)
     assert np.all(got[trans == 0] == 0.0) and np.all(got[:, 5:] == 0.0) and np.all(got[:, :, 5:] == 0.0)
@@ -335,10 +346,11 @@ def test_expected_transitions_across_a_structural_zero_float32():
     want = sum(ref.forward_backward(initial, A, le, c)[3] for le, c in zip(les, cons))
     assert want[0, 2, 3] > 0.4 and want[0, 0, 1] > 0.4      # both routes carry real mass
     terms = _packed_terms(initial, A, les, cons, 8, 3, jnp.float32)
-    got = np.asarray(expected_transitions(terms, jnp.asarray(A, jnp.float32)), np.float64)
+    xi = _jit(expected_transitions)
+    got = np.asarray(xi(terms, jnp.asarray(A, jnp.float32)), np.float64)
     np.testing.assert_allclose(got, want, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
     assert np.all(got[A == 0] == 0.0)
-    fast_only = np.asarray(expected_transitions(terms, jnp.asarray(A, jnp.float32), fast_span=np.inf), np.float64)
+    fast_only = np.asarray(xi(terms, jnp.asarray(A, jnp.float32), np.inf), np.float64)
     assert not np.allclose(fast_only, want, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
 
 
@@ -385,10 +397,10 @@ def test_batch_smoother_matches_reference(products, x64):
     ll, cc, lengths, resets = _packed_rows(inert, cons, 96, 4)
     with enable_x64() if x64 else contextlib.nullcontext():
         dt = jnp.float64 if x64 else jnp.float32
-        lls, filt, smooth, terms = _batch_smoother(jnp.asarray(initial, dt), jnp.asarray(trans, dt), jnp.asarray(ll, dt),
-                                                   jnp.asarray(cc), jnp.asarray(lengths), jnp.asarray(resets),
-                                                   products=products)
-        xi = jax.vmap(expected_transitions, in_axes=(0, None))(terms, jnp.asarray(trans, dt))
+        lls, filt, smooth, terms = _jit(_batch_smoother, products=products)(
+            jnp.asarray(initial, dt), jnp.asarray(trans, dt), jnp.asarray(ll, dt), jnp.asarray(cc),
+            jnp.asarray(lengths), jnp.asarray(resets))
+        xi = jax.jit(jax.vmap(expected_transitions, in_axes=(0, None)))(terms, jnp.asarray(trans, dt))
         lls, filt, smooth, xi = (np.asarray(a, np.float64) for a in (lls, filt, smooth, xi))
     patol = ref.POSTERIOR_ATOL if x64 else ref.POSTERIOR_FLOAT32_ATOL
     lrtol = ref.LOGLIK_RTOL if x64 else ref.LOGLIK_FLOAT32_RTOL
@@ -436,9 +448,9 @@ def test_fast_products_fall_back_across_a_structural_zero():
     assert bool(at_risk[0])
     got = {}
     for products in ("adaptive", "fast", "exact"):
-        lls, _, smooth, terms = _batch_smoother(f32(initial), f32(A), f32(ll), jnp.asarray(cc), jnp.asarray(lengths),
-                                                jnp.asarray(resets), products=products)
-        xi = jax.vmap(expected_transitions, in_axes=(0, None))(terms, f32(A))
+        lls, _, smooth, terms = _jit(_batch_smoother, products=products)(
+            f32(initial), f32(A), f32(ll), jnp.asarray(cc), jnp.asarray(lengths), jnp.asarray(resets))
+        xi = jax.jit(jax.vmap(expected_transitions, in_axes=(0, None)))(terms, f32(A))
         got[products] = [np.asarray(a, np.float64) for a in (lls, smooth, xi)]
     lls, smooth, xi = got["adaptive"]
     for r, (w_ll, _, s, x) in enumerate(want):

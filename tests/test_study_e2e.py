@@ -5,8 +5,8 @@ completes the study, a second stops half-way and resumes with the token), then
 ``task=study_analyze`` on the export must report exactly the counts those clicks produced.
 
 The browser test skips when no Chromium and chromedriver are found (``.ci/run`` installs Debian's
-``chromium`` and ``chromium-driver`` where it can). ``CONVSYNTH_STUDY_SCREENSHOT=FILE.png`` saves a
-trial page (docs/study.md's picture)."""
+``chromium`` and ``chromium-driver`` where it can, beside the tests: the test waits for that install).
+``CONVSYNTH_STUDY_SCREENSHOT=FILE.png`` saves a trial page (docs/study.md's picture)."""
 from __future__ import annotations
 
 import csv
@@ -14,6 +14,7 @@ import io
 import json
 import os
 import shutil
+import time
 from pathlib import Path
 
 import pandas as pd
@@ -63,6 +64,12 @@ def test_study_build_writes_balanced_stimuli_with_h264_aac_videos_and_hashes(tin
 
 
 def _browser():
+    """(browser, chromedriver) paths, or None. While ``.ci/run`` installs them in the background it names a
+    file in ``CONVSYNTH_BROWSER_INSTALL`` that appears when apt-get is done: wait for it (at most 15 min)."""
+    marker = os.environ.get("CONVSYNTH_BROWSER_INSTALL")
+    deadline = time.monotonic() + 900
+    while marker and not os.path.exists(marker) and time.monotonic() < deadline:
+        time.sleep(1.0)
     for name in ("chromium", "chromium-browser", "google-chrome"):
         b = shutil.which(name)
         if b:

@@ -22,6 +22,8 @@ import pytest
 
 pytest.importorskip("fastapi")
 
+pytestmark = pytest.mark.xdist_group("study_e2e")   # one worker runs the module: the study build once
+
 ADMIN = "e2e-admin-token-0123456789abcdef"
 
 

@@ -13,8 +13,6 @@ from convsynth_jax.errors import ConfigError
 from convsynth_jax.rig import find_joints
 from convsynth_jax.skeleton import Motion
 
-pytestmark = pytest.mark.xdist_group("annotate_motion")   # one worker runs the module: its annotated corpus once
-
 AP = AnnotateParams()
 
 

@@ -7,8 +7,6 @@ import pytest
 from convsynth_jax.errors import CDBNError
 from convsynth_jax.systems.base import SystemParams, WindowInput, make_system
 
-pytestmark = pytest.mark.xdist_group("cdbn_system")   # one worker runs the module: its fitted models once
-
 
 @pytest.fixture(scope="module")
 def annotated(tiny_corpus_dir, tiny_annotations):

@@ -9,8 +9,6 @@ import pytest
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.errors import CDBNError
 
-pytestmark = pytest.mark.xdist_group("cdbn_tasks")   # one worker runs the module: its task data once
-
 FAST = ["cdbn.data.num_turns=24", "cdbn.train.max_iter=4", "cdbn.constrain.states_per_constraint=2",
         "cdbn.eval.folds=3", "cdbn.eval.jdbn_grid=[3]", "cdbn.eval.cdbn_grid=[2]", "cdbn.eval.max_test_folds=1",
         "cdbn.eval.fig6_states=4", "cdbn.eval.distance_max_iter=4"]

@@ -18,8 +18,6 @@ from convsynth_jax.synth.chain import at_steps, excess_acceleration, plan_window
 
 from test_search_beam_kernel import FPS, hub_graph, input_from_clip
 
-pytestmark = pytest.mark.xdist_group("converse")   # one worker runs the module: its two converse runs once
-
 SECONDS = 30.0
 FAST = ["task.window_s=10", "task.hop_s=8", "task.snap_s=1", "task.min_last_s=5", "task.video_fps=5"]
 

@@ -15,8 +15,6 @@ from convsynth_jax.errors import FormatError, MissingFileError
 from convsynth_jax.stats.cooccurrence import TABLE_COLUMNS, cooccurrence_by_session, cooccurrence_table
 from convsynth_jax.stats.params import StatsParams
 
-pytestmark = pytest.mark.xdist_group("cooccurrence_task")   # one worker runs the module: its task run once
-
 AP, SP = AnnotateParams(), StatsParams()
 
 HYPS = ["PC-LH", "PC-RH", "PC-LH/RH", "LR-Nod", "PH-Nod"]

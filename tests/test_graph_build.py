@@ -18,8 +18,6 @@ from convsynth_jax.skeleton import Motion, Skeleton
 
 from tolerances import COST_FLOAT32, THRESHOLD_TIE
 
-pytestmark = pytest.mark.xdist_group("graph_build")   # one worker runs the module: its database once
-
 GP = GraphParams()
 
 EDGE = ["source_file", "source_frame", "target_file", "target_frame"]

@@ -20,8 +20,6 @@ from convsynth_jax.graph.types import MotionGraph
 
 from test_graph_build import random_clips
 
-pytestmark = pytest.mark.xdist_group("graph_stream")   # one worker runs the module: its database and graph once
-
 GP = GraphParams(tile=16)          # small tiles: several shards on a few hundred frames
 SP = ShardParams(block_tiles=2, batch=4)
 REPO = Path(__file__).resolve().parents[1]

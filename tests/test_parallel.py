@@ -12,8 +12,6 @@ from convsynth_jax.data import make_synthetic_corpus
 from convsynth_jax.io import load_corpus
 from convsynth_jax.parallel import ENV, ordered_map, resolve_workers
 
-pytestmark = pytest.mark.xdist_group("parallel")   # one worker runs the module: its corpus once
-
 SMALL = {"num_sessions": 3, "session_seconds": 20.0}
 
 

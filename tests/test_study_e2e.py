@@ -22,8 +22,6 @@ import pytest
 
 pytest.importorskip("fastapi")
 
-pytestmark = pytest.mark.xdist_group("study_e2e")   # one worker runs the module: the study build once
-
 ADMIN = "e2e-admin-token-0123456789abcdef"
 
 

@@ -22,8 +22,6 @@ from fastapi.testclient import TestClient  # noqa: E402
 from convsynth_jax.study.server import create_app  # noqa: E402
 from convsynth_jax.testing.study import answer_all, free_port, make_fake_study, serve_subprocess, sign_up  # noqa: E402
 
-pytestmark = pytest.mark.xdist_group("study_server")   # one worker runs the module: its study once
-
 ADMIN = "a-long-admin-token-0123456789"
 
 

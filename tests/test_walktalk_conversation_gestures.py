@@ -20,8 +20,6 @@ from convsynth_jax.kinematics import forward_kinematics_np
 from convsynth_jax.walktalk.body import find_body
 from convsynth_jax.walktalk.conversation_gestures import SegmentParams, movement_runs, retarget_arms
 
-pytestmark = pytest.mark.xdist_group("walktalk_conversation_gestures")   # one worker runs the module: its synthesized conversation once
-
 FIXTURES = Path(__file__).resolve().parent / "data" / "walktalk"
 
 

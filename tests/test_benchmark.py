@@ -67,7 +67,6 @@ def test_ground_truth_scores_itself_perfectly_and_fgd_grows_with_noise_and_shuff
     assert shuffled > 0.0 and noisy[0] > 0.0 and halves > 0.0
 
 
-@pytest.mark.xdist_group("librosa")   # a fresh environment compiles librosa's numba kernels: in one worker
 def test_beat_consistency_prefers_the_windows_own_audio(gt_views, tiny_annotations):
     from convsynth_jax.evaluation.field import beat
 
@@ -115,7 +114,6 @@ def test_failures_and_missing_windows_are_rows(tmp_path, tiny_annotations):
     assert g["cca_m"] == pytest.approx(1.0, abs=1e-6)
 
 
-@pytest.mark.xdist_group("librosa")   # a fresh environment compiles librosa's numba kernels: in one worker
 def test_benchmark_task_writes_leaderboard(tmp_path, tiny_corpus_dir, tiny_cache_dir):
     """The task end to end on one window of one fold with random playback (the autoencoder, one
     epoch, trains on the tiny corpus itself here: a wiring test, not a valid FGD)."""

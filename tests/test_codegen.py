@@ -8,11 +8,8 @@ import subprocess
 import sys
 
 import numpy as np
-import pytest
 
 from conftest import REPO, SUITE_XLA_FLAG, TEST_DATA
-
-pytestmark = pytest.mark.xdist_group("hub_graph_search")   # its search compiles once with test_search_beam_kernel's
 
 CHILD = """
 import os, sys

@@ -15,9 +15,6 @@ from convsynth_jax.search.params import SearchParams
 from convsynth_jax.testing.search_reference import reference_beam_search
 
 FPS = 10.0
-# one pytest-xdist worker runs this file and the other hub-graph searches (test_codegen): their kernels
-# compile once, not once per worker (``--dist loadgroup``, docs/testing.md)
-pytestmark = pytest.mark.xdist_group("hub_graph_search")
 
 
 def hub_graph(rng, n_clips=5, frames=50):

@@ -63,6 +63,17 @@ def _session_compilation_cache():
     yield
 
 
+@pytest.fixture(scope="session")
+def librosa_ready(_shared_dir):
+    """librosa, imported with its numba kernels compiled. A fresh environment compiles them on first use
+    (about 20 s of CPU) and caches them on disk: the first pytest-xdist worker to get here compiles them
+    under a file lock, the others wait and load them from the cache instead of compiling them too."""
+    from filelock import FileLock
+
+    with FileLock(str(_shared_dir / "librosa.lock")):
+        import librosa.onset  # noqa: F401  (compiles or loads the numba kernels)
+
+
 def shared_path(*parts: str) -> Path:
     """Path under ../shared/data, or skip the calling test if it does not exist."""
     p = SHARED_DATA.joinpath(*parts)

@@ -67,7 +67,7 @@ def test_ground_truth_scores_itself_perfectly_and_fgd_grows_with_noise_and_shuff
     assert shuffled > 0.0 and noisy[0] > 0.0 and halves > 0.0
 
 
-def test_beat_consistency_prefers_the_windows_own_audio(gt_views, tiny_annotations):
+def test_beat_consistency_prefers_the_windows_own_audio(gt_views, tiny_annotations, librosa_ready):
     from convsynth_jax.evaluation.field import beat
 
     cases, views, gt, mm = gt_views
@@ -114,7 +114,7 @@ def test_failures_and_missing_windows_are_rows(tmp_path, tiny_annotations):
     assert g["cca_m"] == pytest.approx(1.0, abs=1e-6)
 
 
-def test_benchmark_task_writes_leaderboard(tmp_path, tiny_corpus_dir, tiny_cache_dir):
+def test_benchmark_task_writes_leaderboard(tmp_path, tiny_corpus_dir, tiny_cache_dir, librosa_ready):
     """The task end to end on one window of one fold with random playback (the autoencoder, one
     epoch, trains on the tiny corpus itself here: a wiring test, not a valid FGD)."""
     import json

@@ -447,10 +447,11 @@ def test_fast_products_fall_back_across_a_structural_zero():
                                     jnp.zeros(1, jnp.int32), False)
     assert bool(at_risk[0])
     got = {}
+    xi_rows = jax.jit(jax.vmap(expected_transitions, in_axes=(0, None)))   # one program for the three
     for products in ("adaptive", "fast", "exact"):
         lls, _, smooth, terms = _jit(_batch_smoother, products=products)(
             f32(initial), f32(A), f32(ll), jnp.asarray(cc), jnp.asarray(lengths), jnp.asarray(resets))
-        xi = jax.jit(jax.vmap(expected_transitions, in_axes=(0, None)))(terms, f32(A))
+        xi = xi_rows(terms, f32(A))
         got[products] = [np.asarray(a, np.float64) for a in (lls, smooth, xi)]
     lls, smooth, xi = got["adaptive"]
     for r, (w_ll, _, s, x) in enumerate(want):

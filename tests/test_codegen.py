@@ -14,9 +14,8 @@ from conftest import REPO, SUITE_XLA_FLAG, TEST_DATA
 CHILD = """
 import os, sys
 import numpy as np
-sys.path.insert(0, sys.argv[1])
 sys.path.insert(0, os.path.join(sys.argv[1], "tests"))
-from tests.test_codegen import kernel_outputs
+from test_codegen import kernel_outputs
 np.savez(sys.argv[2], flags=os.environ["XLA_FLAGS"], **kernel_outputs())
 """
 
@@ -33,8 +32,8 @@ def kernel_outputs() -> dict:
     from convsynth_jax.search.beam import beam_search
     from convsynth_jax.search.constraints import build_constraints
     from convsynth_jax.search.params import SearchParams
-    from tests.test_cdbn_hmm import random_model, sample
-    from tests.test_search_beam_kernel import FPS, hub_graph, input_from_clip
+    from test_cdbn_hmm import random_model, sample     # as the other tests import them: one module each
+    from test_search_beam_kernel import FPS, hub_graph, input_from_clip
 
     m = load_bvh(sorted(TEST_DATA.glob("*.bvh"))[0])
     pos, rot = fk_kernel(jnp.asarray(m.rotations, jnp.float32), jnp.asarray(m.translations, jnp.float32),

@@ -1,4 +1,4 @@
-"""Compiled kernels kept between runs (issue #15, part 3): a second run skips JAX's tracing and
+"""Compiled kernels kept between runs: a second run skips JAX's tracing and
 lowering, not only the compilation. Used for the search kernels and the graph construction's.
 
 JAX's persistent compilation cache (``jax_cache.dir``) stores compiled executables, but it is

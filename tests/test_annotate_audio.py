@@ -194,7 +194,7 @@ def test_unquoted_yaml_boolean_is_rejected(tmp_path):
         load_word_corpus(f)
 
 
-# ---------------------------------------------------------------------------- words in context (#14)
+# ---------------------------------------------------------------------------- words in context
 def _kinds(rows, **kw):
     seg = segment_words(words(rows), load_word_corpus(), params=AnnotateParams(**kw))
     out = list(zip(seg["kind"], seg["text"]))

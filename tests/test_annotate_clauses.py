@@ -1,4 +1,4 @@
-"""Phonemic clauses from prosody and the F0 octave guard (issue #14): fluent synthetic speech
+"""Phonemic clauses from prosody and the F0 octave guard: fluent synthetic speech
 without pauses, a planted octave jump, the dynamic program against every segmentation of short
 runs, and the real speech in ../shared/data/speech."""
 import itertools
@@ -45,7 +45,7 @@ def test_fluent_sentence_without_pauses_is_split_at_f0_resets(seed, f0_base):
         same = pc[(np.abs(pc["start"] - s.start) < BOUNDARY_TOL) & (np.abs(pc["end"] - s.end) < BOUNDARY_TOL)]
         if len(same):
             assert abs(float(same["peak"].iloc[0]) - s.peak) < 0.1
-    # the pause method leaves the whole sentence as one clause (the behaviour issue #14 reports)
+    # the pause method leaves the whole sentence as one clause (why the prosodic method is the default)
     old = annotate_audio(w, audio, AnnotateParams(clause_method="pause"))
     assert old["kind"].tolist() == ["PC"]
 
@@ -239,7 +239,7 @@ def test_real_speech_clauses_have_paper_like_sizes(speech_dir, name):
     assert (f0 <= 2.0 * f0.median()).all() and (f0 >= 0.5 * f0.median()).all()
 
 
-# ------------------------------------------- octave errors longer than the running median (issue 31)
+# ------------------------------------------- octave errors longer than the running median
 def _real_track(speech_dir, name):
     from convsynth_jax.annotate.audio import f0_track
     from convsynth_jax.io import load_audio, load_transcript

@@ -1,4 +1,4 @@
-"""task=benchmark and the metrics' validity on the tiny corpus (issue 26): GT scores itself perfectly,
+"""task=benchmark and the metrics' validity on the tiny corpus: GT scores itself perfectly,
 FGD grows with noise and under block shuffling, beat consistency prefers the window's own audio,
 failures are rows, a one-session corpus is a clear error."""
 from __future__ import annotations

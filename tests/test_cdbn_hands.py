@@ -105,7 +105,7 @@ def test_bandai_hand_turns_pair_real_motion_with_real_speech():
 
 
 def test_bandai_constraints_name_the_side_and_span_the_whole_gesture():
-    """Issue 31 item 4: each real raise clip's constraint names its gesture with its side (a pooled
+    """Each real raise clip's constraint names its gesture with its side (a pooled
     'raise' does not say which arm to lift), and its span holds the whole lift and lowering: every
     frame left 'other' is within 10% of the clip's largest excursion from rest, and the frames just
     inside the span are already away from rest. (A fixed 15% margin at each end left up to half the

@@ -73,7 +73,7 @@ def test_merge_and_sparse_structure():
 
 def test_planted_cdbn_is_recovered():
     """A small planted case (3 constraints, N = 3, one state shared by two constraints, ~12k frames).
-    The full acceptance run (60k frames, N = 4) is experiments/bench_cdbn.py."""
+    The full acceptance run (60k frames, N = 4) is experiments/bench/bench_cdbn.py."""
     rng = np.random.default_rng(1)
     true, _owners = planted_cdbn(rng, num_constraints=3, states_per_constraint=3, speech_dim=3, motion_dim=2)
     tr = sample(true, rng, 24, 500)

@@ -1,4 +1,4 @@
-"""The JAX persistent compilation cache is enabled at the task boundary (issue #15, part 3).
+"""The JAX persistent compilation cache is enabled at the task boundary.
 No timing assertions: only that a task run populates ``<cache_dir>/jax_cache`` and that the config
 key turns it off or moves it."""
 import os

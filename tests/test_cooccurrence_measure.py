@@ -1,4 +1,4 @@
-"""One co-occurrence measure (issue #16): Eq. 1 thresholds per recording everywhere (Table 1, chance
+"""One co-occurrence measure: Eq. 1 thresholds per recording everywhere (Table 1, chance
 windows, leave-one-out ground truth and synthesized windows), the consistency of the leave-one-out
 ground truth with Table 1, the chance-baseline fallback for continuous speech, Wilson intervals and
 the paired per-window test."""
@@ -159,7 +159,7 @@ def tiny_params(tiny_corpus_dir):
 
 
 def test_loo_ground_truth_reproduces_table1(annotations, tiny_params):
-    """The consistency check of issue #16 on the tiny corpus: the ground truth of every leave-one-out
+    """The consistency check on the tiny corpus: the ground truth of every leave-one-out
     window of every fold, counted as run_fold counts it, sums to Table 1 within what cutting the
     recordings into windows explains, and its rate lies in Table 1's 95% Wilson interval. With Eq. 1
     over each window (the old code path) the check fails."""

@@ -95,7 +95,7 @@ def test_rates_match_planted_and_beat_chance(task_out, tiny_corpus_dir):
     (a tiny corpus has 9-40 segments per row). Significance levels follow the power the tiny corpus
     has (random windows also catch the generator's spontaneous movements): PC rows (37 clauses)
     p < 0.01, LR rows (16-17 responses) p < 0.05; PH-Nod has 9 hesitations per character here and
-    must only beat chance in rate (experiments/eval_annotation.py tests every row on the default
+    must only beat chance in rate (experiments/analysis/eval_annotation.py tests every row on the default
     corpus)."""
     out, _ = task_out
     t = pd.read_csv(out / "cooccurrence.csv")

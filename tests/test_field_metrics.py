@@ -1,5 +1,5 @@
 """The field-standard metrics (convsynth_jax.evaluation.field) against their slow references
-(convsynth_jax.testing.field_reference, scikit-learn's CCA) and the validity checks of issue 26."""
+(convsynth_jax.testing.field_reference, scikit-learn's CCA) and the validity checks of docs/metrics.md."""
 from __future__ import annotations
 
 import numpy as np

@@ -1,4 +1,4 @@
-"""Fuzzed readers (issue 29, part 3): a malformed BVH, WAV, TextGrid, TSV/CSV, IBM JSON transcript,
+"""Fuzzed readers: a malformed BVH, WAV, TextGrid, TSV/CSV, IBM JSON transcript,
 corpus manifest (YAML, CSV) or GENEA folder gives the project's error naming the file, never another
 exception nor a hang. experiments/bench/fuzz_readers.py runs >= 2,000 cases per reader."""
 from __future__ import annotations

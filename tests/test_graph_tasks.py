@@ -70,7 +70,7 @@ def test_table2_and_figure4_agree_with_build_graph(bvh_root, tmp_path, caplog):
     assert (t2["states_after_scc"] <= t2["states_before_scc"]).all()
     assert (t2["edges_after_scc"] <= t2["edges_before_scc"]).all()
     assert t2["threshold"].is_monotonic_increasing  # poses drift further apart over more frames
-    # at k = 2 this corpus collapses to one state (issue #14): the scc_warning column and a WARNING say so
+    # at k = 2 this corpus collapses to one state: the scc_warning column and a WARNING say so
     warned = t2["scc_warning"].fillna("") != ""
     assert (warned == (t2["kept_state_fraction"] < 0.5)).all() and warned.iloc[0]
     assert "strongly connected component at k = 2 keeps" in t2["scc_warning"].iloc[0]

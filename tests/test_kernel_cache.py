@@ -1,4 +1,4 @@
-"""Compiled kernels kept between runs (convsynth_jax/kernel_cache.py; issue #15, part 3): a stored
+"""Compiled kernels kept between runs (convsynth_jax/kernel_cache.py): a stored
 kernel gives the same outputs as the jitted one, a stale, corrupt or truncated file is never used (it
 is ignored and written anew), and deleting the folder is safe. No timing assertions."""
 import dataclasses
@@ -285,7 +285,7 @@ def test_a_stored_kernel_that_does_not_run_is_compiled_again(tmp_path):
 @pytest.mark.parametrize("source", ["synthetic", "bandai2"])
 def test_graph_construction_through_stored_kernels_equals_the_jitted_one(kdir, source, request):
     """The construction's kernels (forward kinematics, root-relative features, pivots, cost tiles) are
-    stored too (issue #15: a second bandai2 construction skips their tracing); the graph built through
+    stored too (a second bandai2 construction skips their tracing); the graph built through
     the stored executables, written by this process and then read back, is the jitted one exactly, on
     random clips and on real Bandai-Namco 2 clips (../shared; skipped without it)."""
     from convsynth_jax.graph import build_database, build_graph

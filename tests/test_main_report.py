@@ -1,4 +1,4 @@
-"""The main job's report: every paper artifact of issue #15 part 4 from the run's data, with the
+"""The main job's report: every paper artifact from the run's data, with the
 paper's numbers (convsynth_jax.paper_values) beside; and the table builders behind it."""
 import numpy as np
 import pandas as pd

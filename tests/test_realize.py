@@ -236,7 +236,7 @@ def _with_glitch(m, joint: str, frames, degrees: float):
 
 @pytest.mark.parametrize("nested", [False, True])
 def test_a_blend_never_fades_in_a_glitch_of_its_continuation(nested):
-    """Issue 31: a clip continued by a blend has a marker-swap glitch (29 degrees on the right arm for
+    """A clip continued by a blend has a marker-swap glitch (29 degrees on the right arm for
     2 frames) right after the frames the path displays. ``nested``: the clip is an interrupted layer
     (a -> b at 20, b -> c at 28, b's glitch at its frames 12-13, played at b's frozen weight 0.68:
     what the nested blend did on leave-one-out); else the old stream of a single transition (a -> c at 20, a's glitch at 22-23).

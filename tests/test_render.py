@@ -1,4 +1,4 @@
-"""Stick-figure rendering (convsynth_jax.render) and ``task=render`` (issue #15, part 5)."""
+"""Stick-figure rendering (convsynth_jax.render) and ``task=render``."""
 import json
 import shutil
 

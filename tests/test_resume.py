@@ -1,4 +1,4 @@
-"""Resumable sweeps (issue 29, part 1): a leave-one-out sweep killed with SIGKILL during its third job,
+"""Resumable sweeps: a leave-one-out sweep killed with SIGKILL during its third job,
 run again, computes only the jobs that had not finished, and ``task=collect task.store=...`` gives the
 same table as an uninterrupted sweep's."""
 from __future__ import annotations

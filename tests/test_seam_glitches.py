@@ -1,5 +1,5 @@
 """experiments/analysis/seam_glitches.py: its seam/glitch detector flags a planted glitch that a blend
-fades in, and not the same seam once the continuation holds (the control of issue 31 item 3's
+fades in, and not the same seam once the continuation holds (the control of the glitch detector's
 leave-one-out evidence)."""
 from __future__ import annotations
 
@@ -39,7 +39,7 @@ def _clip(skel, name, z_deg, n=40, spin=0.0):
 
 
 def test_detector_flags_a_faded_in_glitch_and_not_a_held_one():
-    """The nested blend of issue 31 (a -> b at 20, b -> c at 28; b continued from its frame 11 through
+    """The nested blend (a -> b at 20, b -> c at 28; b continued from its frame 11 through
     a 29-degree glitch at its frames 12-13). Unheld: the seam at 28 touches the glitch and is sharper
     than with the hold, where it no longer touches it (the nominal span still does)."""
     mod = _script()

@@ -182,7 +182,7 @@ def test_bad_seam_options_are_config_errors_naming_the_key(override, key):
 
 
 def test_glitch_filter_drops_transitions_next_to_a_planted_marker_swap():
-    """Issue 31: clip b has a 29-degree right-arm glitch at frames 40-41 (steps into 40 and into 42).
+    """Clip b has a 29-degree right-arm glitch at frames 40-41 (steps into 40 and into 42).
     Synthetic transitions whose source or destination lies within 4 frames of those steps' frames
     (35..46 of b) are dropped, the others kept; the joint turn the database stores is the slow one."""
     from convsynth_jax.graph.seams import apply_glitch_filter, glitch_filter_mask

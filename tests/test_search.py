@@ -208,7 +208,7 @@ def test_paper_placement_rule_matches_a_plain_comparison_everywhere():
 
 @pytest.mark.parametrize("method", ["beam", "dfs"])
 def test_labels_search_keeps_touching_clauses_apart_as_the_checker_does(method):
-    """Issue 31: an input clause split at a word boundary into two touching PCs [s, m) and [m, e). In
+    """An input clause split at a word boundary into two touching PCs [s, m) and [m, e). In
     ``labels`` matching both share their margins, so the source clause [s, e) played straight through
     met the search's per-frame masks while the checker (a run of PC starting and ending within the
     tolerance of each clause) rejected both clauses: the recorded sweep's 4 disagreements. Now every

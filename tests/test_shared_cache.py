@@ -1,4 +1,4 @@
-"""Caches shared by processes started together (issue 29, part 2): the synthetic corpus, the
+"""Caches shared by processes started together: the synthetic corpus, the
 annotation cache, the stored kernels and JAX's compilation cache are each computed once and never
 read half-written. The full command-line reproduction (4 ``convsynth task=cooccurrence`` and a joblib
 multirun of 4) is experiments/bench/parallel_cache.py."""

@@ -14,7 +14,7 @@ from convsynth_jax.data.speech_timing import (PAUSE_MIN, channel_timing, compare
 from convsynth_jax.data.synthetic import config_hash
 from convsynth_jax.io import load_corpus
 
-# acceptance (issue 33): KS distance of clause durations, default synthetic corpus vs real speech
+# KS distance of clause durations, default synthetic corpus vs real speech
 CLAUSE_KS = 0.1
 
 
@@ -97,7 +97,7 @@ def default_speech(tmp_path_factory):
 @pytest.mark.slow
 @pytest.mark.shared
 def test_default_corpus_clauses_last_as_long_as_real_ones(speech_dir, default_speech):
-    """Issue 33: clause durations of the default corpus (17 x 106 s, about 740 clauses) lie within
+    """Clause durations of the default corpus (17 x 106 s, about 740 clauses) lie within
     KS distance 0.1 of the real recordings' (21 clauses; see docs/synthetic_corpus.md for why 0.1 is
     about the best any smooth distribution reaches against them). Words per clause follow too; the
     version-4 timing (before the calibration) was 0.35 away."""

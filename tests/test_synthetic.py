@@ -368,7 +368,7 @@ ROLES = ("main-agent", "interloctr")
 
 
 def test_detected_rates_match_configured(motion_corpus):
-    """Calibration against the detector (issue #14): on a 16-minute hard corpus (8 x 120 s; about
+    """Calibration against the detector: on a 16-minute hard corpus (8 x 120 s; about
     230 clauses, 100 responses and 45 partner hesitations per character) the co-occurrence rates as
     the annotation pipeline's detector and counter measure them on the written files lie within 2
     percentage points of the configured Table 1 rates (or 1.5 segments for the smaller rows: the

@@ -371,7 +371,7 @@ def test_loop_bend_is_kept_by_its_loop_context(monkeypatch):
 
 
 def test_joint_limits_pool_every_clip_walk_turns_included(tmp_path):
-    """Defect: the issue's limits are "per-DOF 0.5-99.5 percentile over all clips" and its data are
+    """Defect: the limits are the per-DOF 0.5-99.5 percentile over all clips, and the clips are
     walk, walk-turn, run and the gesture clips, but the table pooled only the clips the system
     splices (walks, runs, gestures): walk-turns were left out. ``walktalk.limit_globs`` (default
     the walk-turns) adds them to the table only. Planted: a walk-turn copy of the walk fixture

@@ -49,7 +49,7 @@ def _check_walk_phases(contact, strikes, passing, lo=0.35, hi=0.65):
 
 
 def test_walking_contact_is_a_window_around_each_heel_strike_planted():
-    """Defect (issue 27): walking contact was the front foot down or landing, so it lasted from the
+    """Defect: walking contact was the front foot down or landing, so it lasted from the
     landing until the trailing leg had swung past: the frames where one leg passes the other (the
     paper's flight) were contact. Planted walk: strikes every 16 frames, 60% duty (double support),
     the swing ankle overtakes the stance ankle 10 frames after each strike."""

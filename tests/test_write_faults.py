@@ -1,4 +1,4 @@
-"""Faults while writing and numerical faults in data (issue 29, part 4): a read-only folder or a full
+"""Faults while writing and numerical faults in data: a read-only folder or a full
 disk gives the project's WriteError naming the file and leaves no partial result visible; NaN frames,
 empty or silent audio and single-frame clips give clear errors or the documented handling
 (docs/reliability.md)."""

@@ -1,4 +1,4 @@
-"""Phonemic clauses from prosody (paper Section 4.2; issue #14), and the F0 octave guard.
+"""Phonemic clauses from prosody (paper Section 4.2; docs/decisions.md#phonemic-clauses-from-prosody), and the F0 octave guard.
 
 The paper's phonemic clause is "a group of words that has a strongly stressed word" (mean 4.29 +-
 2.16 words for the female character, 3.86 +- 1.36 for the male). Pause-delimited runs of words are

@@ -13,7 +13,8 @@ motion segment found. The window holds a movement if the speed exceeds the clip'
 Eq. 1's θ_S belongs to a *recording* (the whole clip of one participant): ``recording_thresholds``
 computes it once per recording and every detector takes it precomputed, so a 15 s leave-one-out
 window or a synthesized window is judged against the same θ_S as Table 1 (computing it over the
-window instead would let small head motion in a quiet window count as a nod; issue #16). Motion
+window instead would let small head motion in a quiet window count as a nod;
+docs/decisions.md#eq-1s-idle-threshold-belongs-to-a-recording). Motion
 that has no recording of its own (synthesized) uses ``character_thresholds``: the mean θ_S of the
 character's training recordings (our choice; the paper does not say). Eq. 2's θ_W stays relative
 to the window, as in the paper.
@@ -191,7 +192,7 @@ def segment_windows(v: np.ndarray, windows: list[FrameWindow], theta_s: float, a
     its window*, so a gesture that outlasts a short clause would leave its tail in the next clause's
     window and be counted again; with ``extend_trim`` the trimming uses where the speed really falls
     back to θ_W after the window (the reported end stays inside the window). On the synthetic default
-    corpus this removes a 3.6 percentage-point over-count of PC-LH (see experiments/eval_annotation.py).
+    corpus this removes a 3.6 percentage-point over-count of PC-LH (see experiments/analysis/eval_annotation.py).
     """
     v = np.asarray(v)
     order = np.argsort([w.start for w in windows], kind="stable")

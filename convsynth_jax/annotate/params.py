@@ -16,7 +16,7 @@ class AnnotateParams:
     extra_words: Dict[str, List[str]] = field(
         default_factory=lambda: {"listener_response": [], "hesitation": []})
     max_gap: float = 0.3                       # s; a longer pause between words ends a phonemic clause
-    # Words in context (issue #14): a response word right after a word of one's own clause (within
+    # Words in context (docs/decisions.md#phonemic-clauses-from-prosody): a response word right after a word of one's own clause (within
     # max_gap) is part of that clause, not a listener response; a lexical filler (below; a word that
     # is also an ordinary word) is a hesitation only when a pause of filler_pause s or the end of the
     # turn follows it and it is no verb (not after a pronoun, "to" or an auxiliary). False = the
@@ -26,10 +26,10 @@ class AnnotateParams:
     lexical_fillers: List[str] = field(default_factory=lambda: ["like", "well", "you know"])
     max_clause_words: Optional[int] = None     # split longer clauses (None = no limit)
     max_clause_seconds: Optional[float] = None  # split clauses longer than this (None = no limit)
-    # Phonemic clauses (issue #14; annotate/clauses.py): "prosodic" (default; the paper's clause is a
+    # Phonemic clauses (annotate/clauses.py): "prosodic" (default; the paper's clause is a
     # group of words with one primary stress) splits every pause-delimited run of words by a dynamic
     # program over pauses, F0 resets, pre-boundary lengthening and stress, with a words-per-clause
-    # prior; "pause" = clauses end at pauses > max_gap only (the method before issue #14).
+    # prior; "pause" = clauses end at pauses > max_gap only (leaves a fluent sentence one clause).
     clause_method: str = "prosodic"
     clause_words_mean: float = 4.1             # prior mean (paper: 4.29 female, 3.86 male)
     clause_words_sd: float = 2.0               # prior sd (paper: 2.16, 1.36)
@@ -49,7 +49,7 @@ class AnnotateParams:
     f0_floor: float = 75.0
     f0_ceiling: float = 500.0
     f0_time_step: float = 0.01
-    # Octave guard (issue #14; annotate/clauses.py guard_f0): Praat's octave-jump cost (Praat's own
+    # Octave guard (annotate/clauses.py guard_f0): Praat's octave-jump cost (Praat's own
     # default 0.35), the speaker's range (median +- octaves over the whole recording), continuity
     # against a running median, and a median filter for peak picking
     f0_octave_jump_cost: float = 0.5
@@ -57,7 +57,7 @@ class AnnotateParams:
     f0_jump_semitones: float = 9.0
     # a frame at least this far from the speaker's median (semitones) and outside the speaker's own
     # range (the f0_range_quantile .. 1 - f0_range_quantile quantiles of the voiced frames) is an
-    # octave error: a doubled or halved stretch too long for the running median to catch (issue 31)
+    # octave error: a doubled or halved stretch too long for the running median to catch
     f0_near_octave_semitones: float = 10.0
     f0_range_quantile: float = 0.05
     f0_median_window: float = 0.25             # s

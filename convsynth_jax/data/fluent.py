@@ -1,5 +1,5 @@
 """Fluent synthetic speech: clauses joined without pauses, for measuring prosodic clause
-segmentation (issue #14) where pauses say nothing.
+segmentation where pauses say nothing.
 
 One speaker's clauses of given sizes, every word followed by an ordinary word gap (30-70 ms, also
 between clauses), the last word of each clause lengthened, rendered with the synthetic corpus's voice

@@ -1,4 +1,4 @@
-"""Every system scored with the field's metrics on the same leave-one-out windows (issue 26).
+"""Every system scored with the field's metrics on the same leave-one-out windows (docs/metrics.md).
 
 The windows are those of leave-one-out (:mod:`.loo`: 15 s windows with a 14 s hop over each held-out
 session, both characters). Beside the configured systems, two controls come from the recordings:

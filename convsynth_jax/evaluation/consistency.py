@@ -1,4 +1,4 @@
-"""Consistency of the co-occurrence measure between Table 1 and the leave-one-out windows (issue #16).
+"""Consistency of the co-occurrence measure between Table 1 and the leave-one-out windows.
 
 Table 1 counts each audio segment of a recording once, over the whole clip. The leave-one-out
 evaluation counts the ground truth of the same recordings window by window (15 s windows, 14 s hop,
@@ -18,7 +18,7 @@ must reproduce Table 1 up to what cutting the recording into windows explains:
 * and the summed leave-one-out rate lies inside Table 1's Wilson interval (``stats.confidence``).
 
 A row passes when all three hold. ``threshold_scope="window"`` recomputes Eq. 1 over each window,
-the defect issue #16 reported (kept only as the negative control that the check must reject).
+the per-window threshold that broke the agreement (kept only as the negative control that the check must reject).
 """
 from __future__ import annotations
 

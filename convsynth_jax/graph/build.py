@@ -275,7 +275,7 @@ def build_graph(db: MotionDatabase, params: GraphParams, edge_fn=None, timings: 
     kstats: dict = {}
     a, j, c = select_edges(db, keys, threshold, w_v, p, edge_fn=edge_fn, stats=kstats, features=plan.features)
     a, j, c = apply_seam_filter(db, a, j, c, p, meta=kstats)  # ours, off by default (graph/seams.py)
-    a, j, c = apply_glitch_filter(db, a, j, c, p, meta=kstats)  # ours, on by default (graph/seams.py)
+    a, j, c = apply_glitch_filter(db, a, j, c, p, meta=kstats)  # ours, off by default (graph/seams.py)
     tm["edges_s"] = time.perf_counter() - t1
     t1 = time.perf_counter()
     meta = construction_meta(db, p, plan, kstats)

@@ -52,7 +52,7 @@ class GraphParams:
     # seam_filter_radius frames of their source or destination frame
     seam_filter_quantile: Optional[float] = None
     seam_filter_radius: int = 4
-    # glitch filter (ours, graph/seams.py, issue 31; 0 = off): drop synthetic transitions with a step
+    # glitch filter (ours, graph/seams.py; 0 = off, the default): drop synthetic transitions with a step
     # in which some joint turns more than this many degrees (a marker-swap glitch: 16-180 degrees in
     # the synthetic corpus; clean motion at most 11.8 in 99.9% of steps) within seam_filter_radius
     # frames of their source or destination frame, so no seam shows a glitch; preset=quality sets 15

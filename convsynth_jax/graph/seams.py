@@ -1,5 +1,5 @@
-"""Seam edge filter (ours, issue #15 part 2; option ``graph.seam_filter_quantile``, off by default) and
-glitch filter (ours, issue 31; ``graph.glitch_max_step_deg``, on by default: :func:`apply_glitch_filter`).
+"""Seam edge filter (ours; option ``graph.seam_filter_quantile``, off by default) and
+glitch filter (ours; ``graph.glitch_max_step_deg``, off by default, 15 in preset=quality: :func:`apply_glitch_filter`).
 
 The paper (Section 6) admits every synthetic transition whose cost c(i, j) is below the threshold.
 The cost compares poses and velocities (Eq. 3-4) with finger joints weighted 0, so nothing stops a
@@ -100,8 +100,8 @@ def glitch_filter_mask(db: MotionDatabase, a: np.ndarray, j: np.ndarray, max_ste
 
 
 def apply_glitch_filter(db: MotionDatabase, a, j, c, params, meta: dict | None = None):
-    """(a, j, c) without the synthetic transitions next to a glitch (:func:`glitch_filter_mask`; ours, on
-    by default: ``graph.glitch_max_step_deg`` 15, 0 = off). Records the counts in ``meta``
+    """(a, j, c) without the synthetic transitions next to a glitch (:func:`glitch_filter_mask`; ours, off
+    by default: ``graph.glitch_max_step_deg`` 0; preset=quality sets 15). Records the counts in ``meta``
     (``glitch_filter``)."""
     limit = float(params.glitch_max_step_deg)
     if limit <= 0 or db.joint_turn is None:

@@ -248,7 +248,7 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
 def _split_touching(forbid: np.ndarray, req: np.ndarray, segs: list, tol: int) -> None:
     """``labels``: two constrained segments of one kind and channel that touch or overlap ([s1, e1),
     [s2, e2) with s2 <= e1: clauses split at a word boundary) share their margins, so one run of the
-    label could cover both, and neither run would start and end near its segment (issue 31: the
+    label could cover both, and neither run would start and end near its segment (the
     search claimed such windows, the checker rejected them). The label is forbidden at one frame
     m = (e1 + s2) // 2 between them, so the first run ends within tol of e1 and the second starts
     within tol of s2 (ours: sound, not complete; a break elsewhere in the margins would do too).

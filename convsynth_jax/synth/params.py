@@ -15,7 +15,7 @@ class SynthParams:
     # decayed to zero by a quintic over blend_frames frames; realize.inertialized_blend)
     blend_method: str = "cosine"
     # a blend's old stream (the previous clip's continuation, and an interrupted layer's) holds at the
-    # last frame before a step in which some joint turns more than this many degrees (ours, issue 31):
+    # last frame before a step in which some joint turns more than this many degrees (ours, off by default):
     # a marker-swap glitch of the source is never faded in through a blend. Clean motion of the
     # synthetic corpus turns at most 11.8 degrees a frame in 99.9% of its steps, its glitches enter
     # with 16-180 degrees; preset=quality sets 15. 0 (default, the paper): off (the continuation plays

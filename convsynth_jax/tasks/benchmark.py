@@ -1,4 +1,4 @@
-"""Task ``benchmark``: the field-standard evaluation of every system on the same windows (issue 26).
+"""Task ``benchmark``: the field-standard evaluation of every system on the same windows (docs/metrics.md).
 
 ``convsynth task=benchmark`` scores the ground truth, the mismatched ground truth and each system of
 ``task.systems`` (label -> system, condition, optional preset) on the leave-one-out windows of the

@@ -1,7 +1,7 @@
 """Task ``figure4``: histograms of c(i, i+k) for k = 2..5 with the fitted distributions.
 Writes ``figure4_histograms.csv`` (character, k, bin_left, bin_right, density), ``figure4_fits.csv``
 (character, k, distribution, params, rss, chosen, threshold) and ``figure4.png``/``.pdf``; the
-script ``experiments/figure4.py`` redraws the figure from the two CSVs."""
+script ``experiments/paper/figure4.py`` redraws the figure from the two CSVs."""
 from __future__ import annotations
 
 from dataclasses import dataclass, field

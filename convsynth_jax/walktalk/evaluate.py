@@ -37,7 +37,7 @@ class EvalParams:
     loops_per_gait: int = 3
     methods: tuple = ("naive", "stylized", "stylized+synced")
     # a hand (wrist joint) closer than this to the hips-neck segment is inside the torso (ours: the
-    # paper has no such check, the issue asks for one); None = calibrated from the recorded clips
+    # paper has no such check; a hand inside the torso is a visible fault); None = calibrated from the recorded clips
     # (:func:`torso_radius`): the ``torso_radius_quantile`` of every recorded hand's distance
     torso_radius_cm: float | None = None
     torso_radius_quantile: float = 0.0   # 0 = the closest any recorded hand came: no recorded frame is inside

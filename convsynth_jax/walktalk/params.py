@@ -138,7 +138,7 @@ class WalkTalkParams:
     jog_glob: str = "*_run_normal_*.bvh"
     gesture_globs: tuple = ("*raise-up-*.bvh", "*wave-*.bvh")
     # clips pooled into the range-of-motion / joint-limit table only (never spliced): with the walks,
-    # runs and gestures above, "every clip" of the bandai2 set the issue names (walk-turns included)
+    # runs and gestures above, every clip of the bandai2 set (walk-turns included; docs/decisions.md#walk-the-talk-what-a-good-splice-is)
     limit_globs: tuple = ("*_walk-turn-*.bvh",)
     phases_csv: str = ""              # optional CSV overriding detected phases
     seed: int = 0

@@ -104,7 +104,7 @@ def pad_gesture(g: Gesture, frames: int) -> Gesture:
     """Hold the gesture's first and last pose for ``frames`` extra frames and widen t_Pb / t_Re
     by as much (ours): the Eq. 2 blend toward the gesture then starts while the gesture is still
     at rest instead of while its own preparation is already moving, which removes most of the
-    wrist-jerk excess at t_Pb (experiments/bench_walktalk.py reports the effect)."""
+    wrist-jerk excess at t_Pb (experiments/bench/bench_walktalk.py reports the effect)."""
     if frames <= 0:
         return g
     m = g.motion

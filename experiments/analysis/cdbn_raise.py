@@ -1,4 +1,4 @@
-"""Why the CDBN hand model's Bandai2 raises were misclassified (issue 31, item 4), and what the fix
+"""Why the CDBN hand model's Bandai2 raises were misclassified, and what the fix
 changes: the Table V/VI protocol of the hand model (``hand_evaluation``: state choice on the
 validation fold, ``--test-folds`` test folds, nearest-centroid classifier fitted on the training
 turns' original segments) on the same clips under the four labellings

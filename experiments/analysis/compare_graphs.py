@@ -2,7 +2,7 @@
 every state and edge array bit for bit (edges, costs, synthetic flags, clips, frames, audio) and the
 threshold and w_v. Used to check that a speed-up of the construction does not change the graph:
 
-    python experiments/compare_graphs.py OLD/graph.npz NEW/graph.npz
+    python experiments/analysis/compare_graphs.py OLD/graph.npz NEW/graph.npz
 
 Prints one line per array and exits with status 1 on any difference.
 """

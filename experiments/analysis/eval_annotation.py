@@ -25,7 +25,7 @@
 
 Writes experiments/results/eval_annotation.json and .md.
 
-    python experiments/eval_annotation.py [--cache DIR] [--fluent N]
+    python experiments/analysis/eval_annotation.py [--cache DIR] [--fluent N]
 """
 import argparse
 import dataclasses

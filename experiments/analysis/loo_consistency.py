@@ -1,4 +1,4 @@
-"""Does the leave-one-out ground truth reproduce Table 1? (issue #16)
+"""Does the leave-one-out ground truth reproduce Table 1? (docs/decisions.md#eq-1s-idle-threshold-belongs-to-a-recording)
 
 Table 1 (over whole recordings) beside the ground-truth co-occurrence summed over every window of
 every leave-one-out fold, per character x hypothesis, counted by the one measure the project uses
@@ -9,7 +9,7 @@ Wilson interval (see ``convsynth_jax/evaluation/consistency.py``). No synthesis 
 
 Writes experiments/results/loo_consistency.{json,md,csv} and loo_consistency.png.
 
-    python experiments/loo_consistency.py [--cache DIR] [--corpus synthetic_tiny] [--sessions N]
+    python experiments/analysis/loo_consistency.py [--cache DIR] [--corpus synthetic_tiny] [--sessions N]
 """
 import argparse
 import time

@@ -1,7 +1,7 @@
 """Seams on real motion capture (Bandai-Namco 2, ``../shared/data/bandai2/bvh``; 21 joints, no finger
 joints: the hands end at Hand_L / Hand_R), with and without the seam filter (graph/seams.py).
 
-    python experiments/seam_bandai2.py [--root DIR] [--pattern GLOB] [--quantiles 0.98 ...] [--sample N]
+    python experiments/analysis/seam_bandai2.py [--root DIR] [--pattern GLOB] [--quantiles 0.98 ...] [--sample N]
 
 For each setting the graph is built with the default construction (k = 3, Johnson SB threshold,
 22.25% key states), then ``--sample`` of its synthetic transitions i -> j (seeded) are realized as

@@ -1,4 +1,4 @@
-"""Which leave-one-out seams come from a planted marker-swap glitch (issue 31 item 3's acceptance).
+"""Which leave-one-out seams come from a planted marker-swap glitch (docs/decisions.md#marker-swap-glitches-and-touching-clauses).
 
     python experiments/analysis/seam_glitches.py [--folds N | --fold-list 6 ...] [--conditions no_hp ...]
         [--cache DIR] [--name seam_glitches] [overrides ...]

@@ -1,12 +1,12 @@
-"""Seams of collected leave-one-out runs, read from their ``all_cases.csv`` (issue #15 part 2), beside
+"""Seams of collected leave-one-out runs, read from their ``all_cases.csv``, beside
 the success rates and the co-occurrence of the same runs.
 
-    python experiments/seam_summary.py --cache DIR --out FILE.md NAME=RESULT_DIR [NAME=RESULT_DIR ...]
+    python experiments/analysis/seam_summary.py --cache DIR --out FILE.md NAME=RESULT_DIR [NAME=RESULT_DIR ...]
 
 Two readings of the seam goal (<= 1 on every window with a synthetic transition):
 * ``window`` (the metric as coded, ``evaluation.metrics.seam_ratio``): the largest root-relative
   acceleration within 3 frames of a transition over the ground-truth *window's* largest;
-* ``recording`` (the issue's example, "the largest in the held-out recording"): the same peak over
+* ``recording`` ("the largest in the held-out recording"): the same peak over
   the largest of the character's whole held-out recording. It is computed here from the first:
   seam_ratio * window max / recording max (both from the annotated corpus of ``--cache``).
 Where the seams over 1 come from (runs with the ``seam_content_ratio`` column,

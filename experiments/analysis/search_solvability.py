@@ -10,7 +10,7 @@ For each held-out window (leave-one-out folds of the default corpus, condition `
 * what the beam finds without the look-ahead (the old search, its retries included) and with it.
 Writes experiments/results/search_solvability.{json,md,csv}.
 
-    python experiments/search_solvability.py [--cache DIR] [--folds N] [--windows N]
+    python experiments/analysis/search_solvability.py [--cache DIR] [--folds N] [--windows N]
 """
 import argparse
 import dataclasses

@@ -11,7 +11,7 @@
    mocap (gesture constraints, paired with real speech that is unrelated to the motion), written to
    experiments/results/bench_cdbn_hands.json.
 No assertions: the figures are for the README and the report. Usage:
-    python experiments/bench_cdbn.py [--eval] [--out experiments/results/bench_cdbn.json]
+    python experiments/bench/bench_cdbn.py [--eval] [--out experiments/results/bench_cdbn.json]
 """
 from __future__ import annotations
 

@@ -12,7 +12,7 @@ Johnson SB fit, edges, SCC); loading the BVH files is excluded. Reported:
   * scaling: 1/4, 1/2, all files and the files repeated 4 times (~216,000 frames).
 Goals: < 3 s, >= 15x the reference, < 2 GB. Writes experiments/results/bench_graph.json and .md.
 
-    python experiments/bench_graph.py [--skip-reference] [--skip-no-pruning] [--skip-scaling]
+    python experiments/bench/bench_graph.py [--skip-reference] [--skip-no-pruning] [--skip-scaling]
 """
 import argparse
 import json
@@ -133,7 +133,7 @@ if __name__ == "__main__":
 
     cfg = compose(base)
     res = {"frames": sum(c[1].num_frames for c in clips), "files": len(clips), "loadavg_start": os.getloadavg(),
-           "command": "python experiments/bench_graph.py " + " ".join(sys.argv[1:]),
+           "command": "python experiments/bench/bench_graph.py " + " ".join(sys.argv[1:]),
            "machine": f"{os.cpu_count()} CPU cores, JAX device {jax.devices()[0].device_kind}"}
     _, res["cold_s"] = timed(construct, clips, cfg)
     runs = [timed(construct, clips, cfg) for _ in range(3)]

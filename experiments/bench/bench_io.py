@@ -1,7 +1,7 @@
 """Benchmark: load and forward kinematics of all 54,067 frames of ../shared/data/bandai2 (465 BVH).
 Goal: under 3 s wall once warm. Writes experiments/results/bench_io.json.
 
-    python experiments/bench_io.py
+    python experiments/bench/bench_io.py
 """
 from _bench import SHARED, timed, write
 

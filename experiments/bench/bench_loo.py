@@ -1,9 +1,9 @@
 """Benchmark: the full leave-one-out sweep on the synthetic default corpus (17 folds x 4 conditions,
 both characters) in one process, as the basic Hydra launcher runs it. Goal: under 15 minutes on the
-2-core machine. Writes experiments/results/bench_loo.json and the collected tables to
+2-core machine. Writes ``bench_loo.json`` under experiments/results/ and the collected tables to
 experiments/results/loo_default/.
 
-    python experiments/bench_loo.py [--folds N] [--cache DIR]
+    python experiments/bench/bench_loo.py [--folds N] [--cache DIR]
 """
 import argparse
 import json

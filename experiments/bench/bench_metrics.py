@@ -1,4 +1,4 @@
-"""Benchmark of the field-standard metrics (issue 26): metric time for all windows x systems once
+"""Benchmark of the field-standard metrics: metric time for all windows x systems once
 synthesis is done (goal <= 60 s), autoencoder training time (goal <= 3 min on the 2-core CPU), and
 the validity figures (FGD of ground truth with noise and block shuffling, odd/even noise floor, beat
 consistency with own vs other audio).

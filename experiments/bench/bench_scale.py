@@ -1,4 +1,4 @@
-"""Benchmark: motion-graph construction at scale (issue 30) and the beam search on the biggest graph.
+"""Benchmark: motion-graph construction at scale (docs/scale.md) and the beam search on the biggest graph.
 
 Databases from ``task=make_scale_db`` (graph/scale_db.py) of 54,067 frames (the Bandai clips), 216,268
 (the clips and their mirrored, warped and mirrored-warped variants) and 1,000,000 frames (plus

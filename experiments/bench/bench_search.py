@@ -5,7 +5,7 @@ solves a window at its first temperature (without the hot retry), the cost and s
 transitions of its paths, and the same for the depth-first search of the paper.
 Goal: beam < 50 ms median (paper: 1.16 s for its search).
 
-    python experiments/bench_search.py [--cache DIR] [--windows N] [--repeats R] [search.beam_size=...]
+    python experiments/bench/bench_search.py [--cache DIR] [--windows N] [--repeats R] [search.beam_size=...]
 """
 import argparse
 import pickle

@@ -3,8 +3,8 @@ constraints that ``bench_search.py --export FILE`` wrote, so the machine needs n
 nor Praat. Prints and writes median time, first call, success and synthetic transitions per
 character and candidate budget.
 
-    python experiments/bench_search.py --cache DIR --export search_data.pkl      # where the corpus is
-    python experiments/bench_search_device.py search_data.pkl [--name bench_search_h100]
+    python experiments/bench/bench_search.py --cache DIR --export search_data.pkl      # where the corpus is
+    python experiments/bench/bench_search_device.py search_data.pkl [--name bench_search_h100]
 """
 import argparse
 import pickle

@@ -1,4 +1,4 @@
-"""Benchmark: start-up time with JAX's persistent compilation cache (issue #15, part 3).
+"""Benchmark: start-up time with JAX's persistent compilation cache and the kernel cache (docs/decisions.md#compiled-kernels-kept-between-runs).
 
 Each command runs in a fresh process, with a fresh cache directory (``CONVSYNTH_CACHE``), three times:
   1. cold: nothing cached (synthetic corpus generated, annotation, graphs, every kernel compiled);
@@ -18,7 +18,7 @@ construction ``cpu_seconds``; and the whole child process's), which a loaded mac
 Writes experiments/results/bench_startup.json and .md; with ``--skip-bandai`` the bandai2 rows of the
 previous results file are kept and marked as not re-measured.
 
-    python experiments/bench_startup.py [--skip-bandai] [--repeats N]
+    python experiments/bench/bench_startup.py [--skip-bandai] [--repeats N]
 """
 import argparse
 import json

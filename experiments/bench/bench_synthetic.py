@@ -14,7 +14,7 @@ what makes the corpus hard (README "The synthetic corpus"):
 
 Writes experiments/results/bench_synthetic.json.
 
-    python experiments/bench_synthetic.py [--no-audio-run-only]
+    python experiments/bench/bench_synthetic.py [--no-audio-run-only]
 """
 import argparse
 import json

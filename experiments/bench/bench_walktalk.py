@@ -1,6 +1,6 @@
 """Benchmark: Walk the Talk (convsynth_jax.walktalk) on ../shared/data/bandai2 (fixtures if absent).
 
-Reported (goals from issue #12, never asserted):
+Reported (goals: docs/decisions.md#walk-the-talk-what-a-good-splice-is; never asserted):
   * one splice (stylize + sync + Eq. 1-2, 300-frame timeline), warm median of 50, and cold;
   * the whole ``walktalk_eval`` task (all single-peak gestures x 3 loops per gait x 3 methods,
     figures included), in-process, after imports;
@@ -22,11 +22,11 @@ the blended frames, gesturing hand in the torso), each beside the loop alone ove
 Goals: splice < 20 ms warm, eval < 60 s, demo < 10 s. Writes experiments/results/bench_walktalk.json
 (--out to name another file there).
 
-    python experiments/bench_walktalk.py [--quick] [--skip-ablation] [--skip-elbow] [--synthesized-dir DIR]
-    python experiments/bench_walktalk.py --elbow-diagnosis   # why the within-gait elbow figure is low
-    python experiments/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
-    python experiments/bench_walktalk.py --combined          # every goal for the candidate settings at once
-    python experiments/bench_walktalk.py --loop-seams        # what the loops' seam correction does to the arms
+    python experiments/bench/bench_walktalk.py [--quick] [--skip-ablation] [--skip-elbow] [--synthesized-dir DIR]
+    python experiments/bench/bench_walktalk.py --elbow-diagnosis   # why the within-gait elbow figure is low
+    python experiments/bench/bench_walktalk.py --limits-breakdown  # where the per-frame joint-limit reading fails
+    python experiments/bench/bench_walktalk.py --combined          # every goal for the candidate settings at once
+    python experiments/bench/bench_walktalk.py --loop-seams        # what the loops' seam correction does to the arms
     python experiments/bench/bench_walktalk.py --contact-phases  # contact fractions of every loop, both readings
 """
 from __future__ import annotations
@@ -380,7 +380,7 @@ COMBINED = {
 
 
 def _goal_rows(lib, p, settings: dict, naive_df=None) -> tuple[list[dict], object]:
-    """Per setting ({name: SpliceParams overrides}) x gait: every goal of issue #12 from one
+    """Per setting ({name: SpliceParams overrides}) x gait: every splice goal from one
     run_evaluation of ``lib`` (stylized+synced; naive once, shared, for the "<= naive" parts):
     splices over 2x jerk and the worst, peak in contact, shifts, peaks before the utterance, foot
     slide, DOFs within +- c sigma, joint limits in both readings with the loop alone, naive and
@@ -421,7 +421,7 @@ def _goal_rows(lib, p, settings: dict, naive_df=None) -> tuple[list[dict], objec
 
 
 def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> dict:
-    """One pass over every goal of issue #12 for the candidate settings (:data:`COMBINED`: the
+    """One pass over every splice goal for the candidate settings (:data:`COMBINED`: the
     paper's defaults, our within-gait options band_std=gait_min + joint_limit_mode=soft, and those
     with splice.rescale_coupling 0.25 / 0.5 / 1), on two libraries:
 
@@ -622,9 +622,9 @@ def main():
                     "with gestures from that synthesized conversation")
     ap.add_argument("--out", default="bench_walktalk.json", help="file name under experiments/results/")
     ap.add_argument("--elbow-diagnosis", action="store_true", help="only the elbow-tracking diagnosis "
-                    "(writes experiments/results/bench_walktalk_elbow_diagnosis.json)")
+                    "(writes bench_walktalk_elbow_diagnosis.json under experiments/results/)")
     ap.add_argument("--limits-breakdown", action="store_true", help="only where the per-frame joint-limit "
-                    "reading fails (writes experiments/results/bench_walktalk_limits_breakdown.json)")
+                    "reading fails (writes bench_walktalk_limits_breakdown.json under experiments/results/)")
     ap.add_argument("--jerk-coupling", action="store_true", help="only the splices over 2x jerk and the gesture's "
                     "reach against splice.rescale_coupling (writes experiments/results/bench_walktalk_jerk.json)")
     ap.add_argument("--combined", action="store_true", help="only every goal for the candidate settings "

@@ -1,4 +1,4 @@
-"""Fuzz the readers (issue 29, part 3): ``--cases N`` (default 2,000) mutated files per reader.
+"""Fuzz the readers (docs/reliability.md): ``--cases N`` (default 2,000) mutated files per reader.
 
 Readers: BVH, WAV, TextGrid, TSV, CSV, IBM JSON transcripts, corpus manifests (YAML, CSV) and GENEA
 folders (convsynth_jax/testing/fuzz.py: seeds, mutations, outcome classes). Each case applies 1-3

@@ -1,4 +1,4 @@
-"""Reliability check: several ``convsynth`` processes started together on one empty cache (issue 29).
+"""Reliability check: several ``convsynth`` processes started together on one empty cache (docs/reliability.md).
 
 Two scenarios, each on a fresh, empty ``CONVSYNTH_CACHE``:
   1. ``--processes N`` (default 4) ``convsynth task=cooccurrence corpus=synthetic_tiny`` started at once;

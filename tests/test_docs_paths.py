@@ -1,0 +1,95 @@
+"""Docs that stay true: every repository path named in the README, docs/, docstrings, comments and
+configs exists, every link to a section of a page in docs/ names a heading of that page, and nothing
+cites a tracker issue number (a reader cannot resolve one; say the reason, or link docs/decisions.md).
+
+What counts as a repository path: a token that starts with ``convsynth_jax/``, ``experiments/``,
+``conf/``, ``docs/``, ``tests/``, ``notebooks/`` or ``.ci/`` (optionally after ``../`` in a page of
+docs/, resolved from that page), not preceded by a letter, digit, ``.``, ``/`` or ``-`` (so
+``../shared/...`` or ``foo/tests/...`` do not count), and running over letters, digits and ``._/-``.
+A ``#section`` suffix is checked as a heading of the page; trailing punctuation is dropped. Tokens
+with a placeholder or glob (``*``, ``<name>``, ``{a,b}``, ``$VAR``, ``%s``) are patterns, not paths,
+and are skipped. Paths relative to the package (``graph/seams.py``) are not checked: they are
+ambiguous by design.
+"""
+from __future__ import annotations
+
+import re
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+_PREFIX = r"(?:convsynth_jax|experiments|conf|docs|tests|notebooks|\.ci)/"
+_TOKEN = re.compile(r"(?<![\w./-])((?:\.\./)*" + _PREFIX + r"[\w./*{}<>$%+-]*(?:#[\w-]+)?)")
+_MD_LINK = re.compile(r"\]\(([\w./-]*\.md)?#([\w-]+)\)")
+# "issue 12", "Issues 3", "issue #12", "(#12)": never a CSS colour such as "#222;" or "#0a0a0a"
+_TRACKER = re.compile(r"\b[Ii]ssues? ?#?\d+\b|(?<![\w&#])#\d{1,4}\b(?![;\w])")
+
+
+def _files() -> list[Path]:
+    out = [ROOT / "README.md", *sorted((ROOT / "docs").glob("*.md"))]
+    for d in ("convsynth_jax", "experiments", "tests", "notebooks"):
+        out += sorted(p for p in (ROOT / d).rglob("*.py") if ".venv" not in p.parts)
+    out += sorted((ROOT / "conf").rglob("*.yaml"))
+    out += [p for p in (ROOT / "pyproject.toml", ROOT / ".ci" / "run") if p.exists()]
+    return [p for p in out if p != Path(__file__).resolve()]  # this file's examples are made up
+
+
+def _anchor(heading: str) -> str:
+    """GitHub's anchor of a Markdown heading: lower case, punctuation dropped, spaces to hyphens."""
+    text = re.sub(r"[^\w\s-]", "", heading.strip().lower())
+    return re.sub(r"\s", "-", text)
+
+
+def _anchors(page: Path) -> set[str]:
+    return {_anchor(m.group(1)) for m in re.finditer(r"^#{1,6} (.+)$", page.read_text(), re.M)}
+
+
+def named_paths(files: list[Path]) -> list[tuple[Path, int, str]]:
+    """(file, line, missing path or path#anchor) for every named path that does not exist."""
+    bad = []
+    for f in files:
+        for i, line in enumerate(f.read_text().splitlines(), 1):
+            for m in _TOKEN.finditer(line):
+                tok, _, anchor = m.group(1).partition("#")
+                tok = tok.rstrip(".,:;)")
+                if any(c in tok for c in "*{}<>$%"):
+                    continue
+                target = (f.parent if tok.startswith("../") else ROOT) / tok
+                if not target.exists():
+                    bad.append((f, i, tok))
+                elif anchor and target.suffix == ".md" and anchor not in _anchors(target):
+                    bad.append((f, i, f"{tok}#{anchor}"))
+    return bad
+
+
+def test_every_named_repository_path_exists():
+    bad = named_paths(_files())
+    assert not bad, "paths named but absent:\n" + "\n".join(f"{f.relative_to(ROOT)}:{i}: {t}" for f, i, t in bad)
+
+
+def test_the_rule_catches_a_missing_path_and_a_missing_section(tmp_path):
+    page = tmp_path / "page.md"
+    page.write_text("see `experiments/no_such_script.py`, `docs/decisions.md#no-such-section`, "
+                    "`experiments/bench/*.py` and `docs/decisions.md#decisions`\n")
+    bad = [t for _, _, t in named_paths([page])]
+    assert bad == ["experiments/no_such_script.py", "docs/decisions.md#no-such-section"]
+
+
+@pytest.mark.parametrize("page", sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"], ids=lambda p: p.name)
+def test_links_to_sections_name_a_heading(page):
+    bad = []
+    for i, line in enumerate(page.read_text().splitlines(), 1):
+        for m in _MD_LINK.finditer(line):
+            target = (page.parent / m.group(1)) if m.group(1) else page
+            if target.exists() and m.group(2) not in _anchors(target):
+                bad.append(f"{page.name}:{i}: {m.group(1) or ''}#{m.group(2)}")
+    assert not bad, "links to missing sections:\n" + "\n".join(bad)
+
+
+def test_no_tracker_issue_numbers():
+    bad = [f"{f.relative_to(ROOT)}:{i}: {line.strip()[:100]}"
+           for f in _files() for i, line in enumerate(f.read_text().splitlines(), 1) if _TRACKER.search(line)]
+    assert not bad, "tracker references (say the reason or link docs/decisions.md):\n" + "\n".join(bad)
+    assert _TRACKER.search("a comment (issue #14)") and _TRACKER.search("fixed in #31")
+    assert not _TRACKER.search("color: #222; background: #0a0a0a")

@@ -30,7 +30,7 @@ class CorpusParams:
     root: Optional[str] = None     # genea / bvh_folder: the folder; synthetic: None = <cache_dir>/<name>
     path: Optional[str] = None     # manifest: the YAML or CSV file
     pattern: str = "**/*.bvh"      # bvh_folder: files to read
-    characters: Dict[str, str] = field(default_factory=dict)  # role -> character name (genea)
+    characters: Dict[str, str] = field(default_factory=dict)  # role -> character name (every dyadic loader; wins over corpus.json)
     duration_tolerance: float = 1.0  # s; motion/audio/transcript durations may differ by this much
     # synthetic: the generator's keys that differ from its defaults (data/synthetic/config.py:
     # GeneratorParams; checked by generator_params when the config is converted)

@@ -191,3 +191,20 @@ def resolve_joint(skeleton, entry: str) -> int | None:
         if name in skeleton.names:
             return skeleton.names.index(name)
     return None
+
+
+# SMPL-X's 55 joints in the order of its pose vector (BEAT2's ``poses``: 55 x 3 axis-angle) and their
+# parents (the model's kinematic tree): body 0-21, jaw 22, eyes 23-24, left hand 25-39, right hand 40-54.
+_FINGERS = ("index", "middle", "pinky", "ring", "thumb")
+SMPLX_JOINT_NAMES = (
+    "pelvis", "left_hip", "right_hip", "spine1", "left_knee", "right_knee", "spine2", "left_ankle",
+    "right_ankle", "spine3", "left_foot", "right_foot", "neck", "left_collar", "right_collar", "head",
+    "left_shoulder", "right_shoulder", "left_elbow", "right_elbow", "left_wrist", "right_wrist",
+    "jaw", "left_eye_smplhf", "right_eye_smplhf",
+    *(f"{side}_{f}{k}" for side in ("left", "right") for f in _FINGERS for k in (1, 2, 3)),
+)
+SMPLX_PARENTS = (
+    -1, 0, 0, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 9, 9, 12, 13, 14, 16, 17, 18, 19, 15, 15, 15,
+    *(p for wrist, first in ((20, 25), (21, 40)) for f in range(5)
+      for p in (wrist, first + 3 * f, first + 3 * f + 1)),
+)

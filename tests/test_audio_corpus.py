@@ -91,3 +91,20 @@ def test_stereo_session_wav_and_manifests(tiny_corpus_dir, tmp_path):
                              "s1,b,male,nothere.bvh,session01.wav,session01_interloctr.tsv,1\n")
     with pytest.raises(MissingFileError, match="line 3: motion file not found"):
         load_corpus(d / "m.csv")
+
+
+def test_corpus_characters_reach_every_loader(tiny_corpus_dir, tmp_path):
+    """corpus.characters (role -> name) renames the roles it names, over corpus.json and manifest
+    entries; the others keep their names; the configured corpus passes it to the loader."""
+    from convsynth_jax.config import compose
+    from convsynth_jax.tasks.common import open_corpus, params_of
+
+    c = load_corpus(tiny_corpus_dir, characters={"main-agent": "anna"})
+    assert c.characters == ["anna", "male"]
+    d = _copy(tiny_corpus_dir, tmp_path / "c")
+    (d / "m.csv").write_text("session,role,character,motion,audio,transcript\n"
+                             "s1,a,female,session01_main-agent.bvh,session01_main-agent.wav,session01_main-agent.tsv\n"
+                             "s1,b,male,session01_interloctr.bvh,session01_interloctr.wav,session01_interloctr.tsv\n")
+    assert load_corpus(d / "m.csv", characters={"b": "bob"}).characters == ["bob", "female"]
+    cfg = compose(["corpus=genea", f"corpus.root={tiny_corpus_dir}", "+corpus.characters.interloctr=ben"])
+    assert open_corpus(params_of(cfg)).characters == ["ben", "female"]

@@ -102,3 +102,21 @@ def test_cooccurrence_runs_on_each_rig_without_overrides(rig, tmp_path):
     assert len(t) == 10 and (t["total"] > 0).any()
     ev = pd.read_csv(out / "events.csv")
     assert set(ev["kind"]) <= {"LH", "RH", "Nod"} and len(ev) > 0
+
+
+def test_smplx_joint_table_has_the_six_roles():
+    """The SMPL-X table (55 joints in pose-vector order, parents before children) is recognized by
+    the role patterns: wrists as hands, shoulders as upper arms, fingers weighted 0."""
+    import numpy as np
+
+    from convsynth_jax.rig import SMPLX_JOINT_NAMES, SMPLX_PARENTS, find_joints
+    from convsynth_jax.skeleton import Skeleton
+
+    assert len(SMPLX_JOINT_NAMES) == len(SMPLX_PARENTS) == 55
+    assert SMPLX_JOINT_NAMES[25] == "left_index1" and SMPLX_JOINT_NAMES[54] == "right_thumb3"
+    assert SMPLX_PARENTS[25] == 20 and SMPLX_PARENTS[27] == 26 and SMPLX_PARENTS[40] == 21
+    sk = Skeleton(SMPLX_JOINT_NAMES, SMPLX_PARENTS, np.zeros((55, 3)), tuple(() for _ in range(55)))
+    roles = {k: SMPLX_JOINT_NAMES[j] for k, j in find_joints(sk).items()}
+    assert roles == {"left_hand": "left_wrist", "right_hand": "right_wrist", "left_shoulder": "left_shoulder",
+                     "right_shoulder": "right_shoulder", "neck": "neck", "head": "head"}
+    assert sk.joint_weights()[25:].sum() == 0 and sk.joint_weights()[:22].min() == 1

@@ -48,7 +48,9 @@ def annotate_corpus_cached(corpus, params: AnnotateParams, fps: float, cache_dir
     """session name -> role -> ParticipantAnnotation for ``corpus``, read from ``cache_dir`` when an
     annotation with the same corpus folder (and contents), parameters and frame rate is there, else computed and
     written there (atomically). An unreadable cache file is ignored and rebuilt."""
-    key = params_hash(str(Path(corpus.root).resolve()), corpus_fingerprint(corpus), params, float(fps))
+    # the character names are part of the annotation (corpus.characters may rename them)
+    names = [(s.name, p.role, p.character) for s in corpus.sessions for p in s.participants]
+    key = params_hash(str(Path(corpus.root).resolve()), corpus_fingerprint(corpus), params, float(fps), names)
     cache = Path(cache_dir) / f"annotations_{key}.pkl" if cache_dir else None
     if cache is None:
         return annotate_corpus(corpus, params, fps, progress=progress, workers=workers)

@@ -144,11 +144,16 @@ def _load_characters(root: Path) -> tuple[dict, dict]:
     return meta, dict(meta.get("characters", {}))
 
 
-def load_genea(root: str | Path, tolerance: float = 1.0, check: bool = True) -> Corpus:
+def load_genea(root: str | Path, tolerance: float = 1.0, check: bool = True,
+               characters: dict | None = None) -> Corpus:
+    """A folder in the GENEA dyadic layout. ``characters`` (role -> character name, e.g. from
+    ``corpus.characters``) names the characters; a role it does not name takes the name in the
+    folder's ``corpus.json``, else the role itself."""
     root = Path(root)
     if not root.is_dir():
         raise MissingFileError("corpus folder not found", root)
-    meta, characters = _load_characters(root)
+    meta, named = _load_characters(root)
+    characters = {**named, **{str(k): str(v) for k, v in (characters or {}).items()}}
     pat = re.compile(r"^(?P<session>.+)_(?P<role>main-agent|interloctr)\.bvh$")
     names = sorted({m.group("session") for f in root.iterdir() if (m := pat.match(f.name))})
     if not names:
@@ -188,7 +193,12 @@ def _manifest_text(path: Path) -> str:
         raise FormatError(f"not UTF-8 text (byte {e.start})", path) from None
 
 
-def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) -> Corpus:
+def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True,
+                  characters: dict | None = None) -> Corpus:
+    """A manifest (YAML or CSV). ``characters`` (role -> character name, e.g. from
+    ``corpus.characters``) renames the characters of the roles it names, over the manifest's own
+    ``character`` entries; other participants keep their entry, else their role."""
+    characters = {str(k): str(v) for k, v in (characters or {}).items()}
     path = Path(path)
     if not path.is_file():
         raise MissingFileError("manifest not found", path)
@@ -247,7 +257,8 @@ def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) 
                 ch = int(ch)
             except (TypeError, ValueError):
                 raise FormatError(f"audio_channel must be a whole number, got {ch!r}", path, r["_where"]) from None
-        part = Participant(str(r["role"]), str(r.get("character", r["role"])), motion, resolve("audio"),
+        role = str(r["role"])
+        part = Participant(role, characters.get(role, str(r.get("character", role))), motion, resolve("audio"),
                            resolve("transcript"), ch, str(r["session"]), listed_in=path)
         by_session.setdefault(str(r["session"]), []).append(part)
     sessions = []
@@ -264,13 +275,14 @@ def load_manifest(path: str | Path, tolerance: float = 1.0, check: bool = True) 
 
 
 def load_corpus(path: str | Path, layout: str = "auto", fps: float = 30, tolerance: float = 1.0,
-                check_durations: bool = True) -> Corpus:
-    """Open a dyadic corpus: a GENEA-layout folder or a manifest file (``layout='auto'`` decides)."""
+                check_durations: bool = True, characters: dict | None = None) -> Corpus:
+    """Open a dyadic corpus: a GENEA-layout folder or a manifest file (``layout='auto'`` decides);
+    ``characters`` (role -> character name) as in :func:`load_genea` and :func:`load_manifest`."""
     path = Path(path)
     if layout == "auto":
         layout = "genea" if path.is_dir() else "manifest"
     if layout == "genea":
-        return load_genea(path, tolerance, check_durations)
+        return load_genea(path, tolerance, check_durations, characters)
     if layout == "manifest":
-        return load_manifest(path, tolerance, check_durations)
+        return load_manifest(path, tolerance, check_durations, characters)
     raise CorpusError(f"unknown corpus layout {layout!r} (expected auto, genea or manifest)", path)

@@ -40,11 +40,11 @@ def open_corpus(params):
 
         root = ensure_synthetic_corpus({"name": c.name or "synthetic_default", "root": c.root, "generator": c.generator},
                                        cache_dir=params.cache_dir)
-        return load_corpus(root, layout="genea", tolerance=c.duration_tolerance)
+        return load_corpus(root, layout="genea", tolerance=c.duration_tolerance, characters=c.characters)
     if c.kind == "genea":
-        return load_corpus(c.root, layout="genea", tolerance=c.duration_tolerance)
+        return load_corpus(c.root, layout="genea", tolerance=c.duration_tolerance, characters=c.characters)
     if c.kind == "manifest":
-        return load_corpus(c.path, layout="manifest", tolerance=c.duration_tolerance)
+        return load_corpus(c.path, layout="manifest", tolerance=c.duration_tolerance, characters=c.characters)
     raise ConfigError(f"corpus kind {c.kind!r} is not a dyadic corpus (expected synthetic, genea or manifest)")
 
 

@@ -152,6 +152,21 @@ def test_synthesize_task_best_effort_and_retiming(tiny_corpus_dir, cache, tmp_pa
             assert k["output_frames"][0] == 0 and k["output_frames"][-1] == 299 and k["path_frames"][-1] == 299
 
 
+def test_synthesize_condition_checks_the_conditions_constraints(tiny_corpus_dir, cache, tmp_path):
+    """Under task.condition=no_lr the search is not asked to meet listener responses, so the checker's
+    report counts none (it used to count them from the global search.use_lr), while a control under the
+    default condition does count them on the same window."""
+    counts = {}
+    for cond in ("no_lr", "all"):
+        out = tmp_path / cond
+        out.mkdir()
+        run_task(cfg_for("synthesize", tiny_corpus_dir, cache, "preset=quality", f"task.condition={cond}"), out)
+        report = json.loads((out / "report.json").read_text())
+        counts[cond] = sum(d["kind"] == "LR" for r in report["characters"].values() if r["success"]
+                           for d in r["checker"]["details"])
+    assert counts["no_lr"] == 0 and counts["all"] > 0, counts
+
+
 def test_loo_sweep_collect_records_failures_and_figure_scripts(tiny_corpus_dir, cache, tmp_path):
     sweep = tmp_path / "multirun"
     for fold, cond in ((0, "all"), (0, "no_lr"), (0, "none"), (7, "all")):  # fold 7 does not exist: a failing job

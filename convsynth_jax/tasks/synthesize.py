@@ -92,7 +92,11 @@ def run(cfg, out_dir: Path) -> dict:
     params = params_of(cfg)
     system = make_configured_system(params)
     condition = task.condition or "all"
-    system.condition_options(condition)
+    # the condition's own constraint switches (e.g. no_lr turns LR off): the checker counts what the search
+    # was asked to meet, not the global search settings
+    cond_opts = system.condition_options(condition)
+    check_lr = bool(cond_opts.get("use_lr", params.search.use_lr))
+    check_hp = bool(cond_opts.get("use_hp", params.search.use_hp))
     corpus, ann = annotated_corpus(params)
     names = list(ann)
     session = task.session or names[task.fold]
@@ -157,8 +161,8 @@ def run(cfg, out_dir: Path) -> dict:
         if res.source_clip is not None:
             summary["source_frames"][char] = [[c, int(f)] for c, f in zip(res.source_clip, res.source_frame)]
             chk = check_path(list(res.source_clip), [int(f) for f in res.source_frame], clip_audio, win.own_segments,
-                             win.partner_segments, fps, params.search.tolerance, params.search.use_lr,
-                             params.search.use_hp, matching=params.search.matching, warp=res.diagnostics.get("warp"))
+                             win.partner_segments, fps, params.search.tolerance, check_lr,
+                             check_hp, matching=params.search.matching, warp=res.diagnostics.get("warp"))
             summary["constraints_total"][char] = chk["total"]
             summary["constraints_met"][char] = chk["met"]
             sc, sf = res.source_clip, res.source_frame

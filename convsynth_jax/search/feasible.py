@@ -514,7 +514,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     return (feas, ok, (kinds, nchg)) if stats else (feas, ok)
 
 
-def feasibility(prep, constraints: Constraints, padded_inputs, capacity="auto", stats: bool = False):
+def feasibility(prep, constraints: Constraints, padded_inputs, capacity=None, stats: bool = False):
     """((Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring), solvable
     (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs``: the window's
     ``beam_kernel.WindowInputs`` (reqs, pw, reset, check, paper), padded to Tp frames exactly as the beam

@@ -406,3 +406,27 @@ def test_same_rule_marks_frames_whose_arrival_rule_repeats(matching):
     got = np.asarray(same_rule(reqs, pw, reset, check, paper, paper is not None))
     np.testing.assert_array_equal(got, want)
     assert want.any() and not want.all()          # both kinds of frames occur in the window
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_changed_state_lookahead_equals_the_dense_pass_and_the_reference(matching):
+    """The changed-state look-ahead (feasible._feasible_kernel with SparseEdges) gives the dense pass's
+    bits and solvability bit for bit, and the slow reference's; with buffers so small that some frames
+    overflow into the dense pass and with buffers that hold every frame's changes."""
+    from convsynth_jax.search.beam import _prepare
+    from convsynth_jax.search.beam_kernel import padded_inputs
+    from convsynth_jax.search.feasible import SparseCapacity, feasibility
+
+    g, audio = hub_graph(np.random.default_rng(1))
+    own, par = input_from_clip(audio, "c1", 30)
+    cons = build_constraints(own, par, 30, FPS, SearchParams(max_degree=24, matching=matching))
+    prep, inp = _prepare(g, 24), padded_inputs(cons)
+    dense, ok_dense = feasibility(prep, cons, inp, None)
+    np.testing.assert_array_equal(np.asarray(dense)[:30, :g.num_states], _reference_lookahead(1, matching, g, cons))
+    kinds_seen = set()
+    for cap in (SparseCapacity(8, 8, 16, 64), SparseCapacity(256, 256, 512, 2048)):
+        got, ok, (kinds, nchg) = feasibility(prep, cons, inp, cap, stats=True)
+        np.testing.assert_array_equal(np.asarray(got), np.asarray(dense))
+        assert bool(ok) == bool(ok_dense)
+        kinds_seen |= set(np.asarray(kinds).tolist())
+    assert {0, 1} <= kinds_seen          # both the dense pass and the changed states ran

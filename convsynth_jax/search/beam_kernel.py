@@ -107,7 +107,7 @@ def _beam_kernel(key, graph: GraphArrays, inputs: WindowInputs, temp, num_frames
             valid &= jnp.where(check_t, f_new, True)
             key = cand * 2 + f_new.astype(jnp.int32)
         if prune:
-            valid &= ((feas[t][cand] >> f_new.astype(jnp.uint8)) & 1) == 1
+            valid &= ((feas[t, cand] >> f_new.astype(jnp.uint8)) & 1) == 1   # M entries, not a row of S
         noise = jax.lax.dynamic_slice(pool, (off_t,), (M,))
         score = jnp.where(valid, -c / temp + noise, -jnp.inf)
         # keep only the best candidate per (state, flags): same future, so the rest is redundant

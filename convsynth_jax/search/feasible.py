@@ -29,6 +29,7 @@ tests compare it with. Both return (T, S) uint8, bit f of [t, s] set iff (s, f) 
 """
 from __future__ import annotations
 
+import dataclasses
 from functools import partial
 from typing import NamedTuple
 
@@ -96,6 +97,61 @@ class LookaheadEdges(NamedTuple):
     src: tuple              # per width: (n_k,) int32 source states
     tgt: tuple              # per width: (n_k, w_k) int32 targets
     entry: np.ndarray       # (n,) int32
+    sparse: SparseEdges | None = None   # the changed-state look-ahead's lists (None: the dense pass only)
+
+
+@partial(jax.tree_util.register_dataclass, data_fields=["out_ptr", "out_tgt", "in_ptr", "in_src"],
+         meta_fields=["capacity"])
+@dataclasses.dataclass(frozen=True)
+class SparseEdges:
+    """The listed edges of :class:`LookaheadEdges` (the rows, not the original transitions) as two CSR
+    tables, for the changed-state look-ahead (:func:`_feasible_kernel` with ``sparse``): by source,
+    to recompute a state's OR over its edges, and by destination, to find the states whose OR may
+    change when a target's byte does. ``capacity`` (static): the fixed sizes of its per-frame buffers
+    (:class:`SparseCapacity`); a frame that would overflow one takes the dense pass."""
+
+    out_ptr: np.ndarray     # (S + 1,) int32: state x's listed targets are out_tgt[out_ptr[x] : out_ptr[x + 1]]
+    out_tgt: np.ndarray     # (E,) int32 (padded: entries past out_ptr[S] are never read)
+    in_ptr: np.ndarray      # (S + 1,) int32: state y's listed sources are in_src[in_ptr[y] : in_ptr[y + 1]]
+    in_src: np.ndarray      # (E,) int32
+    capacity: SparseCapacity
+
+
+class SparseCapacity(NamedTuple):
+    """Per-frame buffer sizes of the changed-state look-ahead (static)."""
+    changed: int     # states whose byte G changed from one frame to the next
+    arrivals: int    # states whose arrival byte A changed
+    sources: int     # their in-edge sources (the states whose byte is recomputed), duplicates included
+    edges: int       # the listed out-edges of those sources
+
+
+SPARSE_MIN_STATES = 1 << 17   # graphs of fewer (padded) states take the dense pass only (it is as fast there)
+
+
+def sparse_capacity(num_states: int) -> SparseCapacity | None:
+    """The default buffer sizes for a graph of ``num_states`` padded states: None (dense only) below
+    SPARSE_MIN_STATES, else 1/32 of the states changed per frame (a median of about 0.6% change on the
+    1M-frame graph, docs/scale.md), as many changed arrivals, twice as many sources, eight times as
+    many edges."""
+    if num_states < SPARSE_MIN_STATES:
+        return None
+    k = -(-num_states // 32 // 1024) * 1024
+    return SparseCapacity(k, k, 2 * k, 8 * k)
+
+
+def sparse_edges(src: np.ndarray, dst: np.ndarray, num_states: int, capacity: SparseCapacity) -> SparseEdges:
+    """:class:`SparseEdges` of the listed edges src -> dst (sorted by source) over ``num_states`` states.
+    Host NumPy."""
+    src = np.asarray(src, np.int64)
+    dst = np.asarray(dst, np.int64)
+    if src.size and np.bincount(src).max() >= 256:
+        raise ValueError("a state has 256 or more listed edges: the changed-state look-ahead counts them in bytes")
+    out_ptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=num_states))]).astype(np.int32)
+    o = np.argsort(dst, kind="stable")
+    in_ptr = np.concatenate([[0], np.cumsum(np.bincount(dst, minlength=num_states))]).astype(np.int32)
+    n = max(src.size + (-src.size % ROW_BUCKET), ROW_BUCKET)
+    pad = lambda x: np.concatenate([x, np.zeros(n - x.size, np.int32)]).astype(np.int32)  # noqa: E731
+    return SparseEdges(out_ptr, pad(dst), in_ptr, pad(src[o]), SparseCapacity(*map(int, capacity)))
 
 
 def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple):
@@ -127,7 +183,7 @@ def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple):
 
 def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np.ndarray, info: np.ndarray,
                     state_code: np.ndarray, num_states: int, codes=None,
-                    max_degree: int | None = None) -> LookaheadEdges:
+                    max_degree: int | None = None, capacity="auto") -> LookaheadEdges:
     """:class:`LookaheadEdges` of the kept edges in the beam's flat layout (``beam.kept_edges``: state
     s's edges are tgt/syn[first[s] : first[s] + deg[s]]), for S states of which those from
     ``num_states`` on are padding (the last one, S - 1, is where padded entries point). ``info``:
@@ -154,12 +210,16 @@ def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np
     m = ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET
     ent_p = np.full(m, pad_state, np.int32)
     ent_p[:ent.size] = ent
-    return LookaheadEdges(has_next, s_rows, t_rows, ent_p)
+    if isinstance(capacity, str):
+        capacity = sparse_capacity(S)
+    sparse = None if capacity is None else sparse_edges(src, dst, S, capacity)
+    return LookaheadEdges(has_next, s_rows, t_rows, ent_p, sparse)
 
 
-def pad_lookahead(e: LookaheadEdges, min_rows, min_entries: int) -> LookaheadEdges:
+def pad_lookahead(e: LookaheadEdges, min_rows, min_entries: int, min_edges: int | None = None) -> LookaheadEdges:
     """``e`` with each width's rows and the entry list padded (with the padding state, the last one)
-    to at least ``min_rows[k]`` / ``min_entries``: the lists of graphs that share one compiled kernel
+    to at least ``min_rows[k]`` / ``min_entries``, and the flat lists of its :class:`SparseEdges` to
+    ``min_edges`` entries: the lists of graphs that share one compiled kernel
     (``beam.share_shapes``), without building them again. Host NumPy."""
     pad_state = e.has_next.shape[0] - 1
 
@@ -167,8 +227,11 @@ def pad_lookahead(e: LookaheadEdges, min_rows, min_entries: int) -> LookaheadEdg
         extra = max(int(n) - x.shape[0], 0)
         return np.concatenate([x, np.full((extra,) + x.shape[1:], pad_state, x.dtype)]) if extra else x
 
+    sp = e.sparse
+    if sp is not None and min_edges is not None:
+        sp = dataclasses.replace(sp, out_tgt=grow(sp.out_tgt, min_edges), in_src=grow(sp.in_src, min_edges))
     return LookaheadEdges(e.has_next, tuple(grow(x, n) for x, n in zip(e.src, min_rows)),
-                          tuple(grow(x, n) for x, n in zip(e.tgt, min_rows)), grow(e.entry, min_entries))
+                          tuple(grow(x, n) for x, n in zip(e.tgt, min_rows)), grow(e.entry, min_entries), sp)
 
 
 def edge_or(A, src, tgt, S: int):
@@ -198,10 +261,30 @@ def same_rule(reqs, pw, reset, check, paper_arrs, paper: bool):
     return jnp.concatenate([same, jnp.zeros(1, bool)])
 
 
-@partial(jax.jit, static_argnames=("F", "paper"))
+def _expand(counts, cap: int):
+    """Slots 0..cap-1 over items with ``counts`` (n,) entries each, item after item: (item of each slot,
+    rank of the slot within its item, slot in use, total count). Operators only (no sort)."""
+    offs = jnp.cumsum(counts) - counts
+    total = jnp.sum(counts)
+    slots = jnp.arange(cap, dtype=jnp.int32)
+    item = jax.lax.cummax(jnp.full(cap, -1, jnp.int32).at[offs].max(jnp.arange(counts.shape[0], dtype=jnp.int32),
+                                                                     mode="drop"))
+    item = jnp.maximum(item, 0)
+    return item, slots - offs[item], slots < total, total
+
+
+def _compact(values, keep, cap: int, fill: int):
+    """(the ``values`` where ``keep``, in order, in a (cap,) buffer padded with ``fill``; their count)."""
+    pos = jnp.where(keep, jnp.cumsum(keep) - 1, cap)
+    return jnp.full(cap, fill, values.dtype).at[pos].set(values, mode="drop"), jnp.sum(keep, dtype=jnp.int32)
+
+
+@partial(jax.jit, static_argnames=("F", "paper", "stats"))
 def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs, num_frames, num_states, F: int,
-                     paper: bool):
-    """((Tp, S) uint8 bit masks, solvable); see the module docstring. The frames from num_frames - 1 on
+                     paper: bool, stats: bool = False):
+    """((Tp, S) uint8 bit masks, solvable); see the module docstring. ``stats``: also return per frame
+    (how it was computed (Tp,) int32: -1 padding, 0 dense pass, 1 changed states, 2 fixed point;
+    the number of states whose byte changed (Tp,) int32), for the benchmarks. The frames from num_frames - 1 on
     are all ones; solvable: some start state (``rules.start_rule``) with its frame-0 flags is completable.
     ``edges``: :class:`LookaheadEdges` (device arrays; for ``paper`` built with the window's codes).
     The last state must be a padding state.
@@ -224,9 +307,19 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
       over the graph (a rule applied to its own fixed point gives it back). Unconstrained stretches of
       a window cost one comparison per frame once their bits settle; the bits are unchanged.
 
+    Changed states (``edges.sparse`` set: :class:`SparseEdges`): when frame t's table of the common rule
+    equals frame t + 1's, A[t] differs from A[t + 1] only at the states whose byte G changed between
+    the two frames (the table looks them up anew) and at entry states (their full rule is computed
+    every frame, as in the dense pass). Then only the in-edge sources of the states whose A changed
+    (their CSR by destination, and x - 1 for the original transition) can change their byte; each is
+    recomputed from its own out-edges (CSR by source) and the states whose byte changed are carried
+    to the next frame. The buffers have fixed sizes (``SparseEdges.capacity``); a frame whose table
+    changes, that follows an overflow, or whose lists would overflow takes the dense pass, which also
+    lists its changed states for the next frame. Both give the same bytes.
+
     The scan runs backwards (``reverse=True``) so each frame's row lands in place in the (Tp, S) table."""
 
-    has_next, src, tgt, entry = edges
+    has_next, src, tgt, entry, sparse = edges
     own_y, par_y, peak_y = unpack_code(state_code)
     S = state_code.shape[0]
     u8 = jnp.uint8
@@ -246,8 +339,8 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     lut_index = (state_code & 511) << F
     same_op = same_rule(reqs, pw, reset, check, paper_arrs, paper)
 
-    def rule(G_next, t):
-        """G[t - 1] of G[t] = G_next by the arrival rule of frame t."""
+    def frame_table(t):
+        """The common arrival rule of frame t as a (512 * 2^F,) table: code's low 9 bits << F | G[t][y]."""
         req_t = tuple(r[t] for r in reqs)
         if paper:
             oa, pa = EntryWindows(*(a[t] for a in own_a)), EntryWindows(*(a[t] for a in par_a))
@@ -268,55 +361,173 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
                     A |= okf.astype(u8) << f
             return jnp.where(label_ok(own, par, req_t), A, u8(0))
 
-        table = plain(c_own, c_par, c_peak, c_g).reshape(-1)
+        return plain(c_own, c_par, c_peak, c_g).reshape(-1)
+
+    def entry_rule(G_next, t):
+        """(n,) the arrival bytes of the entry states at frame t (``paper``: the full rule,
+        constraints.paper_channel_step)."""
+        req_t = tuple(r[t] for r in reqs)
+        oa, pa = EntryWindows(*(a[t] for a in own_a)), EntryWindows(*(a[t] for a in par_a))
+        Ge = G_next[entry]
+        ok_o, go = paper_channel_step(own_e, info_e[..., 0], info_e[..., 1], own_e, info_e[..., 0],
+                                      info_e[..., 1], info_e[..., 2], no, no, t, two, oa, codes[0], tol)  # (n, 2)
+        ok_p, gp = paper_channel_step(par_e, info_e[..., 3], info_e[..., 4], par_e, info_e[..., 3],
+                                      info_e[..., 4], -1, no, no, t, two, pa, codes[1], tol)
+        Ae = jnp.zeros(entry.shape[0], u8)
+        for f in range(F):
+            g1 = go[:, f & 1].astype(u8) | (gp[:, f >> 1].astype(u8) << 1)
+            okf = ok_o[:, f & 1] & ok_p[:, f >> 1] & (((Ge >> g1) & 1) == 1)
+            Ae |= okf.astype(u8) << f
+        return jnp.where(label_ok(own_e[:, 0], par_e[:, 0], req_t), Ae, u8(0))
+
+    def arrival(G_next, t, table):
+        """(S,) the arrival bytes A of frame t from G[t] = G_next, by the frame's table and entry rule."""
         A = table[lut_index | G_next.astype(jnp.int32)]
-        if paper:   # the entry states: the full rule (constraints.paper_channel_step), gathered and scattered back
-            Ge = G_next[entry]
-            ok_o, go = paper_channel_step(own_e, info_e[..., 0], info_e[..., 1], own_e, info_e[..., 0],
-                                          info_e[..., 1], info_e[..., 2], no, no, t, two, oa, codes[0], tol)  # (n, 2)
-            ok_p, gp = paper_channel_step(par_e, info_e[..., 3], info_e[..., 4], par_e, info_e[..., 3],
-                                          info_e[..., 4], -1, no, no, t, two, pa, codes[1], tol)
-            Ae = jnp.zeros(entry.shape[0], u8)
-            for f in range(F):
-                g1 = go[:, f & 1].astype(u8) | (gp[:, f >> 1].astype(u8) << 1)
-                okf = ok_o[:, f & 1] & ok_p[:, f >> 1] & (((Ge >> g1) & 1) == 1)
-                Ae |= okf.astype(u8) << f
-            Ae = jnp.where(label_ok(own_e[:, 0], par_e[:, 0], req_t), Ae, u8(0))
-            A = A.at[entry].set(Ae)
-        A = A.at[last].set(0)                                             # the padding state of missing edges
+        if paper:   # the entry states: the full rule, gathered and scattered back
+            A = A.at[entry].set(entry_rule(G_next, t))
+        return A.at[last].set(0)                                          # the padding state of missing edges
+
+    def propagate(A):
+        """G[t - 1] of the arrival bytes A of frame t: the shift and the OR over the dense rows."""
         # materialized once per frame: else XLA may fuse the rule into the edge gathers (per edge)
         A = jax.lax.optimization_barrier(A)
         G = edge_or(A, src, tgt, S)
-        G = G | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
-        return G
+        return G | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
+
+    valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
+
+    if sparse is None:
+        def step(carry, t):
+            G_next, still = carry     # G[t + 1]; still: G[t + 1] == G[t + 2], computed by frame t + 2's rule
+            u = jnp.minimum(t + 1, Tp - 1)                                # the arrival frame
+            pad = t >= num_frames - 1
+            # a rule applied to its own fixed point gives it back: no pass over the graph
+            skip = pad | (still & same_op[u])
+            G = jax.lax.cond(skip, lambda g: jnp.where(pad, all_ones, g),
+                             lambda g: propagate(arrival(g, u, frame_table(u))), G_next)
+            out = G
+            if stats:
+                out = (G, jnp.where(pad, -1, jnp.where(skip, 2, 0)), jnp.sum(G != G_next, dtype=jnp.int32))
+            return (G, ~pad & (skip | jnp.all(G == G_next))), out
+
+        # reverse=True: frame t's row is written at t (no reversed copy of the (Tp, S) table)
+        _, feas = jax.lax.scan(step, (jnp.full(S, all_ones), jnp.bool_(False)), jnp.arange(Tp, dtype=jnp.int32),
+                               reverse=True)
+        if stats:
+            feas, info_out = feas[0], feas[1:]
+        ok = jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
+        return (feas, ok, info_out) if stats else (feas, ok)
+
+    cap = sparse.capacity
+    K, KA, KX, KE = cap.changed, cap.arrivals, cap.sources, cap.edges
+    tables = jax.vmap(frame_table)(jnp.arange(Tp, dtype=jnp.int32))       # (Tp, 512 * 2^F)
+    same_table = jnp.concatenate([jnp.all(tables[:-1] == tables[1:], axis=1), jnp.zeros(1, bool)])
+    bit_lane = (jnp.uint32(1) << (8 * fl).astype(jnp.uint32))             # bit f of a byte -> byte lane f
+    hn_prev = jnp.concatenate([jnp.zeros(1, bool), has_next[:-1]])        # y - 1 reaches y by its original transition
+    in_deg = jnp.diff(sparse.in_ptr)
+    out_deg = jnp.diff(sparse.out_ptr)
+
+    def dense(carry, u, want_list):
+        G_next = carry[0]
+        A = arrival(G_next, u, tables[u])
+        G = propagate(A)
+        changed = G != G_next
+        lst, n = jax.lax.cond(want_list, lambda: _compact(jnp.arange(S, dtype=jnp.int32), changed, K, S),
+                              lambda: (jnp.full(K, S, jnp.int32), jnp.sum(changed, dtype=jnp.int32)))
+        return G, A, lst, n, want_list & (n <= K), carry[5], n, jnp.int32(0)
+
+    def sparse_step(carry, u):
+        """(G[t], A, changed list, count, list usable, stamps, count, 1) from the carried changes."""
+        G_next, A_next, lst, n, _, stamp = carry
+        live = jnp.arange(K) < n
+        yc = jnp.where(live, lst, last)
+        A = A_next.at[yc].set(jnp.where(live, tables[u][lut_index[yc] | G_next[yc].astype(jnp.int32)], u8(0)))
+        if paper:
+            A = A.at[entry].set(entry_rule(G_next, u))
+            A = A.at[last].set(0)
+            Y = jnp.concatenate([yc, entry])
+            moved = jnp.concatenate([live, jnp.ones(entry.shape[0], bool)])
+        else:
+            Y, moved = yc, live
+        moved &= A[Y] != A_next[Y]
+        ya, na = _compact(Y, moved, KA, last)                             # the states whose arrival byte changed
+        okA = na <= KA
+        # their in-edge sources: the listed ones (CSR by destination) and y - 1 by its original transition
+        cnt = jnp.where(jnp.arange(KA) < na, in_deg[ya] + hn_prev[ya], 0)
+        item, rank, used, nx = _expand(cnt, KX)
+        y = ya[item]
+        x = jnp.where(rank < in_deg[y], sparse.in_src[jnp.minimum(sparse.in_ptr[y] + rank, sparse.in_src.shape[0] - 1)],
+                      y - 1)
+        x = jnp.where(used, x, last)
+        slots = jnp.arange(KX, dtype=jnp.int32)
+        stamp = stamp.at[x].set(slots)                                    # one slot of each distinct source wins
+        uniq = used & (stamp[x] == slots)
+        # each distinct source's byte anew: the OR over its listed out-edges (CSR by source) and the shift
+        ocnt = jnp.where(uniq, out_deg[x], 0)
+        oitem, orank, oused, ne = _expand(ocnt, KE)
+        xo = x[oitem]
+        a = A[sparse.out_tgt[jnp.minimum(sparse.out_ptr[xo] + orank, sparse.out_tgt.shape[0] - 1)]]
+        lanes = jnp.zeros(KE, jnp.uint32)
+        for f in range(F):
+            lanes |= jnp.where(((a >> f) & 1) == 1, bit_lane[f], 0)
+        lanes = jnp.where(oused, lanes, 0)
+        counts = jax.ops.segment_sum(lanes, oitem, num_segments=KX, indices_are_sorted=True)
+        Gx = jnp.zeros(KX, u8)
+        for f in range(F):
+            Gx |= (((counts >> (8 * f)) & 255) > 0).astype(u8) << f
+        Gx |= jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
+        changed = uniq & (Gx != G_next[x])
+        G = G_next.at[jnp.where(uniq, x, S)].set(Gx, mode="drop")
+        lst2, n2 = _compact(x, changed, K, S)
+        ok = okA & (nx <= KX) & (ne <= KE)
+        return G, A, lst2, n2, n2 <= K, stamp, n2, jnp.int32(1), ok
 
     def step(carry, t):
-        G_next, still = carry     # G[t + 1]; still: G[t + 1] == G[t + 2], computed by frame t + 2's rule
-        u = jnp.minimum(t + 1, Tp - 1)                                    # the arrival frame
+        # carry: G[t + 1], A of frame t + 2, the states whose G changed from t + 2 to t + 1 (list, count,
+        # usable), stamps (a scratch for de-duplication), still (G[t + 1] == G[t + 2], frame t + 2's rule)
+        G_next, A_next, lst, n, usable, stamp, still = carry
+        u = jnp.minimum(t + 1, Tp - 1)
         pad = t >= num_frames - 1
-        # a rule applied to its own fixed point gives it back: no pass over the graph
         skip = pad | (still & same_op[u])
-        G = jax.lax.cond(skip, lambda g: jnp.where(pad, all_ones, g), lambda g: rule(g, u), G_next)
-        return (G, ~pad & (skip | jnp.all(G == G_next))), G
+        want_list = same_table[jnp.maximum(u - 1, 0)] & (u > 0)          # the next frame can use the list
+        go_sparse = usable & same_table[u]
+        inner = carry[:6]
 
-    # reverse=True: frame t's row is written at t (no reversed copy of the (Tp, S) table)
-    _, feas = jax.lax.scan(step, (jnp.full(S, all_ones), jnp.bool_(False)), jnp.arange(Tp, dtype=jnp.int32),
-                           reverse=True)
-    valid0, flag0 = start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
-    return feas, jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
+        def computed(c):
+            def try_sparse(c):
+                out = sparse_step(c, u)
+                return jax.lax.cond(out[-1], lambda: out[:-1], lambda: dense(c, u, want_list))
+            return jax.lax.cond(go_sparse, try_sparse, lambda c: dense(c, u, want_list), c)
+
+        def skipped(c):
+            G = jnp.where(pad, all_ones, c[0])
+            return G, c[1], c[2], jnp.int32(0), ~pad, c[5], jnp.int32(0), jnp.int32(2)
+
+        G, A, lst2, n2, usable2, stamp2, nchg, kind = jax.lax.cond(skip, skipped, computed, inner)
+        still2 = ~pad & (skip | (nchg == 0))
+        return (G, A, lst2, n2, usable2, stamp2, still2), (G, jnp.where(pad, -1, kind), nchg)
+
+    init = (jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.full(K, S, jnp.int32), jnp.int32(0), jnp.bool_(False),
+            jnp.zeros(S, jnp.int32), jnp.bool_(False))
+    _, (feas, kinds, nchg) = jax.lax.scan(step, init, jnp.arange(Tp, dtype=jnp.int32), reverse=True)
+    ok = jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
+    return (feas, ok, (kinds, nchg)) if stats else (feas, ok)
 
 
-def feasibility(prep, constraints: Constraints, padded_inputs):
+def feasibility(prep, constraints: Constraints, padded_inputs, capacity=None, stats: bool = False):
     """((Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring), solvable
     (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs``: the window's
     ``beam_kernel.WindowInputs`` (reqs, pw, reset, check, paper), padded to Tp frames exactly as the beam
-    kernel gets them."""
+    kernel gets them. ``capacity``: the changed-state buffers (:func:`lookahead_edges`; None: the dense
+    pass only); ``stats``: also the per-frame statistics of :func:`_feasible_kernel`."""
     c = constraints
-    edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
+    edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes), capacity)
+    static = {"F": num_flags(c), "paper": c.paper is not None}
+    if stats:
+        static["stats"] = True
     return kernel_cache.call(_feasible_kernel, "feasible",
                              (edges, prep.device.state_code, prep.paper_device.segment_info, *padded_inputs,
-                              np.int32(c.num_frames), np.int32(prep.num_states)),
-                             {"F": num_flags(c), "paper": c.paper is not None})
+                              np.int32(c.num_frames), np.int32(prep.num_states)), static)
 
 
 def solvable(bits0, start_ok, flag0) -> bool:

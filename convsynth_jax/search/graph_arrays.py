@@ -100,21 +100,27 @@ class PreparedGraph:
         e = self.first[src] + rank
         return self.cost[e], self.syn[e]
 
-    def lookahead_edges(self, codes=None):
+    def lookahead_edges(self, codes=None, capacity=None):
         """The look-ahead's edge lists (feasible.LookaheadEdges, device arrays) for a ``paper`` window
-        with (own codes, partner codes), or for ``labels`` (None); built once per codes."""
-        key = None if codes is None else (int(codes[0]), int(codes[1]))
+        with (own codes, partner codes), or for ``labels`` (None); built once per codes. ``capacity``:
+        the changed-state look-ahead's buffers (``feasible.lookahead_edges``; "auto": by the graph's
+        size; None, the default: the dense pass only, which is still the faster one on the 1M-frame
+        graph, docs/scale.md)."""
+        key = (None if codes is None else (int(codes[0]), int(codes[1])), capacity)
         if key not in self._edges:
             e = self.own_lookahead_edges(key)
             if self.peers:   # a group sharing one compiled kernel: every member's lists, padded alike
                 own = [p.own_lookahead_edges(key) for p in self.peers]
                 rows = [max(x.src[k].shape[0] for x in own) for k in range(len(e.src))]
-                e = pad_lookahead(e, rows, max(x.entry.shape[0] for x in own))
+                flat = None if e.sparse is None else max(x.sparse.out_tgt.shape[0] for x in own)
+                e = pad_lookahead(e, rows, max(x.entry.shape[0] for x in own), flat)
             self._edges[key] = jax.tree.map(jax.device_put, e)
         return self._edges[key]
 
     def own_lookahead_edges(self, key):
-        """This graph's look-ahead lists for ``key`` on its own (host arrays, built once per key)."""
+        """This graph's look-ahead lists for ``key`` = (codes, capacity) on its own (host arrays, built
+        once per key)."""
         if key not in self._own_edges:
-            self._own_edges[key] = lookahead_edges(*self.host, self.num_states, key, max_degree=self.kernel_degree)
+            self._own_edges[key] = lookahead_edges(*self.host, self.num_states, key[0], max_degree=self.kernel_degree,
+                                                   capacity=key[1])
         return self._own_edges[key]

@@ -31,6 +31,8 @@ from pathlib import Path
 import numpy as np
 from _bench import REPO, SHARED, write, write_markdown
 
+# the shared data folder: CONVSYNTH_SHARED (as the tests read it) or the one beside the repository
+SHARED_DATA = Path(os.environ["CONVSYNTH_SHARED"]) / "data" if os.environ.get("CONVSYNTH_SHARED") else SHARED
 GOALS = {"construction_1m_s": 600.0, "peak_rss_mb": 8192.0, "warm_search_s": 1.0}
 
 
@@ -52,7 +54,7 @@ def make_db(frames: int, folder: Path) -> dict:
     from convsynth_jax.graph.scale_db import ScaleDBParams, make_scale_database
     from convsynth_jax.graph.store import save_database
 
-    root = SHARED / "bandai2" / "bvh"
+    root = SHARED_DATA / "bandai2" / "bvh"
     t = time.perf_counter()
     db = make_scale_database(ScaleDBParams(frames=frames, seed=0, bandai_root=str(root) if root.is_dir() else None))
     save_database(db, folder)

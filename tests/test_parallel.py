@@ -62,3 +62,54 @@ def test_worker_count_rules(monkeypatch):
         resolve_workers(None, 10)
     with pytest.raises(ValueError, match="at least 1"):
         resolve_workers(0, 10)
+
+
+def test_main_module_that_cannot_be_imported_again(monkeypatch):
+    import sys
+    import types
+    import warnings
+
+    from convsynth_jax import parallel
+
+    monkeypatch.setattr(parallel, "_WARNED", set())
+    stdin = types.ModuleType("__main__")
+    stdin.__file__ = "<stdin>"          # python - <<EOF
+    monkeypatch.setitem(sys.modules, "__main__", stdin)
+    assert "<stdin>" in parallel.spawn_unavailable(len)
+    with pytest.warns(RuntimeWarning, match="in this process"):
+        assert ordered_map(abs, [-1, -2, 3], workers=3, min_items=1) == [1, 2, 3]
+    with warnings.catch_warnings():      # one warning per reason and process
+        warnings.simplefilter("error", RuntimeWarning)
+        assert ordered_map(abs, [-4, 5], workers=2, min_items=1) == [4, 5]
+        assert ordered_map(abs, [-6], workers=1) == [6]   # workers=1: in this process, never a warning
+    no_file = types.ModuleType("__main__")   # python -c, an interactive session: library functions spawn fine
+    monkeypatch.setitem(sys.modules, "__main__", no_file)
+    assert parallel.spawn_unavailable(abs) is None
+    fn = functools.partial(lambda x: x, 1)
+    fn.func.__module__ = "__main__"      # ... but a function of that main module cannot be found there
+    assert "without a file" in parallel.spawn_unavailable(functools.partial(fn))
+
+
+# a script read from standard input: the worker processes could not import it again
+STDIN_SCRIPT = """
+import sys, warnings
+from convsynth_jax.data import make_synthetic_corpus
+with warnings.catch_warnings(record=True) as seen:
+    warnings.simplefilter("always")
+    out = make_synthetic_corpus(sys.argv[1], {"num_sessions": 2, "session_seconds": 10.0}, workers=2)
+print(len(list(out.iterdir())), sum(issubclass(w.category, RuntimeWarning) and "in this process" in str(w.message)
+                                    for w in seen))
+"""
+
+
+def test_script_on_standard_input_generates_the_corpus(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "CONVSYNTH_WORKERS": "2"}
+    run = subprocess.run([sys.executable, "-", str(tmp_path / "c")], input=STDIN_SCRIPT, text=True,
+                         capture_output=True, env=env, cwd=tmp_path, timeout=300)
+    assert run.returncode == 0, run.stderr[-3000:]
+    files, warned = run.stdout.split()
+    assert int(files) == 2 * 6 + 3 and int(warned) == 1

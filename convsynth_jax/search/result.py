@@ -1,6 +1,7 @@
-"""The result of a search."""
+"""The result of a search, and the sentences that explain a failure."""
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -61,3 +62,48 @@ def failure_reason(constraints, frame, method: str) -> str:
     mode = "paper" if getattr(constraints, "paper", None) is not None else "labels"
     return (f"{method} search ({mode} matching): no path satisfies the {seg.get('kind', '?')} constraint at "
             f"output frames {seg.get('start')}-{seg.get('end', '?')} (every candidate died at frame {frame})")
+
+
+# The last sentence of every failure under the paper's rule (``search.on_failure=fail``): what would
+# make motion for the window. Per kind of the constraint at which the search died: the condition of
+# ``conf/system/motion_graph.yaml`` that leaves that kind out (None: only ``none``, no audio constraint).
+NEXT_STEP = "To make motion for this window"
+DROPPED_BY = {"LR": ("listener responses", "no_lr"), "HP": ("partner hesitations", "no_hp"),
+              "PH": ("partner hesitations", "no_hp")}
+
+
+def next_step(params, failed_segment: dict | None = None) -> str | None:
+    """The sentence ending a failure under the paper's rule (None under best effort, which has made
+    what motion there is): ``preset=quality`` (best effort), or leaving out the failed constraint's kind."""
+    if str(getattr(params, "on_failure", "fail")) == "best_effort":
+        return None
+    kind = (failed_segment or {}).get("kind")
+    if kind in DROPPED_BY:
+        what, condition = DROPPED_BY[kind]
+        drop = f"leaving the {what} out (condition {condition}) may solve it under the paper's rule"
+    else:
+        drop = ("under the paper's rule only the condition none (no audio constraint) leaves "
+                f"{'the ' + kind + ' constraints' if kind in ('PC', 'idle') else 'this constraint'} out")
+    return (f"{NEXT_STEP}: preset=quality (ours: search.on_failure=best_effort keeps the path that meets the most "
+            f"constraints, with retiming) makes motion for it; {drop}.")
+
+
+def with_next_step(res: SearchResult, params) -> SearchResult:
+    """``res`` with :func:`next_step` ending its failure text (once; unchanged on success)."""
+    if res.success or not res.failure or NEXT_STEP in res.failure:
+        return res
+    hint = next_step(params, res.failed_segment)
+    if hint is not None:
+        res.failure = f"{res.failure}. {hint}"
+    return res
+
+
+def explained(search):
+    """A search function (graph, constraints, params, seed=..., **kw) -> SearchResult whose failures
+    end with :func:`next_step`: the form every caller of a registered search gets
+    (``synth/pipeline.py: SEARCHES``)."""
+    @functools.wraps(search)
+    def run(graph, constraints, params, *args, **kwargs):
+        return with_next_step(search(graph, constraints, params, *args, **kwargs), params)
+    run.unexplained = search
+    return run

@@ -18,6 +18,7 @@ from ..search.constraints import build_constraints
 from ..search.dfs import stochastic_greedy_search
 from ..search.params import SearchParams
 from ..search.relax import best_effort_search, check_on_failure
+from ..search.result import explained, next_step
 from ..search.retime import retime_knots
 from .blinks import blink_curve, blink_times
 from .params import SynthParams
@@ -27,8 +28,9 @@ from .retime import warp_motion
 log = logging.getLogger(__name__)
 
 CHAIRS = {0: ((0.0, 0.0, -60.0), 0.0), 1: ((0.0, 0.0, 60.0), 180.0)}
-# search.method -> search function (graph, constraints, SearchParams, seed) -> SearchResult
-SEARCHES = {"beam": beam_search, "dfs": stochastic_greedy_search}
+# search.method -> search function (graph, constraints, SearchParams, seed) -> SearchResult; a failure
+# under the paper's rule ends with what would make motion (search/result.py: next_step)
+SEARCHES = {"beam": explained(beam_search), "dfs": explained(stochastic_greedy_search)}
 
 
 @dataclass
@@ -70,16 +72,17 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     if not res.success and on_failure == "best_effort":
         log.info("no path meets every constraint (%s); best effort", res.failure)
         first = res.seconds
-        res = best_effort_search(SEARCHES[method], graph, own_segments, partner_segments, num_frames, fps, search,
-                                 seed=seed)
+        plain = getattr(SEARCHES[method], "unexplained", SEARCHES[method])   # its failures are not the user's
+        res = best_effort_search(plain, graph, own_segments, partner_segments, num_frames, fps, search, seed=seed)
         res.seconds += first
         if res.success:
             cons = build_constraints(own_segments, partner_segments, num_frames, fps, search,
                                      relaxed=frozenset(res.relaxed))
     if not res.success:
         seg = res.failed_segment or {}
-        why = res.failure or (f"no path satisfies the {seg.get('kind', '?')} constraint at frames "
-                              f"{seg.get('start')}-{seg.get('end')}")
+        why = res.failure or " ".join(x for x in (f"no path satisfies the {seg.get('kind', '?')} constraint at "
+                                                   f"frames {seg.get('start')}-{seg.get('end')}.",
+                                                   next_step(search, seg)) if x)
         return SynthesisResult(False, constraints_total=cons.total, search_seconds=res.seconds, failure=why,
                                method=method)
     path = res.path

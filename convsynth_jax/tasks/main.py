@@ -319,15 +319,21 @@ def _paper_sections(out_dir: Path, table1, graph_stats, timing, rates, co, cases
 
 
 def _pick_window(cases: pd.DataFrame, conditions) -> tuple:
-    """(condition, window index) to render: the first window that leave-one-out solved for at least
-    one character, in the order of ``conditions`` (the first condition, window 0 when nothing was
-    solved)."""
-    ok = cases[cases["success"].fillna(False).astype(bool)] if "success" in cases else cases.iloc[:0]
-    for cond in conditions:
-        hit = ok[ok["condition"] == cond]
-        if len(hit):
-            return cond, int(hit["window"].min())
-    return conditions[0], 0
+    """(condition, window index, solved for every character) to render: the first window that
+    leave-one-out solved for every character, in the order of ``conditions``; else the first solved
+    for at least one; else the first condition's window 0."""
+    if "success" not in cases or cases.empty:
+        return conditions[0], 0, False
+    ok = cases.assign(success=cases["success"].fillna(False).astype(bool))
+    n_chars = ok["character"].nunique() if "character" in ok else 1
+    for need_all in (True, False):
+        for cond in conditions:
+            per = ok[ok["condition"] == cond].groupby("window")["success"]
+            hit = per.sum()
+            hit = hit[hit >= n_chars] if need_all else hit[hit > 0]
+            if len(hit):
+                return cond, int(hit.index.min()), need_all
+    return conditions[0], 0, False
 
 
 def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, params, out_dir: Path) -> list[str]:
@@ -347,13 +353,13 @@ def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, pa
     held_out = list(annotations)[fold]
     held = annotations[held_out]
     fps = float(params.fps)
-    condition, index = _pick_window(cases, list(conditions))
+    condition, index, _ = _pick_window(cases, list(conditions))
     windows = session_windows(held, fps, params.loo.window, params.loo.hop, index + 1)
     if not windows:
         return []
     w = windows[min(index, len(windows) - 1)]
     f0 = int(round(w.start * fps))
-    synth, truth, lines = [], [], []
+    synth, truth, lines, missing = [], [], [], []
     for k, (role, ann) in enumerate(held.items()):
         seed = derive_seed(params.seed, fold=fold, condition=condition, session=held_out, window_frame=f0, role_index=k)
         win = window_input(held, role, w, fps, seed)
@@ -361,13 +367,20 @@ def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, pa
         truth.append(track_from_motion(ann.motion.slice(f0, f0 + win.num_frames), ann.character))
         if res.success:
             synth.append(track_from_motion(res.motion, ann.character, () if res.synthetic_at is None else tuple(res.synthetic_at)))
+        else:
+            missing.append((ann.character, res.failure or "no motion"))
         lines.append(Timeline(f"{ann.character} audio", win.own_segments))
     if not synth:
         return ["## Rendering", "", f"_(no character was synthesized in window {index} under `{condition}`)_", ""]
-    panels = [Panel(f"synthesized ({condition})", tuple(synth)), Panel("ground truth", tuple(truth))]
+    title = f"synthesized ({condition})" + "".join(f"\nno {c}: failed" for c, _ in missing)
+    panels = [Panel(title, tuple(synth)), Panel("ground truth", tuple(truth))]
     anim = render_animation(panels, lines, fps, out_dir / "window.gif", render_fps=task.render_fps)
     sheet = contact_sheet(panels, lines, fps, out_dir / "window_contact_sheet.png")
     log.info("rendered %s in %.1f s", anim, time.perf_counter() - t0)
     return [f"## Rendering: {held_out}, {w.start:.0f}-{w.end:.0f} s, condition `{condition}`", "",
             f"Synthesized (left) and ground truth (right); red: within 3 frames of a synthetic transition. "
-            f"Animation: [{anim.name}]({anim.name}).", "", f"![contact sheet]({sheet.name})", ""]
+            f"Animation: [{anim.name}]({anim.name}).", "",
+            *([f"No window of this session was solved for every character; here only "
+               f"{', '.join(t.name for t in synth)} is synthesized."] if missing else []),
+            *[f"- **{c} not synthesized:** {why}" for c, why in missing], *([""] if missing else []),
+            f"![contact sheet]({sheet.name})", ""]

@@ -307,3 +307,22 @@ def test_only_motion_graph_systems(tiny_corpus_dir, cache, inputs, tmp_path):
     with pytest.raises(ConfigError, match="system=motion_graph"):
         run_task(converse_cfg(tiny_corpus_dir, cache, inputs, "system=random_playback"), tmp_path)
 
+
+
+@pytest.mark.parametrize("seed", range(2))
+def test_lookahead_from_start_states_agrees_with_the_kernel(seed):
+    """beam.lookahead(start_states=...): solvable from the allowed states exactly when the beam's own
+    look-ahead program (which masks its frame-0 states) says so; best effort relaxes from them."""
+    from convsynth_jax.search.beam import _beam_search_once, lookahead
+
+    rng = np.random.default_rng(seed)
+    g, audio = hub_graph(rng)
+    own, par = input_from_clip(audio, f"c{seed}", 40)
+    cfg = SearchParams(beam_size=32, max_candidates=512, max_degree=24, retry_temperatures=[], retry_beam_size=0)
+    cons = build_constraints(own, par, 40, FPS, cfg)
+    assert lookahead(g, cons, cfg.max_degree)[1]
+    for s in rng.choice(g.num_states, 12, replace=False):
+        ok = lookahead(g, cons, cfg.max_degree, [int(s)])[1]
+        _, _, kernel_ok = _beam_search_once(g, cons, cfg, seed, cfg.temperature, lookahead=True, start_states=[int(s)])
+        assert ok == kernel_ok
+    assert not lookahead(g, cons, cfg.max_degree, np.zeros(0, np.int64))[1]

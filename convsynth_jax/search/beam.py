@@ -39,6 +39,7 @@ from __future__ import annotations
 
 import dataclasses
 import time
+from functools import partial
 
 import jax
 import numpy as np
@@ -48,12 +49,12 @@ from ..errors import ConfigError, GraphError
 from .beam_kernel import (FRAME_BUCKET, PaperInputs, WindowInputs, _beam_kernel,  # noqa: F401  (re-exported)
                           _lookahead_beam_kernel, noise, padded_inputs, prng_key, sizes)
 from .constraints import Constraints, constrained, median_synthetic_cost, segment_info
-from .feasible import feasibility, num_flags
+from .feasible import feasibility, num_flags, solvable
 from .graph_arrays import (CODE_BITS, GraphArrays, HostGraph, PaperGraphArrays, PreparedGraph,  # noqa: F401
                            kept_degrees, kept_edges, state_codes)
 from .params import SearchParams
 from .result import SearchResult, failed_segment_at, failure_reason
-from .rules import unpack_code  # noqa: F401  (re-exported)
+from .rules import start_rule, unpack_code  # noqa: F401  (unpack_code re-exported)
 
 STATE_BUCKET = 4096  # graphs are padded to a multiple of this many states, so LOO folds share compiles
 
@@ -134,13 +135,29 @@ def share_shapes(graphs, max_degree: int) -> None:
         object.__setattr__(p, "peers", tuple(preps))
 
 
-def lookahead(graph, constraints: Constraints, max_degree: int):
+def lookahead(graph, constraints: Constraints, max_degree: int, start_states=None):
     """(feas (Tp, S_pad) uint8 device array, solvable): the look-ahead of ``search.lookahead``
     (:mod:`convsynth_jax.search.feasible`) over the beam's edge set (each state's ``max_degree``
-    cheapest out-edges) and whether any start state can complete the window."""
+    cheapest out-edges) and whether any start state can complete the window. ``start_states``: the
+    allowed frame-0 states (None: any), as the searches take them (a chained window continues the
+    previous one's path); solvable then asks for a completable one among them."""
     prep = _prepare(graph, max_degree)
-    feas, ok = feasibility(prep, constraints, padded_inputs(constraints))
-    return feas, bool(ok)
+    inputs = padded_inputs(constraints)
+    feas, ok = feasibility(prep, constraints, inputs)
+    if start_states is None or not bool(ok):
+        return feas, bool(ok)
+    paper = constraints.paper is not None
+    valid0, flag0 = _start_rule(prep.device.state_code, prep.paper_device.segment_info, inputs.reqs,
+                                inputs.peak_window, inputs.peak_check, inputs.paper, np.int32(graph.num_states),
+                                paper=paper)
+    allowed = start_mask(graph, prep.device.state_code.shape[0], start_states) & np.asarray(valid0)
+    return feas, solvable(np.asarray(feas[0]), allowed, np.asarray(flag0).astype(np.uint8))
+
+
+@partial(jax.jit, static_argnames=("paper",))
+def _start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper: bool):
+    """(valid (S,), flags (S,)) of every state as a frame-0 state (``rules.start_rule``, jitted)."""
+    return start_rule(state_code, info, reqs, pw, check, paper_arrs, num_states, paper)
 
 
 def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int = 0,

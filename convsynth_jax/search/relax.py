@@ -126,12 +126,16 @@ def claims(graph, own_segments, partner_segments, num_frames: int, fps: float, p
 
 
 def best_effort_search(search, graph, own_segments, partner_segments, num_frames: int, fps: float,
-                       params: SearchParams, seed: int = 0) -> SearchResult:
+                       params: SearchParams, seed: int = 0, start_states=None) -> SearchResult:
     """The best-effort search of a window that ``search`` (beam or DFS: (graph, constraints, params,
     seed) -> SearchResult) could not solve (module docstring). The result has ``best_effort`` set,
     ``constraints_total`` / ``constraints_met`` over the full window, ``relaxed`` the dropped keys and
     ``claimed`` key -> met (:func:`claims`); it fails only when no path exists even with every
-    constraint dropped, or the search misses the relaxed window (candidate budget)."""
+    constraint dropped, or the search misses the relaxed window (candidate budget). ``start_states``:
+    the allowed frame-0 states (None: any; a chained window of ``synth/chain.py`` continues the
+    previous window's path): the look-ahead then asks for completion from them, so a constraint that
+    no path from there can meet (a clause already under way at the cut, placed otherwise by the
+    previous window) is the one dropped."""
     from .beam import lookahead
 
     t0 = time.perf_counter()
@@ -145,7 +149,7 @@ def best_effort_search(search, graph, own_segments, partner_segments, num_frames
         relaxed = frozenset(keys) - frozenset(kept_list)
         if relaxed not in memo:
             c = build_constraints(own_segments, partner_segments, num_frames, fps, params, relaxed=relaxed)
-            memo[relaxed] = lookahead(graph, c, max_deg)[1]
+            memo[relaxed] = lookahead(graph, c, max_deg, start_states)[1]
         return memo[relaxed]
 
     if not completable([]):
@@ -155,7 +159,8 @@ def best_effort_search(search, graph, own_segments, partner_segments, num_frames
     kept, dropped = greedy_keep(order, completable)
     cons = build_constraints(own_segments, partner_segments, num_frames, fps, params, relaxed=frozenset(dropped))
     # the window is solvable now: no retries beyond what the method does by itself
-    res = search(graph, cons, dataclasses.replace(params, on_failure="fail"), seed=seed)
+    kw = {} if start_states is None else {"start_states": start_states}
+    res = search(graph, cons, dataclasses.replace(params, on_failure="fail"), seed=seed, **kw)
     res.best_effort = True
     res.relaxed = list(dropped)
     res.constraints_total = full.total

@@ -143,9 +143,18 @@ def _search(graph, own, partner, w0: int, w1: int, fps: float, search, seed: int
     if search.method not in SEARCHES:
         raise ConfigError(f"search.method must be one of {sorted(SEARCHES)}, got {search.method!r}")
     try:
-        return SEARCHES[search.method](graph, cons, search, seed=seed, start_states=start_states), cons
+        res = SEARCHES[search.method](graph, cons, search, seed=seed, start_states=start_states)
     except SearchFailure as e:   # a search asked to raise (search.on_failure=fail, where it exists)
         return SearchResult(False, None, float("inf"), 0, cons.total, 0, failure=str(e)), cons
+    if not res.success and getattr(search, "on_failure", "fail") == "best_effort":
+        # best effort from the allowed start states: the look-ahead drops what no path from there meets
+        from ..search.relax import best_effort_search
+
+        first = res.seconds
+        res = best_effort_search(SEARCHES[search.method], graph, span_segments(own, a, b), span_segments(partner, a, b),
+                                 w1 - w0, fps, search, seed=seed, start_states=start_states)
+        res.seconds += first
+    return res, cons
 
 
 def chain_search(graph, own_segments, partner_segments, plan: list[PlannedWindow], fps: float, search,

@@ -326,3 +326,87 @@ def test_lookahead_from_start_states_agrees_with_the_kernel(seed):
         _, _, kernel_ok = _beam_search_once(g, cons, cfg, seed, cfg.temperature, lookahead=True, start_states=[int(s)])
         assert ok == kernel_ok
     assert not lookahead(g, cons, cfg.max_degree, np.zeros(0, np.int64))[1]
+
+
+# ------------------------------------------------------------------ hard inputs: cuts in clauses, silence, overlap
+MIXED_S = 48.0
+
+
+@pytest.fixture(scope="module")
+def mixed(tiny_corpus_dir, cache, tmp_path_factory):
+    """A conversation built from the tiny corpus's speech: A speaks 0-14 s, B from 11 s (3 s of overlap)
+    to 23 s, both are silent for 15 s, then A speaks again from 38 s. Chained in 10 s windows (8 s kept),
+    so cuts fall inside clauses."""
+    from convsynth_jax.io import load_audio, load_transcript, save_wav
+    from convsynth_jax.io.transcripts import save_transcript_tsv
+
+    def piece(session, a, b):
+        au = load_audio(tiny_corpus_dir / f"{session}_main-agent.wav")
+        w = load_transcript(tiny_corpus_dir / f"{session}_main-agent.tsv")
+        r = au.sample_rate
+        w = w[(w["start"] >= a) & (w["end"] <= b)].copy()
+        w["start"] -= a
+        w["end"] -= a
+        return np.asarray(au.samples[int(a * r):int(b * r)], float), w, r
+
+    def place(parts):
+        r = parts[0][0][2]
+        buf, words = np.zeros(int(MIXED_S * r)), []
+        for (x, w, _), at in parts:
+            k = int(at * r)
+            buf[k:k + len(x)] = x
+            words.append(w.assign(start=w["start"] + at, end=w["end"] + at))
+        return buf, pd.concat(words).sort_values("start").reset_index(drop=True), r
+
+    d = tmp_path_factory.mktemp("converse_mixed")
+    ins = {}
+    for x, parts in (("a", [(piece("session01", 0, 14), 0.0), (piece("session01", 14, 24), 38.0)]),
+                     ("b", [(piece("session02", 0, 12), 11.0)])):
+        buf, w, r = place(parts)
+        save_wav(d / f"{x}.wav", buf, r)
+        save_transcript_tsv(w, d / f"{x}.tsv")
+        ins[f"audio_{x}"], ins[f"transcript_{x}"] = d / f"{x}.wav", d / f"{x}.tsv"
+    out = d / "out"
+    s = run_task(converse_cfg(tiny_corpus_dir, cache, ins, "task.video=false"), out)
+    return out, s, json.loads((out / "report.json").read_text())
+
+
+def test_hard_inputs_succeed_with_default_settings(mixed):
+    """The default preset makes motion for the whole input and the checker confirms the clauses."""
+    from convsynth_jax.io import load_bvh
+
+    out, s, rep = mixed
+    assert s["success"] and rep["plan"]["window_s"] == 10 and len(rep["plan"]["windows"]) >= 5
+    for who in "AB":
+        m = load_bvh(out / f"{who}.bvh")
+        assert abs(m.num_frames - MIXED_S * m.fps) <= 1.0
+    by_kind = [ch["checker"]["total"]["by_kind"] for ch in rep["characters"].values()]
+    met = sum(k["met"] for b in by_kind for k in b.values())
+    total = sum(k["total"] for b in by_kind for k in b.values())
+    pc_met, pc = sum(b["PC"]["met"] for b in by_kind), sum(b["PC"]["total"] for b in by_kind)
+    assert pc >= 6 and met >= 0.9 * total and pc_met >= 0.85 * pc, by_kind
+
+
+def _constraints(rep, who):
+    return rep["characters"][who]["checker"]["total"]["constraints"]
+
+
+def test_a_clause_across_a_cut_is_met(mixed):
+    _, _, rep = mixed
+    across = []
+    for who, ch in rep["characters"].items():
+        cuts = [w["start"] for w in ch["windows"][1:]]
+        across += [c for c in _constraints(rep, who) if c["kind"] != "idle"
+                   and any(c["start"] < t < c["end"] for t in cuts)]
+    assert across, "the input has no clause across a cut: the test does not test it"
+    assert all(c["met"] for c in across), across
+
+
+def test_a_long_silence_and_overlapping_speech_are_met(mixed):
+    _, _, rep = mixed
+    fps = rep["inputs"]["fps"]
+    for who in "AB":
+        silent = [c for c in _constraints(rep, who) if c["kind"] == "idle" and c["start"] <= 24 * fps and c["end"] >= 37 * fps]
+        assert len(silent) == 1 and silent[0]["met"], _constraints(rep, who)
+        overlap = [c for c in _constraints(rep, who) if c["kind"] != "idle" and c["start"] < 14 * fps and c["end"] > 11 * fps]
+        assert overlap and all(c["met"] for c in overlap), overlap

@@ -116,7 +116,16 @@ class ChainResult:
     windows: list = field(default_factory=list)
     failed_window: int | None = None
     failure: str | None = None
-    cuts: list = field(default_factory=list)   # output frames where a window after the first begins
+    cuts: list = field(default_factory=list)   # path frames where a window after the first begins
+    warp: tuple | None = None   # the retiming warp of the whole path (out knots, path knots), or None
+    path_motion: object = None  # the realized motion before the warp (path time: source_clip/frame's index)
+
+    def output_frames(self, path_frames) -> list:
+        """Output (audio) frames where the given path frames are shown: the identity without a warp."""
+        if self.warp is None:
+            return [int(t) for t in path_frames]
+        out_k, path_k = (np.asarray(k, np.float64) for k in self.warp)
+        return [int(round(float(np.interp(t, path_k, out_k)))) for t in path_frames]
 
 
 def span_segments(segments, start: float, end: float):
@@ -199,7 +208,10 @@ def chain_search(graph, own_segments, partner_segments, plan: list[PlannedWindow
             if len(tried) > 1:
                 why += f" (also tried starting {', '.join(f'{b / fps:.2f}' for b in tried[1:])} s earlier)"
             return None, rows, k, why
-        row["status"] = "ok" if res.success else "best_effort"
+        relaxed = bool(getattr(res, "best_effort", False))
+        row["status"] = "ok" if res.success and not relaxed else "best_effort"
+        if relaxed:
+            row["relaxed"] = [list(k) for k in (getattr(res, "relaxed", None) or [])]
         if not res.success:
             row["failure"] = res.failure
         s0 = w.start - row["backoff_frames"]
@@ -255,11 +267,24 @@ def synthesize_conversation(graph, motions: dict, own_segments, partner_segments
     chair, yaw = CHAIRS.get(chair_index, CHAIRS[0])
     motion, clips, frames, syn_at, costs, total = realize_chain(graph, motions, path, cuts, synth, chair, yaw,
                                                                 independent=(chaining == "independent"))
+    warp, path_motion = None, motion
+    factor = float(getattr(search, "retime_factor", 0.0) or 0.0)
+    if factor > 0:
+        # the retiming warp of the whole path against the whole conversation's constraints: each matched
+        # source segment moved onto the input's times, as the single-window pipeline does
+        from ..search.retime import retime_knots
+        from .retime import warp_motion
+
+        whole = build_constraints(own_segments, partner_segments, num_frames, fps, search)
+        warp = retime_knots(graph, whole, path, factor)
+        if warp is not None:
+            motion = warp_motion(motion, *warp)
     rng = np.random.default_rng(seed_of(0))
     peaks = [] if own_segments is None or len(own_segments) == 0 else \
         own_segments.loc[own_segments["kind"] == "PC", "peak"].to_numpy(float)
     blinks = blink_curve(blink_times(peaks, num_frames / fps, rng), num_frames, fps)
-    return ChainResult(True, path, clips, frames, syn_at, costs, total, motion, blinks, rows, cuts=cuts)
+    return ChainResult(True, path, clips, frames, syn_at, costs, total, motion, blinks, rows, cuts=cuts, warp=warp,
+                       path_motion=path_motion)
 
 
 def _acc_norms(pos: np.ndarray) -> np.ndarray:

@@ -57,10 +57,10 @@ class ConverseParams:
     characters: Optional[List[str]] = None
     condition: str = "all"               # one of the system's conditions (conf/system/<name>.yaml)
     graphs: Any = None                   # null: fit on the whole corpus (cached); DIR of task=build_graph; or {character: FILE}
-    window_s: float = 15.0               # searched per window (the search's usual window)
-    hop_s: float = 12.0                  # kept per window; the rest of the window is a look-ahead horizon
-    snap_s: float = 1.5                  # a cut may move back this far to a frame where nobody speaks
-    min_last_s: float = 5.0              # the last window takes the rest when it is at most window_s + this
+    window_s: float = 120.0              # searched in one search (inputs up to window_s + min_last_s: one search)
+    hop_s: float = 110.0                 # kept per window of a longer input; the rest is a look-ahead horizon
+    snap_s: float = 5.0                  # a cut may move back this far to a frame where nobody speaks
+    min_last_s: float = 30.0             # the last window takes the rest when it is at most window_s + this
     backoff_s: List[float] = field(default_factory=lambda: [2.0, 5.0])   # a failed window starts this much earlier
     chaining: str = "graph"              # graph (continuous) | independent (the control: a seam at every cut)
     video: bool = True                   # write conversation.mp4
@@ -178,23 +178,23 @@ def kind_counts(details) -> dict:
 
 
 def check_character(res, own, partner, rows, clip_audio, fps: float, search) -> dict:
-    """The independent checker over each window's kept frames and over the whole conversation."""
-    from ..evaluation.windows import Window, window_segments
+    """The independent checker over the whole conversation (cuts included, through the retiming warp
+    where there is one), and its verdicts split by the window whose kept frames hold each constraint's
+    start."""
     from ..search.check import check_path
 
-    def chk(a, b):
-        w = Window(0, a / fps, b / fps)
-        return check_path(res.source_clip[a:b], res.source_frame[a:b], clip_audio, window_segments(own, w),
-                          window_segments(partner, w), fps, search.tolerance, search.use_lr, search.use_hp,
-                          matching=search.matching)
-
+    whole = check_path(res.source_clip, res.source_frame, clip_audio, own, partner, fps, search.tolerance,
+                       search.use_lr, search.use_hp, matching=search.matching, warp=res.warp)
     per = []
     for r in rows:
-        c = chk(r["start"], r["end"])
-        per.append({"index": r["index"], "met": c["met"], "total": c["total"], "by_kind": kind_counts(c["details"])})
-    whole = chk(0, len(res.source_frame))
+        first, last = r["index"] == rows[0]["index"], r["index"] == rows[-1]["index"]
+        mine = [d for d in whole["details"]
+                if (first or d["start"] >= r["start"]) and (last or d["start"] < r["end"])]
+        per.append({"index": r["index"], "met": int(sum(bool(d["met"]) for d in mine)), "total": len(mine),
+                    "by_kind": kind_counts(mine)})
     return {"windows": per, "total": {"met": whole["met"], "total": whole["total"], "by_kind": kind_counts(whole["details"]),
-                                      "missed": [d for d in whole["details"] if not d["met"]]}}
+                                      "missed": [d for d in whole["details"] if not d["met"]],
+                                      "constraints": whole["details"]}}
 
 
 def continuity(res, motions: dict) -> dict:
@@ -204,7 +204,9 @@ def continuity(res, motions: dict) -> dict:
     transitions; a cut played as the clip's continuation shows 0."""
     from ..synth.chain import at_steps, excess_acceleration
 
-    prof = excess_acceleration(res.motion, motions, res.source_clip, res.source_frame)
+    # in path time (before the retiming warp), where frame t shows source_clip[t], source_frame[t]
+    prof = excess_acceleration(res.path_motion if res.path_motion is not None else res.motion, motions,
+                               res.source_clip, res.source_frame)
     cuts = set(res.cuts)
     inner = at_steps(prof, [t for t in res.synthetic_at if t not in cuts])
     return {"at_cuts": {str(t): v for t, v in at_steps(prof, res.cuts).items()},
@@ -331,7 +333,8 @@ def run(cfg, out_dir: Path) -> dict:
             entry["checker"] = check_character(res, seg[who], seg[other], res.windows, clip_audio, fps, search)
             entry["continuity"] = continuity(res, model.motions)
             entry["num_synthetic_transitions"] = len(res.synthetic_at)
-            entry["cuts"] = res.cuts
+            entry["cuts"] = res.output_frames(res.cuts)          # output frames (after the retiming warp)
+            entry["cuts_path"] = [int(t) for t in res.cuts]      # the same cuts in path frames (continuity's keys)
             entry["cost"] = res.cost
             entry["graph"] = {"num_states": model.graph.num_states, "num_edges": model.graph.num_edges}
         else:
@@ -407,7 +410,8 @@ def write_stereo(path: Path, a, b, duration: float, offsets_s=(0.0, 0.0)) -> Pat
 def render_conversation(results, seg, chars, plan, fps, path: Path, wav: Path, p: ConverseParams) -> Path:
     from ..render import Panel, Timeline, render_video, track_from_motion
 
-    tracks = tuple(track_from_motion(results[w].motion, f"{w} ({chars[k]})", results[w].synthetic_at)
+    tracks = tuple(track_from_motion(results[w].motion, f"{w} ({chars[k]})",
+                                     results[w].output_frames(results[w].synthetic_at))
                    for k, w in enumerate("AB"))
     windows = pd.DataFrame({"kind": [f"W{i}" for i in range(len(plan))],
                             "start": [r["start"] / fps for r in results["A"].windows],

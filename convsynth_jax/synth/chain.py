@@ -219,6 +219,9 @@ def chain_search(graph, own_segments, partner_segments, plan: list[PlannedWindow
             rows[k - 1]["end"] = s0
             row["start"] = s0
         path[s0:w.end] = np.asarray(res.path, np.int64)[:w.end - s0]
+        # progress of a long conversation: one line per window
+        log.info("window %d/%d (%.1f-%.1f s): %s, %d constraints (%d relaxed), %.1f s", k + 1, len(plan),
+                 s0 / fps, w.end / fps, row["status"], int(cons.total), len(row.get("relaxed", [])), row["seconds"])
     return path, rows, None, None
 
 

@@ -410,3 +410,13 @@ def test_a_long_silence_and_overlapping_speech_are_met(mixed):
         assert len(silent) == 1 and silent[0]["met"], _constraints(rep, who)
         overlap = [c for c in _constraints(rep, who) if c["kind"] != "idle" and c["start"] < 14 * fps and c["end"] > 11 * fps]
         assert overlap and all(c["met"] for c in overlap), overlap
+
+
+def test_paper_preset_fails_naming_the_constraint_and_what_makes_motion(mixed, tiny_corpus_dir, cache, tmp_path):
+    """preset=paper keeps the paper's strict rule: on the same hard input a window has no path, and the
+    failure names the constraint, its output frames and preset=quality."""
+    d = mixed[0].parent
+    ins = {f"{k}_{x}": d / f"{x}.{ext}" for x in "ab" for k, ext in (("audio", "wav"), ("transcript", "tsv"))}
+    with pytest.raises(SearchFailure, match=r"(?s)window \d+ .*constraint at output frames \d+-\d+.*preset=quality"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, ins, "task.video=false", "preset=paper"), tmp_path)
+    assert not json.loads((tmp_path / "report.json").read_text())["success"]

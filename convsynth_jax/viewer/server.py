@@ -42,7 +42,7 @@ def page(title: str, prefix: str = "") -> str:
     """index.html: the same page for the server (``prefix`` '') and the export (relative URLs)."""
     t = html.escape(title)
     return (f"<!doctype html><html lang=en><head><meta charset=utf-8><title>{t}</title>"
-            "<meta name=viewport content='width=device-width, initial-scale=1'>"
+            "<meta name=viewport content='width=device-width, initial-scale=1'><link rel=icon href='data:,'>"
             f"<link rel=stylesheet href='{prefix}viewer.css'></head><body>"
             f"<header><h1 id=title>{t}</h1><span id=status>loading…</span></header>"
             "<div id=error role=alert hidden></div>"

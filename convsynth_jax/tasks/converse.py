@@ -268,6 +268,7 @@ def run(cfg, out_dir: Path) -> dict:
     from ..synth.chain import plan_windows, quiet_mask, synthesize_conversation
     from ..systems.motion_graph import MotionGraphSystem, clip_name
     from .common import annotated_corpus, make_configured_system, params_of
+    from .synthesize import label_rows
 
     t_start = time.perf_counter()
     timings = {}
@@ -331,6 +332,7 @@ def run(cfg, out_dir: Path) -> dict:
             entry["checker"] = check_character(res, seg[who], seg[other], res.windows, clip_audio, fps, search)
             entry["continuity"] = continuity(res, model.motions)
             entry["num_synthetic_transitions"] = len(res.synthetic_at)
+            entry["transitions"] = [{"frame": int(t)} for t in res.synthetic_at]
             entry["cuts"] = res.cuts
             entry["cost"] = res.cost
             entry["graph"] = {"num_states": model.graph.num_states, "num_edges": model.graph.num_edges}
@@ -359,6 +361,7 @@ def run(cfg, out_dir: Path) -> dict:
         timings["video_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     report["timings"] = timings
+    report["segments"] = {w: label_rows(seg[w]) for w in "AB"}   # audio labels per character (task=view draws them)
     report["failure"] = failure
     report["outputs"] = {"bvh": [f"{w}.bvh" for w in "AB" if results[w].success], "audio": wav.name,
                          "video": None if video is None else video.name}

@@ -222,7 +222,7 @@
   }
 
   // ------------------------------------------------------------------ timeline
-  var tl = $('timeline'), ROW = 14, LABEL = 120, rows = [];
+  var tl = $('timeline'), ROW = 14, LABEL = 120, RIGHT = 26, rows = [];
   chars.forEach(function (ch, k) {
     (S.kinds || ['PC', 'LR', 'HP']).forEach(function (kind) {
       rows.push({label: ch.c.name + ' ' + kind, color: KIND_COLORS[kind] || '#666',
@@ -230,7 +230,7 @@
     });
     rows.push({label: ch.c.name + ' transitions', color: ch.c.color, ticks: ch.c.transitions});
   });
-  function tx(t, w) { return LABEL + (w - LABEL - 8) * (duration > 0 ? t / duration : 0); }
+  function tx(t, w) { return LABEL + (w - LABEL - RIGHT) * (duration > 0 ? t / duration : 0); }
   function drawTimeline(t) {
     var dpr = window.devicePixelRatio || 1, w = tl.clientWidth || 600, h = ROW * rows.length + 18;
     if (tl.width !== Math.round(w * dpr) || tl.height !== Math.round(h * dpr)) {
@@ -246,7 +246,7 @@
     rows.forEach(function (r, i) {
       var y = i * ROW;
       g.fillStyle = i % 2 ? '#f4f4f6' : '#e9eaee';
-      g.fillRect(LABEL, y, w - LABEL - 8, ROW);
+      g.fillRect(LABEL, y, w - LABEL - RIGHT, ROW);
       g.fillStyle = '#333';
       g.fillText(r.label, 4, y + ROW / 2);
       g.fillStyle = r.color;
@@ -267,7 +267,7 @@
   }
   function timeAt(ev) {
     var r = tl.getBoundingClientRect(), w = tl.clientWidth;
-    return Math.max(0, Math.min(duration, (ev.clientX - r.left - LABEL) / (w - LABEL - 8) * duration));
+    return Math.max(0, Math.min(duration, (ev.clientX - r.left - LABEL) / (w - LABEL - RIGHT) * duration));
   }
   var dragging = false;
   tl.addEventListener('mousedown', function (ev) { dragging = true; seek(timeAt(ev)); });

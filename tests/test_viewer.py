@@ -295,8 +295,7 @@ def driver():
     opts = webdriver.ChromeOptions()
     opts.binary_location = found[0]
     for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1000,800", "--mute-audio",
-              "--autoplay-policy=no-user-gesture-required", "--use-angle=swiftshader", "--enable-unsafe-swiftshader",
-              "--allow-file-access-from-files"):
+              "--autoplay-policy=no-user-gesture-required", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"):
         opts.add_argument(a)
     d = webdriver.Chrome(service=Service(executable_path=found[1]), options=opts)
     d.set_page_load_timeout(30)
@@ -358,15 +357,21 @@ def test_browser_draws_both_characters_and_two_times_differ(driver, served):
 def test_browser_timeline_cursor_follows_the_audio_clock(driver, served):
     base, _ = served
     _open(driver, base + "/?t=2")
+    read = ("var V = window.convsynthViewer, a = V.audio[0];"
+            "return [a.currentTime, parseFloat(document.getElementById('timeline').dataset.cursor), V.clockSource(), a.paused,"
+            " V.audio[1].currentTime];")
     driver.execute_script("window.convsynthViewer.play();")
-    time.sleep(1.5)
-    got = driver.execute_script("var V = window.convsynthViewer, a = V.audio[0];"
-                                "return [a.currentTime, parseFloat(document.getElementById('timeline').dataset.cursor),"
-                                " V.clockSource(), a.paused, V.audio[1].currentTime];")
+    time.sleep(1.0)
+    mid = driver.execute_script(read)
+    time.sleep(0.6)
+    late = driver.execute_script(read)
     driver.execute_script("window.convsynthViewer.pause();")
-    audio_t, cursor, source, paused, other = got
-    assert source == "audio" and not paused and audio_t > 2.5, got
-    assert abs(cursor - audio_t) < 0.15 and abs(other - audio_t) < 0.2, got
+    time.sleep(0.4)                                   # frames drawn after the pause
+    stop = driver.execute_script(read)
+    assert mid[2] == "audio" and not mid[3] and mid[0] > 2.3, mid   # the audio plays and is the clock
+    assert late[1] > mid[1] + 0.2 and abs(late[1] - late[0]) < 0.5, (mid, late)   # the cursor moves with it
+    assert stop[3] and abs(stop[1] - stop[0]) < 0.03 and stop[0] > 2.5, stop   # paused: the cursor shows the audio's time
+    assert abs(late[4] - late[0]) < 0.25, late         # the second file follows the first
 
 
 def test_browser_shows_a_malformed_file_as_an_error(driver, broken):
@@ -398,4 +403,8 @@ def test_browser_draws_the_static_export_from_the_file_system(driver, out, tmp_p
     px = _open(driver, (tmp_path / "exp" / "index.html").as_uri() + "?t=3")
     assert px is not None and px["t"] == pytest.approx(3.0) and not px["error"]
     _both_drawn(px)
-    assert driver.execute_script("return window.convsynthViewer.audio.map(function (a) { return a.error === null; })") == [True, True]
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    loaded = "return window.convsynthViewer.audio.map(function (a) { return a.error === null && a.readyState >= 1 && a.duration; })"
+    WebDriverWait(driver, 10).until(lambda d: all(d.execute_script(loaded)))
+    assert [round(x, 2) for x in driver.execute_script(loaded)] == [10.0, 10.0]     # the audio beside it, from file://

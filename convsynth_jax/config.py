@@ -80,6 +80,7 @@ TASKS = {
     "synthesize": "convsynth_jax.tasks.synthesize:SynthesizeSettings",
     "table2": "convsynth_jax.tasks.table2:Table2Settings",
     "user_study": "convsynth_jax.tasks.user_study:UserStudySettings",
+    "view": "convsynth_jax.tasks.view:ViewSettings",
     "walktalk_demo": "convsynth_jax.tasks.walktalk_demo:WalkTalkDemoSettings",
     "walktalk_eval": "convsynth_jax.tasks.walktalk_eval:WalkTalkEvalSettings",
 }

@@ -270,6 +270,7 @@ def run(cfg, out_dir: Path) -> dict:
     from ..synth.chain import plan_windows, quiet_mask, synthesize_conversation
     from ..systems.motion_graph import MotionGraphSystem, clip_name
     from .common import annotated_corpus, make_configured_system, params_of
+    from .synthesize import label_rows
 
     t_start = time.perf_counter()
     timings = {}
@@ -333,7 +334,9 @@ def run(cfg, out_dir: Path) -> dict:
             entry["checker"] = check_character(res, seg[who], seg[other], res.windows, clip_audio, fps, search)
             entry["continuity"] = continuity(res, model.motions)
             entry["num_synthetic_transitions"] = len(res.synthetic_at)
-            entry["cuts"] = res.output_frames(res.cuts)          # output frames (after the retiming warp)
+            # output frames (after the retiming warp), where the video and the viewer show them
+            entry["transitions"] = [{"frame": t} for t in res.output_frames(res.synthetic_at)]
+            entry["cuts"] = res.output_frames(res.cuts)
             entry["cuts_path"] = [int(t) for t in res.cuts]      # the same cuts in path frames (continuity's keys)
             entry["cost"] = res.cost
             entry["graph"] = {"num_states": model.graph.num_states, "num_edges": model.graph.num_edges}
@@ -362,6 +365,7 @@ def run(cfg, out_dir: Path) -> dict:
         timings["video_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     report["timings"] = timings
+    report["segments"] = {w: label_rows(seg[w]) for w in "AB"}   # audio labels per character (task=view draws them)
     report["failure"] = failure
     report["outputs"] = {"bvh": [f"{w}.bvh" for w in "AB" if results[w].success], "audio": wav.name,
                          "video": None if video is None else video.name}

@@ -12,7 +12,8 @@ Writes ``<character>.bvh``, ``<character>_blinks.csv`` (when the system makes bl
 ``<role>_input.wav`` (the input audio of the window), ``report.json`` (per character: success,
 best_effort (``search.on_failure=best_effort``), the retiming warp where there is one, constraints hit
 and missed by the independent checker where the system reports per-frame provenance,
-transitions used with costs, timings) and a summary with success, search_seconds (per character,
+transitions used with costs, timings; ``segments``: each character's audio labels in the window)
+and a summary with success, search_seconds (per character,
 wall time), synthesis_cpu_seconds (per character: CPU time of the process, all threads, for search
 and realization; read beside the wall time on a loaded machine), num_synthetic_transitions,
 constraints_total, constraints_met and, per output frame, the source clip and frame.
@@ -32,6 +33,13 @@ from ..errors import ConfigError
 from ..utils import atomic_path, write_json_atomic
 
 log = logging.getLogger(__name__)
+
+
+def label_rows(segments) -> list:
+    """Audio segments as JSON rows {kind, start, end} (seconds)."""
+    if segments is None or len(segments) == 0:
+        return []
+    return [{"kind": str(r.kind), "start": float(r.start), "end": float(r.end)} for r in segments.itertuples(index=False)]
 
 
 def _given_graphs(given, ann, system):
@@ -80,7 +88,7 @@ def run(cfg, out_dir: Path) -> dict:
     from ..annotate.audio import annotate_audio
     from ..config import task_settings
     from ..evaluation.loo import fit_fold, window_input
-    from ..evaluation.windows import Window
+    from ..evaluation.windows import Window, window_segments
     from ..io import load_audio, load_transcript, save_bvh, save_wav
     from ..search.check import check_path
     from ..seeding import derive_seed
@@ -189,6 +197,8 @@ def run(cfg, out_dir: Path) -> dict:
             aud = audio[role]
             a0, a1 = int(start * aud.sample_rate), int((start + duration) * aud.sample_rate)
             save_wav(out_dir / f"{role}_input.wav", aud.samples[a0:a1], aud.sample_rate)
+    # the window's audio labels per character (seconds from the window start; task=view draws them)
+    report["segments"] = {held[role].character: label_rows(window_segments(segs[role], w)) for role in roles}
     report["timings"] = {"fit_s": fit_seconds, "total_s": time.perf_counter() - t0}
     write_json_atomic(out_dir / "report.json", report)
     return summary

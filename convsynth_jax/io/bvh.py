@@ -137,6 +137,28 @@ def nominal_fps(frame_time: float) -> float:
     return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
 
 
+def bvh_duration(path: Path) -> float:
+    """Duration from the BVH header lines (Frames, Frame Time) without parsing the data."""
+    frames = frame_time = None
+    with open(path, "r", errors="replace") as fh:
+        for lineno, line in enumerate(fh, 1):
+            low = line.strip().lower()
+            if low.startswith("frames:"):
+                try:
+                    frames = int(line.split(":", 1)[1])
+                except ValueError:
+                    raise BVHFormatError("'Frames:' is not an integer", path, f"line {lineno}") from None
+            elif low.startswith("frame time:"):
+                try:
+                    frame_time = float(line.split(":", 1)[1])
+                except ValueError:
+                    raise BVHFormatError("'Frame Time:' is not a number", path, f"line {lineno}") from None
+                break
+    if frames is None or frame_time is None or frame_time <= 0:
+        raise BVHFormatError("missing MOTION header (Frames / Frame Time)", path)
+    return frames / nominal_fps(frame_time)
+
+
 def load_bvh(path: str | Path, fps: float | None = None) -> Motion:
     """Read a BVH file into a :class:`Motion`; optionally resample to ``fps`` (slerp rotations)."""
     path = Path(path)

@@ -15,7 +15,8 @@ import pandas as pd
 from ..errors import CorpusError, FormatError, MissingFileError
 from ..skeleton import Motion
 from .audio import Audio, load_audio, wav_duration
-from .bvh import load_bvh, nominal_fps
+from .bvh import bvh_duration  # noqa: F401  (re-exported)
+from .motion import load_motion_file, motion_file_duration
 from .transcripts import load_transcript
 
 GENEA_ROLES = ("main-agent", "interloctr")
@@ -34,12 +35,13 @@ class Participant:
     audio_channel: int | None = None
     session: str = ""
     listed_in: Path | None = None       # the manifest that lists this participant (None: a GENEA folder)
+    smplx_model: Path | None = None     # an SMPL-X .npz take's model file (exact rest joints; None: template)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def load_motion(self, fps: float | None = 30) -> Motion:
         key = ("motion", fps)
         if key not in self._cache:
-            self._cache[key] = load_bvh(self.motion_path, fps=fps)
+            self._cache[key] = load_motion_file(self.motion_path, fps=fps, smplx_model=self.smplx_model)
         return self._cache[key]
 
     def load_audio(self) -> Audio:
@@ -85,31 +87,9 @@ class Corpus:
         raise KeyError(f"no session {name!r}; sessions are {[s.name for s in self.sessions]}")
 
 
-def bvh_duration(path: Path) -> float:
-    """Duration from the BVH header lines (Frames, Frame Time) without parsing the data."""
-    frames = frame_time = None
-    with open(path, "r", errors="replace") as fh:
-        for lineno, line in enumerate(fh, 1):
-            low = line.strip().lower()
-            if low.startswith("frames:"):
-                try:
-                    frames = int(line.split(":", 1)[1])
-                except ValueError:
-                    raise FormatError("'Frames:' is not an integer", path, f"line {lineno}") from None
-            elif low.startswith("frame time:"):
-                try:
-                    frame_time = float(line.split(":", 1)[1])
-                except ValueError:
-                    raise FormatError("'Frame Time:' is not a number", path, f"line {lineno}") from None
-                break
-    if frames is None or frame_time is None or frame_time <= 0:
-        raise FormatError("missing MOTION header (Frames / Frame Time)", path)
-    return frames / nominal_fps(frame_time)
-
-
 def check_durations(p: Participant, tolerance: float) -> None:
     """Motion, audio and transcript durations must agree within ``tolerance`` seconds."""
-    dm = bvh_duration(p.motion_path)
+    dm = motion_file_duration(p.motion_path)
     where = f"session {p.session!r}, participant {p.role!r}"
     if p.audio_path is not None:
         da = wav_duration(p.audio_path)

@@ -39,6 +39,6 @@ def motion_file_duration(path: str | Path) -> float:
         from .smplx import smplx_duration
 
         return smplx_duration(path)
-    from .corpus import bvh_duration
+    from .bvh import bvh_duration
 
     return bvh_duration(path)

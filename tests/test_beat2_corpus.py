@@ -112,3 +112,37 @@ def test_shared_take_loads(tmp_path):
     a, b = c.sessions[0].participants
     assert a.character == "scott" and len(a.load_transcript()) == 199
     assert a.load_motion(30).num_frames == 1906 and "right_thumb3" in a.load_motion(30).skeleton.names
+
+
+def test_build_graph_on_a_beat2_folder(tmp_path):
+    """task=build_graph corpus=beat2 wires through: one graph per character, the null-control flag."""
+    import json
+
+    from convsynth_jax.config import run_task
+
+    root = tmp_path / "beat2"
+    make_take(root, "2_scott_0_1_1", T=300)
+    s = run_task(compose(["task=build_graph", "corpus=beat2", f"corpus.root={root}", f"cache_dir={tmp_path / 'c'}",
+                          "progress=false"]), tmp_path / "out")
+    assert set(s["graphs"]) == {"scott", "scott_shifted"} and s["partner_statistics"] == "null control"
+    assert (tmp_path / "out" / "graph_scott.npz").is_file()
+    assert json.loads((tmp_path / "out" / "summary.json").read_text())["pairing"] == "pseudo_dyad"
+
+
+def test_corpus_smplx_model_gives_rest_joints(tmp_path):
+    from convsynth_jax.io.smplx import SMPLX_TEMPLATE_JOINTS
+
+    root = tmp_path / "beat2"
+    make_take(root, "2_scott_0_1_1")
+    rng = np.random.default_rng(3)
+    jr = rng.random((55, 30))
+    jr /= jr.sum(1, keepdims=True)
+    vt = rng.normal(0, 0.3, (30, 3))
+    np.savez(tmp_path / "SMPLX_FAKE.npz", J_regressor=jr, v_template=vt, shapedirs=np.zeros((30, 3, 10)))
+    cfg = compose(["corpus=beat2", f"corpus.root={root}", f"corpus.smplx_model={tmp_path / 'SMPLX_FAKE.npz'}",
+                   f"cache_dir={tmp_path / 'cache'}"])
+    m = open_corpus(to_params(cfg)).sessions[0].participants[0].load_motion(30)
+    rest = jr @ vt
+    j = m.skeleton.index("left_wrist")
+    assert np.allclose(m.skeleton.offsets[j], (rest[20] - rest[18]) * 100)
+    assert not np.allclose(m.skeleton.offsets[j], (SMPLX_TEMPLATE_JOINTS[20] - SMPLX_TEMPLATE_JOINTS[18]) * 100)

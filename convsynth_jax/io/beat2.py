@@ -8,7 +8,7 @@ recordings: takes in name order are paired two by two (``main-agent``, ``interlo
 over (one take, or an odd count) is paired with a copy of itself shifted in time (motion, audio and
 words rotated together by ``shift_s``, default half the take, so the copy is one coherent recording
 whose speech has nothing to do with the original's at any moment). The copy is written once into
-``derived_dir`` (motion ``.npz``, audio ``.wav``, words ``.tsv``) and named ``<take>_shifted<frames>``;
+``derived_dir`` (tasks: ``${cache_dir}/beat2_pseudo_dyads``; motion ``.npz``, audio ``.wav``, words ``.tsv``) and named ``<take>_shifted<frames>``;
 its character is ``<speaker>_shifted`` so a speaker's motion graph never holds a rotated duplicate
 of its own take. Any statistic relating a participant to its partner is then a **null control**:
 ``Corpus.metadata["pairing"]`` says so and tasks report it.
@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import hashlib
 import re
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -90,7 +91,9 @@ def load_beat2(root: str | Path, pairing: str = "pseudo_dyad", shift_s: float | 
     if not takes:
         raise CorpusError("no <take>.npz files (BEAT2 layout)", motion_dir)
     characters = {str(k): str(v) for k, v in (characters or {}).items()}
-    derived = Path(derived_dir) if derived_dir is not None else root / ".convsynth_pseudo_dyads"
+    # the data folder may be read-only: the copies go to the caller's folder, else the temporary one
+    derived = (Path(derived_dir) if derived_dir is not None
+               else Path(tempfile.gettempdir()) / "convsynth_beat2_pseudo_dyads")
     entries = []
     for npz in takes:
         m = TAKE_PATTERN.match(npz.stem)

@@ -8,7 +8,8 @@ recordings: takes in name order are paired two by two (``main-agent``, ``interlo
 over (one take, or an odd count) is paired with a copy of itself shifted in time (motion, audio and
 words rotated together by ``shift_s``, default half the take, so the copy is one coherent recording
 whose speech has nothing to do with the original's at any moment). The copy is written once into
-``derived_dir`` (tasks: ``${cache_dir}/beat2_pseudo_dyads``; motion ``.npz``, audio ``.wav``, words ``.tsv``) and named ``<take>_shifted<frames>``;
+``derived_dir`` (tasks: ``${cache_dir}/beat2_pseudo_dyads``; motion ``.npz``, audio ``.wav``,
+words ``.tsv``) and named ``<take>_shifted<frames>``;
 its character is ``<speaker>_shifted`` so a speaker's motion graph never holds a rotated duplicate
 of its own take. Any statistic relating a participant to its partner is then a **null control**:
 ``Corpus.metadata["pairing"]`` says so and tasks report it.

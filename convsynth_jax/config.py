@@ -66,6 +66,7 @@ TASKS = {
     "cdbn_synthesize": "convsynth_jax.tasks.cdbn_synthesize:CDBNSynthesizeSettings",
     "collect": "convsynth_jax.tasks.collect:CollectSettings",
     "converse": "convsynth_jax.tasks.converse:ConverseParams",
+    "convert": "convsynth_jax.tasks.convert:ConvertSettings",
     "cooccurrence": "convsynth_jax.tasks.cooccurrence:CooccurrenceSettings",
     "figure4": "convsynth_jax.tasks.figure4:Figure4Settings",
     "inspect": "convsynth_jax.tasks.inspect:InspectSettings",

@@ -25,13 +25,17 @@ from .walktalk.params import WalkTalkParams
 class CorpusParams:
     """``conf/corpus``: which dyadic corpus (or BVH folder) a task reads."""
 
-    kind: str = "synthetic"        # synthetic | genea | manifest | bvh_folder
+    kind: str = "synthetic"        # synthetic | genea | manifest | bvh_folder | beat2
     name: Optional[str] = None     # synthetic: folder name under the cache directory
     root: Optional[str] = None     # genea / bvh_folder: the folder; synthetic: None = <cache_dir>/<name>
     path: Optional[str] = None     # manifest: the YAML or CSV file
     pattern: str = "**/*.bvh"      # bvh_folder: files to read
     characters: Dict[str, str] = field(default_factory=dict)  # role -> character name (every dyadic loader; wins over corpus.json)
     duration_tolerance: float = 1.0  # s; motion/audio/transcript durations may differ by this much
+    # beat2: how single-speaker takes become sessions (io/beat2.py; partner statistics are a null control)
+    pairing: str = "pseudo_dyad"
+    pseudo_shift_s: Optional[float] = None   # beat2: time shift of a take's pseudo-partner copy (None: half the take)
+    smplx_model: Optional[str] = None        # beat2: the user's SMPL-X model file (exact rest joints; None: template)
     # synthetic: the generator's keys that differ from its defaults (data/synthetic/config.py:
     # GeneratorParams; checked by generator_params when the config is converted)
     generator: Dict[str, Any] = field(default_factory=dict)

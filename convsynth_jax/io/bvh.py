@@ -137,6 +137,28 @@ def nominal_fps(frame_time: float) -> float:
     return float(round(fps)) if abs(fps - round(fps)) < 1e-3 * fps else fps
 
 
+def bvh_duration(path: Path) -> float:
+    """Duration from the BVH header lines (Frames, Frame Time) without parsing the data."""
+    frames = frame_time = None
+    with open(path, "r", errors="replace") as fh:
+        for lineno, line in enumerate(fh, 1):
+            low = line.strip().lower()
+            if low.startswith("frames:"):
+                try:
+                    frames = int(line.split(":", 1)[1])
+                except ValueError:
+                    raise BVHFormatError("'Frames:' is not an integer", path, f"line {lineno}") from None
+            elif low.startswith("frame time:"):
+                try:
+                    frame_time = float(line.split(":", 1)[1])
+                except ValueError:
+                    raise BVHFormatError("'Frame Time:' is not a number", path, f"line {lineno}") from None
+                break
+    if frames is None or frame_time is None or frame_time <= 0:
+        raise BVHFormatError("missing MOTION header (Frames / Frame Time)", path)
+    return frames / nominal_fps(frame_time)
+
+
 def load_bvh(path: str | Path, fps: float | None = None) -> Motion:
     """Read a BVH file into a :class:`Motion`; optionally resample to ``fps`` (slerp rotations)."""
     path = Path(path)
@@ -230,8 +252,22 @@ def _channels_to_motion(skel: Skeleton, data: np.ndarray, fps: float, name: str)
     return Motion(skel, rotations, translations, float(fps), name)
 
 
+def _file_order(skel: Skeleton) -> list[int]:
+    """Joint indices in the order the HIERARCHY lists them (depth first from the root, children in
+    index order): the order of the channel columns of the file. Equal to the skeleton's order for a
+    skeleton read from BVH; a skeleton built in another order (SMPL-X's) is written this way."""
+    order: list[int] = []
+    stack = [j for j, p in enumerate(skel.parents) if p < 0][::-1]
+    while stack:
+        j = stack.pop()
+        order.append(j)
+        stack.extend(reversed(skel.children(j)))
+    return order
+
+
 def motion_to_channels(motion: Motion) -> np.ndarray:
-    """(F, total_channels) BVH channel values (degrees) of a motion, in the skeleton's channel order."""
+    """(F, total_channels) BVH channel values (degrees) of a motion, in the file's channel order
+    (the joints as the HIERARCHY lists them, :func:`_file_order`)."""
     for name, arr in (("rotation", motion.rotations), ("translation", motion.translations)):
         bad = np.argwhere(~np.isfinite(np.asarray(arr)))
         if bad.size:
@@ -242,7 +278,8 @@ def motion_to_channels(motion: Motion) -> np.ndarray:
     cols = []
     rot = np.asarray(motion.rotations, dtype=np.float64)
     trans = np.asarray(motion.translations, dtype=np.float64)
-    for j, chans in enumerate(skel.channels):
+    for j in _file_order(skel):
+        chans = skel.channels[j]
         if not chans:
             continue
         euler = None
@@ -284,7 +321,8 @@ def _hierarchy_text(skel: Skeleton) -> str:
             out.append(f"{pad}\t}}")
         out.append(f"{pad}}}")
 
-    emit(0, 0)
+    for root in (j for j, p in enumerate(skel.parents) if p < 0):
+        emit(root, 0)
     return "\n".join(out) + "\n"
 
 

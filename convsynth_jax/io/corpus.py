@@ -15,7 +15,8 @@ import pandas as pd
 from ..errors import CorpusError, FormatError, MissingFileError
 from ..skeleton import Motion
 from .audio import Audio, load_audio, wav_duration
-from .bvh import load_bvh, nominal_fps
+from .bvh import bvh_duration  # noqa: F401  (re-exported)
+from .motion import load_motion_file, motion_file_duration
 from .transcripts import load_transcript
 
 GENEA_ROLES = ("main-agent", "interloctr")
@@ -34,12 +35,13 @@ class Participant:
     audio_channel: int | None = None
     session: str = ""
     listed_in: Path | None = None       # the manifest that lists this participant (None: a GENEA folder)
+    smplx_model: Path | None = None     # an SMPL-X .npz take's model file (exact rest joints; None: template)
     _cache: dict = field(default_factory=dict, repr=False)
 
     def load_motion(self, fps: float | None = 30) -> Motion:
         key = ("motion", fps)
         if key not in self._cache:
-            self._cache[key] = load_bvh(self.motion_path, fps=fps)
+            self._cache[key] = load_motion_file(self.motion_path, fps=fps, smplx_model=self.smplx_model)
         return self._cache[key]
 
     def load_audio(self) -> Audio:
@@ -85,31 +87,9 @@ class Corpus:
         raise KeyError(f"no session {name!r}; sessions are {[s.name for s in self.sessions]}")
 
 
-def bvh_duration(path: Path) -> float:
-    """Duration from the BVH header lines (Frames, Frame Time) without parsing the data."""
-    frames = frame_time = None
-    with open(path, "r", errors="replace") as fh:
-        for lineno, line in enumerate(fh, 1):
-            low = line.strip().lower()
-            if low.startswith("frames:"):
-                try:
-                    frames = int(line.split(":", 1)[1])
-                except ValueError:
-                    raise FormatError("'Frames:' is not an integer", path, f"line {lineno}") from None
-            elif low.startswith("frame time:"):
-                try:
-                    frame_time = float(line.split(":", 1)[1])
-                except ValueError:
-                    raise FormatError("'Frame Time:' is not a number", path, f"line {lineno}") from None
-                break
-    if frames is None or frame_time is None or frame_time <= 0:
-        raise FormatError("missing MOTION header (Frames / Frame Time)", path)
-    return frames / nominal_fps(frame_time)
-
-
 def check_durations(p: Participant, tolerance: float) -> None:
     """Motion, audio and transcript durations must agree within ``tolerance`` seconds."""
-    dm = bvh_duration(p.motion_path)
+    dm = motion_file_duration(p.motion_path)
     where = f"session {p.session!r}, participant {p.role!r}"
     if p.audio_path is not None:
         da = wav_duration(p.audio_path)
@@ -144,38 +124,80 @@ def _load_characters(root: Path) -> tuple[dict, dict]:
     return meta, dict(meta.get("characters", {}))
 
 
+def _nested_splits(root: Path) -> list[Path]:
+    """The split folders of the GENEA 2023 release layout under ``root`` (``root`` itself when it is
+    one): folders holding ``main-agent/bvh/``."""
+    cands = [root] + sorted(d for d in root.iterdir() if d.is_dir())
+    return [d for d in cands if (d / GENEA_ROLES[0] / "bvh").is_dir()]
+
+
+def _genea_metadata(split: Path) -> list[dict] | None:
+    """The rows of a split's ``metadata.csv`` (the release's per-take speaker ids and flags), if any."""
+    f = split / "metadata.csv"
+    if not f.is_file():
+        return None
+    try:
+        return pd.read_csv(f, header=None).astype(str).values.tolist()
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, UnicodeDecodeError) as e:
+        raise FormatError(f"unreadable metadata CSV ({str(e).strip()})", f) from None
+
+
 def load_genea(root: str | Path, tolerance: float = 1.0, check: bool = True,
                characters: dict | None = None) -> Corpus:
-    """A folder in the GENEA dyadic layout. ``characters`` (role -> character name, e.g. from
-    ``corpus.characters``) names the characters; a role it does not name takes the name in the
-    folder's ``corpus.json``, else the role itself."""
+    """A folder in the GENEA dyadic layout: flat (``<session>_main-agent.{bvh,wav,tsv}``,
+    ``<session>_interloctr.{...}`` side by side) or the GENEA 2023 release's nested layout
+    (``<split>/{main-agent,interloctr}/{bvh,wav,tsv}/<session>_<role>.<ext>``, ``root`` being the
+    release folder or one split; the splits' ``metadata.csv`` go to ``Corpus.metadata``), detected
+    from the files. The same files give the same sessions in either layout. ``characters`` (role ->
+    character name, e.g. from ``corpus.characters``) names the characters; a role it does not name
+    takes the name in the folder's ``corpus.json``, else the role itself."""
     root = Path(root)
     if not root.is_dir():
         raise MissingFileError("corpus folder not found", root)
     meta, named = _load_characters(root)
     characters = {**named, **{str(k): str(v) for k, v in (characters or {}).items()}}
     pat = re.compile(r"^(?P<session>.+)_(?P<role>main-agent|interloctr)\.bvh$")
-    names = sorted({m.group("session") for f in root.iterdir() if (m := pat.match(f.name))})
-    if not names:
-        raise CorpusError("no <session>_main-agent.bvh / <session>_interloctr.bvh files (GENEA dyadic layout)", root)
+    # session -> (folder of role -> stem without extension per kind, stereo wav or None)
+    found: dict[str, tuple] = {}
+    for name in sorted({m.group("session") for f in root.iterdir() if (m := pat.match(f.name))}):
+        found[name] = ({r: {k: root / f"{name}_{r}" for k in ("bvh", "wav", "tsv")} for r in GENEA_ROLES},
+                       root / f"{name}.wav")
+    if not found:
+        splits = _nested_splits(root)
+        for split in splits:
+            md = _genea_metadata(split)
+            if md is not None:
+                meta.setdefault("genea_metadata", {})[split.name] = md
+            for f in sorted((split / GENEA_ROLES[0] / "bvh").iterdir()):
+                m = pat.match(f.name)
+                if not m or m.group("role") != GENEA_ROLES[0]:
+                    continue
+                name = m.group("session")
+                if name in found:
+                    raise CorpusError(f"session {name!r} appears in two splits", f)
+                found[name] = ({r: {k: split / r / k / f"{name}_{r}" for k in ("bvh", "wav", "tsv")}
+                                for r in GENEA_ROLES}, None)
+    if not found:
+        raise CorpusError("no <session>_main-agent.bvh / <session>_interloctr.bvh files (GENEA dyadic layout: "
+                          "flat, or <split>/main-agent/bvh/ as the GENEA 2023 release)", root)
     sessions = []
-    for name in names:
-        stereo = root / f"{name}.wav"
+    for name, (stems, stereo) in found.items():
         parts = []
         for k, role in enumerate(GENEA_ROLES):
-            stem = root / f"{name}_{role}"
-            motion = stem.with_suffix(".bvh")
+            motion = stems[role]["bvh"].with_name(stems[role]["bvh"].name + ".bvh")
             if not motion.is_file():
                 raise MissingFileError(f"session {name!r} lacks its {role} motion", motion)
-            audio, channel = stem.with_suffix(".wav"), None
+            audio, channel = stems[role]["wav"].with_name(stems[role]["wav"].name + ".wav"), None
             if not audio.is_file():
-                if stereo.is_file():
+                if stereo is not None and stereo.is_file():
                     audio, channel = stereo, k
                 else:
-                    raise MissingFileError(f"session {name!r} lacks the {role} audio (or a stereo {stereo.name})", audio)
-            transcript = _find_transcript(stem)
+                    other = f" (or a stereo {stereo.name})" if stereo is not None else ""
+                    raise MissingFileError(f"session {name!r} lacks the {role} audio{other}", audio)
+            transcript = _find_transcript(stems[role]["tsv"])
             if transcript is None:
-                raise MissingFileError(f"session {name!r} lacks the {role} transcript", stem.with_suffix(".tsv"))
+                raise MissingFileError(f"session {name!r} lacks the {role} transcript",
+                                       stems[role]["tsv"].with_name(stems[role]["tsv"].name + ".tsv"))
             parts.append(Participant(role, characters.get(role, role), motion, audio, transcript, channel, name))
         sessions.append(Session(name, tuple(parts)))
     corpus = Corpus(root, sessions, meta)

@@ -69,6 +69,10 @@ def run(cfg, out_dir: Path) -> dict:
     top = {k: sum(v[k] for v in graphs.values()) for k in
            ("num_frames", "num_key_states", "num_states_before_scc", "num_edges_before_scc", "num_states",
             "num_edges", "seconds", "cpu_seconds")}
+    if params.corpus.kind == "beat2":
+        from .common import open_corpus, pairing_note
+
+        top.update(pairing_note(open_corpus(params)))
     top.update({"threshold": {c: v["threshold"] for c, v in graphs.items()},
                 "w_v": {c: v["w_v"] for c, v in graphs.items()}, "graphs": graphs})
     return top

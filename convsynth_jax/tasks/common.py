@@ -32,7 +32,7 @@ def open_corpus(params):
     from ..io.corpus import load_corpus
 
     c = params.corpus
-    needed = {"genea": "root", "bvh_folder": "root", "manifest": "path"}.get(c.kind)
+    needed = {"genea": "root", "bvh_folder": "root", "manifest": "path", "beat2": "root"}.get(c.kind)
     if needed and getattr(c, needed) is None:
         raise ConfigError(f"corpus={c.kind} needs corpus.{needed}=" + ("FILE" if needed == "path" else "DIR"))
     if c.kind == "synthetic":
@@ -45,7 +45,21 @@ def open_corpus(params):
         return load_corpus(c.root, layout="genea", tolerance=c.duration_tolerance, characters=c.characters)
     if c.kind == "manifest":
         return load_corpus(c.path, layout="manifest", tolerance=c.duration_tolerance, characters=c.characters)
-    raise ConfigError(f"corpus kind {c.kind!r} is not a dyadic corpus (expected synthetic, genea or manifest)")
+    if c.kind == "beat2":
+        from ..io.beat2 import load_beat2
+
+        return load_beat2(c.root, c.pairing, c.pseudo_shift_s, c.smplx_model, c.characters,
+                          derived_dir=Path(params.cache_dir) / "beat2_pseudo_dyads", tolerance=c.duration_tolerance)
+    raise ConfigError(f"corpus kind {c.kind!r} is not a dyadic corpus (expected synthetic, genea, manifest or beat2)")
+
+
+def pairing_note(corpus) -> dict:
+    """``{"pairing": ..., "partner_statistics": "null control", ...}`` for a corpus of pseudo-dyads
+    (its partner statistics are a null control, and task outputs say so); {} for a real dyadic corpus."""
+    meta = getattr(corpus, "metadata", {}) or {}
+    if meta.get("pairing") != "pseudo_dyad":
+        return {}
+    return {"pairing": "pseudo_dyad", "partner_statistics": "null control", "pairing_note": meta.get("note", "")}
 
 
 def cache_dir(params) -> Path:

@@ -36,7 +36,7 @@ def run(cfg, out_dir: Path) -> dict:
     from ..figures import save_figure
     from ..figures.motion_graph import table1_figure
     from ..stats.cooccurrence import TABLE_COLUMNS, cooccurrence_by_session, cooccurrence_table
-    from .common import annotated_corpus, params_of
+    from .common import annotated_corpus, pairing_note, params_of
 
     params = params_of(cfg)
     corpus, ann = annotated_corpus(params)
@@ -45,7 +45,9 @@ def run(cfg, out_dir: Path) -> dict:
     by_session = cooccurrence_by_session(parts, params.annotate, params.stats, params.seed)
     _csv(table, out_dir / "cooccurrence.csv")
     _csv(by_session, out_dir / "cooccurrence_by_session.csv")
-    write_text_atomic(out_dir / "cooccurrence.md", to_markdown(table))
+    note = pairing_note(corpus)
+    write_text_atomic(out_dir / "cooccurrence.md", (f"> NULL CONTROL: {note['pairing_note']}\n\n" if note else "")
+                      + to_markdown(table))
     write_text_atomic(out_dir / "cooccurrence.tex", to_latex(table))
     ev = pd.concat([a.events.assign(session=a.session, role=a.role, character=a.character) for a in parts],
                    ignore_index=True)
@@ -55,7 +57,7 @@ def run(cfg, out_dir: Path) -> dict:
     _csv(seg, out_dir / "segments.csv")
     save_figure(table1_figure(table), out_dir / "cooccurrence.png", dpi=120)
     log.info("%s", "\n" + to_markdown(table))
-    return {"corpus_root": str(corpus.root), "columns": TABLE_COLUMNS,
+    return {"corpus_root": str(corpus.root), **note, "columns": TABLE_COLUMNS,
             "num_participants": len(parts), "num_events": int(len(ev)),
             "all_significant_p_lt_0.01": bool(((table["p_chi2"] < 0.01) & (table["p_permutation"] < 0.01)).all()),
             "rows": table.to_dict(orient="records")}

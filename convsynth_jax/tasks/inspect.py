@@ -1,4 +1,5 @@
-"""Task ``inspect``: report what a BVH file (``path=FILE``) or the configured corpus holds."""
+"""Task ``inspect``: report what a motion file (``path=FILE``: BVH or an SMPL-X ``.npz``) or the
+configured corpus holds."""
 from __future__ import annotations
 
 import logging
@@ -7,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from ..io import load_bvh
+from ..io.motion import load_motion_file
 from ..kinematics import forward_kinematics
 
 log = logging.getLogger(__name__)
@@ -22,7 +23,7 @@ class InspectSettings:
 
 def run(cfg, out_dir: Path) -> dict:
     if cfg.get("path"):
-        motion = load_bvh(cfg.path)
+        motion = load_motion_file(cfg.path)
         pos = np.asarray(forward_kinematics(motion))
         summary = {
             "path": str(cfg.path),

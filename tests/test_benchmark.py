@@ -135,3 +135,14 @@ def test_benchmark_task_writes_leaderboard(tmp_path, tiny_corpus_dir, tiny_cache
     board = pd.read_csv(tmp_path / "leaderboard.csv")
     assert {"fgd_raw", "fgd_ae30", "beat_consistency", "gac"} <= set(board["metric"])
     assert json.loads((tmp_path / "summary.json").read_text())["num_cases"] == summary["num_cases"] == 2
+
+
+def test_a_null_system_label_is_left_out():
+    from convsynth_jax.schema import build_params
+    from convsynth_jax.tasks.benchmark import BenchmarkSettings
+
+    systems = {"random_playback": {"system": "random_playback", "condition": "none"}, "motion_graph": None,
+               "cdbn": {"system": "cdbn", "condition": "cdbn"}}   # as conf/task/benchmark.yaml gives them
+    s = build_params(BenchmarkSettings, {"systems": systems}, "task")
+    assert s.systems["motion_graph"] is None
+    assert s.systems["cdbn"].system == "cdbn" and s.systems["random_playback"].condition == "none"

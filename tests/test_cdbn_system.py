@@ -130,3 +130,52 @@ def test_hand_stream_moves_the_arms(annotated):
     assert arms.std(axis=0).max() > 0.05
     head = mo.skeleton.names.index("Head")
     assert np.allclose(mo.rotations[:, head], mo.rotations[0, head])
+
+
+def test_recorded_body_moves_the_head_point_and_keeps_the_head(annotated):
+    """cdbn.synth.body=recording (ours): the same head rotation on a training recording's body; the
+    head point's jerk (the benchmark's head scope) rises, the composed head rotation does not
+    change, and the default (the paper's still body) is untouched by the option's existence."""
+    from convsynth_jax.annotate.motion import head_point
+    from convsynth_jax.cdbn.features import head_rotation
+    from convsynth_jax.cdbn.params import CDBNFeatureParams
+    from convsynth_jax.evaluation.field.kinematic import average_jerk
+
+    cfg, ann = annotated
+    sessions = sorted(ann)
+    train = [ann[s]["main-agent"] for s in sessions[:1]]
+    held = ann[sessions[-1]]["main-agent"]
+    _, window = _talking_window(held, 300)
+    out = {}
+    for body in ("mean", "recording"):
+        sysm = system(cfg, synth={"body": body})
+        model = sysm.fit(train, train[0].character, "cdbn")
+        assert bool(model.bodies) == (body == "recording")
+        res = sysm.synthesize(model, window, "cdbn")
+        assert res.success, res.failure
+        out[body] = res.motion
+    fp = CDBNFeatureParams()
+    assert np.allclose(head_rotation(out["mean"], fp), head_rotation(out["recording"], fp), atol=1e-6)
+    spine = out["mean"].skeleton.names.index("Spine")
+    assert np.allclose(out["mean"].rotations[:, spine], out["mean"].rotations[0, spine])
+    assert not np.allclose(out["recording"].rotations[:, spine], out["recording"].rotations[0, spine])
+    jerk = {k: average_jerk(head_point(m, cfg.annotate), m.fps) for k, m in out.items()}
+    assert jerk["recording"] > 2 * jerk["mean"], jerk
+
+
+def test_body_excerpt_plays_a_short_clip_forward_and_back():
+    from convsynth_jax.cdbn.synthesize import body_excerpt
+    from convsynth_jax.skeleton import Motion, Skeleton
+
+    skel = Skeleton(("Hips",), (-1,), np.zeros((1, 3)), (("Xposition", "Yposition", "Zposition", "Zrotation", "Xrotation", "Yrotation"),))
+    F = 4
+    rot = np.zeros((F, 1, 4))
+    rot[:, 0, 0] = 1.0
+    trans = np.arange(F, dtype=float)[:, None, None] * np.ones((1, 1, 3))
+    m = Motion(skel, rot, trans, 30.0, "clip")
+    out = body_excerpt([m], 9, np.random.default_rng(0))
+    assert out.translations[:, 0, 0].tolist() == [0, 1, 2, 3, 2, 1, 0, 1, 2]
+    long = body_excerpt([m], 3, np.random.default_rng(0))
+    assert np.all(np.diff(long.translations[:, 0, 0]) == 1)
+    with pytest.raises(CDBNError, match="no recordings"):
+        body_excerpt([], 3, np.random.default_rng(0))

@@ -99,6 +99,11 @@ class CDBNSynthParams:
     posterior: str = "smoother"
     keypoints_per_second: float = 15.0       # head (Sec. VI-B)
     hand_keypoints_per_second: float = 12.0  # hands (Sec. VI-B)
+    # what the rest of the body does under the synthesized head (system=cdbn, head stream; the paper
+    # leaves it to the renderer): mean (the character's mean pose, still) | recording (ours: an
+    # excerpt of one of the character's training recordings, the head replaced; docs/cdbn.md);
+    # the hand stream keeps the mean pose
+    body: str = "mean"
 
 
 @dataclass(frozen=True)
@@ -172,6 +177,7 @@ class SemiSyntheticParams:
 POSTERIORS = ("smoother", "viterbi", "filter")
 INITS = ("lbg", "random")
 STREAMS = ("head", "hands")
+BODIES = ("mean", "recording")
 
 
 @dataclass(frozen=True)
@@ -193,6 +199,8 @@ class CDBNParams:
     def __post_init__(self):
         if self.synth.posterior not in POSTERIORS:
             raise ConfigError(f"cdbn.synth.posterior must be one of {POSTERIORS}, got {self.synth.posterior!r}")
+        if self.synth.body not in BODIES:
+            raise ConfigError(f"cdbn.synth.body must be one of {BODIES}, got {self.synth.body!r}")
         if self.stream not in STREAMS:
             raise ConfigError(f"cdbn.stream must be one of {STREAMS}, got {self.stream!r}")
         if self.train.init not in INITS:

@@ -136,3 +136,43 @@ def head_into_motion(template, composite: np.ndarray, head_joints: tuple = ("nec
     rots[:, idx[-1]] = head.as_quat()[:, [3, 0, 1, 2]]
     trans = np.broadcast_to(np.asarray(template.translations[0]), (F,) + template.translations.shape[1:]).copy()
     return Motion(skel, rots, trans, float(template.fps), name or template.name)
+
+
+def head_onto_body(body, composite: np.ndarray, head_joints: tuple = ("neck", "head"), name: str = ""):
+    """``body`` (a Motion of len(composite) frames, e.g. a training recording) with its head replaced:
+    every joint but the last of ``head_joints`` keeps the recording's rotation per frame, and the last
+    one is set so that the composition of ``head_joints`` equals ``composite`` (F, 4) (w, x, y, z) at
+    every frame (the head rotation relative to the neck's parent, as :func:`head_into_motion`)."""
+    import dataclasses
+
+    from scipy.spatial.transform import Rotation
+
+    F = len(composite)
+    if body.num_frames != F:
+        raise CDBNError(f"head_onto_body: the body has {body.num_frames} frames but the head {F}")
+    rots = np.array(body.rotations, np.float64)
+    idx = head_joint_indices(body.skeleton, head_joints, name or body.name)
+    pre = Rotation.identity(F)
+    for j in idx[:-1]:
+        pre = pre * Rotation.from_quat(rots[:, j][:, [1, 2, 3, 0]])
+    head = pre.inv() * Rotation.from_quat(np.asarray(composite, np.float64)[:, [1, 2, 3, 0]])
+    rots[:, idx[-1]] = head.as_quat()[:, [3, 0, 1, 2]]
+    return dataclasses.replace(body, rotations=rots, translations=np.array(body.translations), name=name or body.name)
+
+
+def body_excerpt(motions: list, num_frames: int, rng: np.random.Generator):
+    """``num_frames`` frames of one of ``motions`` (drawn with ``rng``) from a random start; a clip
+    shorter than the window is played forward and back (no jump). ``motions``: a non-empty list."""
+    if not motions:
+        raise CDBNError("body_excerpt: no recordings to take the body from")
+    m = motions[int(rng.integers(len(motions)))]
+    F = m.num_frames
+    if F >= num_frames:
+        s = int(rng.integers(0, F - num_frames + 1))
+        return m.slice(s, s + num_frames)
+    period = max(2 * F - 2, 1)
+    t = np.arange(num_frames) % period
+    idx = np.where(t < F, t, period - t) if F > 1 else np.zeros(num_frames, int)
+    import dataclasses
+
+    return dataclasses.replace(m, rotations=np.asarray(m.rotations)[idx], translations=np.asarray(m.translations)[idx])

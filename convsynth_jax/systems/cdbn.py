@@ -9,7 +9,10 @@ framework's annotation; a coarser mapping can be set in ``options.constraint_map
 data: at most frames / (4 * min_frames_per_state)), condition ``jdbn`` the baseline.
 synthesize: prosody of ``window.own_audio`` normalized with the character's training statistics,
 state posteriors under the window's own labels, motion = sum_i gamma_i mu_i (Eq. 4/6), key-point
-slerp smoothing; the rest of the body holds the training mean pose. Head only: produces_hands False.
+slerp smoothing; the rest of the body holds the training mean pose (``cdbn.synth.body=mean``) or,
+ours (``cdbn.synth.body=recording``, ``preset=quality``), plays an excerpt of one of the character's
+training recordings (drawn with the window's seed) whose head is replaced by the synthesized one.
+Head only: produces_hands False.
 
 ``cdbn.stream`` (ours; ``system.options.stream=hands``) selects the model: ``head`` (default, 3 DOF
 head rotation, 15 key points/s) or ``hands`` (the paper's separate hand model: arm 3 DOF x 2 and
@@ -38,7 +41,15 @@ from ..cdbn.features import (
 )
 from ..cdbn.hands import HAND_NAMES, arm_angles, arm_quaternions, arm_rig, arms_into_motion, keypoint_smooth_joints
 from ..cdbn.params import CDBNParams
-from ..cdbn.synthesize import expected_motion, head_into_motion, keypoint_smooth, state_posteriors, synthesize_head
+from ..cdbn.synthesize import (
+    body_excerpt,
+    expected_motion,
+    head_into_motion,
+    head_onto_body,
+    keypoint_smooth,
+    state_posteriors,
+    synthesize_head,
+)
 from ..errors import CDBNError
 from ..schema import build_params
 from .base import SynthesisSystem, WindowInput, WindowResult
@@ -59,6 +70,7 @@ class CDBNFit:
     seconds: float
     stream: str = "head"        # head | hands
     rig: object = None          # hands: the ArmRig of the template's skeleton
+    bodies: tuple = ()          # cdbn.synth.body=recording: the character's training motions
 
 
 def _params(params, options: dict) -> CDBNParams:
@@ -141,8 +153,9 @@ class CDBNSystem(SynthesisSystem):
                             self.cdbn.constrain.shared_state, layout)
         else:
             tm = train_jdbn(seqs, self.cdbn.jdbn_states, sd, md, tp, layout)
+        bodies = tuple(c.motion for c in mine) if self.cdbn.synth.body == "recording" and not hands else ()
         return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0,
-                       self.stream, rig)
+                       self.stream, rig, bodies)
 
     def synthesize(self, model: CDBNFit, window: WindowInput, condition: str) -> WindowResult:
         t0 = time.perf_counter()
@@ -171,7 +184,11 @@ class CDBNSystem(SynthesisSystem):
             angles, gamma = synthesize_head(model.trained.model, model.speech_norm.apply(raw), cons,
                                             self.cdbn.synth.posterior, model.motion_norm.mean, model.motion_norm.sd)
             q = keypoint_smooth(angles, window.fps, self.cdbn.synth.keypoints_per_second)
-            motion = head_into_motion(model.template, q, self.cdbn.features.head_joints, name)
+            if model.bodies:   # ours (cdbn.synth.body=recording): the head on a training recording's body
+                body = body_excerpt(list(model.bodies), n, np.random.default_rng(window.seed))
+                motion = head_onto_body(body, q, self.cdbn.features.head_joints, name)
+            else:
+                motion = head_into_motion(model.template, q, self.cdbn.features.head_joints, name)
         ent = -np.sum(gamma * np.log(np.maximum(gamma, 1e-12)), axis=1)
         return WindowResult(True, motion=motion, seconds=time.perf_counter() - t0,
                             diagnostics={"states": model.trained.model.num_states,

@@ -45,7 +45,7 @@ class BenchmarkSettings:
     """``conf/task/benchmark.yaml``."""
 
     name: str = "benchmark"
-    systems: Dict[str, BenchmarkSystem] = field(default_factory=_default_systems)
+    systems: Dict[str, Optional[BenchmarkSystem]] = field(default_factory=_default_systems)  # null drops a label
     only: Optional[str] = None
     from_dir: Optional[str] = None
     folds: Optional[List[int]] = None
@@ -116,7 +116,7 @@ def run(cfg, out_dir: Path) -> dict:
     t_start = time.perf_counter()
     task: BenchmarkSettings = task_settings(cfg)
     params = params_of(cfg)
-    entries = dict(task.systems)
+    entries = {k: v for k, v in task.systems.items() if v is not None}   # task.systems.<label>=null drops one
     if task.only is not None:
         if task.only not in entries:
             raise ConfigError(f"task.only={task.only!r} is not a label of task.systems {sorted(entries)}")

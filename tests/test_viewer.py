@@ -184,9 +184,9 @@ def test_bad_inputs_name_the_file(broken, tmp_path, out):
 def test_server_serves_the_scene_and_only_its_files(out):
     from starlette.testclient import TestClient
 
-    from convsynth_jax.viewer.server import create_app
+    from convsynth_jax.viewer.server import create_viewer_app
 
-    c = TestClient(create_app(out))
+    c = TestClient(create_viewer_app(out))
     r = c.get("/")
     assert r.status_code == 200 and "scene.js" in r.text and "three.bundle.min.js" in r.text
     assert "default-src 'self'" in r.headers["content-security-policy"]
@@ -205,9 +205,9 @@ def test_server_serves_the_scene_and_only_its_files(out):
 def test_server_shows_a_malformed_input_as_an_error_scene(broken, caplog):
     from starlette.testclient import TestClient
 
-    from convsynth_jax.viewer.server import create_app
+    from convsynth_jax.viewer.server import create_viewer_app
 
-    c = TestClient(create_app(broken))
+    c = TestClient(create_viewer_app(broken))
     with caplog.at_level("ERROR"):
         js = c.get("/scene.js").text
     assert '"error"' in js and "x.bvh" in js and "x.bvh" in caplog.text
@@ -248,12 +248,12 @@ def served(out):
     """uvicorn serving the fixture on a free loopback port, in a thread of this process."""
     import uvicorn
 
-    from convsynth_jax.viewer.server import create_app
+    from convsynth_jax.viewer.server import create_viewer_app
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_app(out), host="127.0.0.1", port=port, log_level="warning"))
+    server = uvicorn.Server(uvicorn.Config(create_viewer_app(out), host="127.0.0.1", port=port, log_level="warning"))
     th = threading.Thread(target=server.run, daemon=True)
     th.start()
     deadline = time.monotonic() + 20
@@ -377,12 +377,12 @@ def test_browser_timeline_cursor_follows_the_audio_clock(driver, served):
 def test_browser_shows_a_malformed_file_as_an_error(driver, broken):
     import uvicorn
 
-    from convsynth_jax.viewer.server import create_app
+    from convsynth_jax.viewer.server import create_viewer_app
 
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         port = s.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_app(broken), host="127.0.0.1", port=port, log_level="critical"))
+    server = uvicorn.Server(uvicorn.Config(create_viewer_app(broken), host="127.0.0.1", port=port, log_level="critical"))
     th = threading.Thread(target=server.run, daemon=True)
     th.start()
     while not server.started:

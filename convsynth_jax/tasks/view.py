@@ -52,9 +52,9 @@ def run(cfg, out_dir: Path) -> dict:
         from ..viewer.server import export
 
         return export(path, Path(s.export), audio=audio, title=s.title)
-    from ..viewer.server import create_app
+    from ..viewer.server import create_viewer_app
 
-    app = create_app(path, audio=audio, title=s.title)
+    app = create_viewer_app(path, audio=audio, title=s.title)
     scene = app.state.source.get()
     try:
         import uvicorn

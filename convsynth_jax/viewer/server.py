@@ -85,7 +85,7 @@ class SceneSource:
         return {t["name"]: Path(t["file"]) for t in self.get().get("audio", [])}
 
 
-def create_app(path, audio=None, title: str | None = None):
+def create_viewer_app(path, audio=None, title: str | None = None):
     """The ASGI application showing ``path`` (a BVH file, a folder of them, a synthesize or
     converse output); ``audio``: WAV files replacing the folder's."""
     try:

@@ -35,6 +35,32 @@ def test_unreadable_and_nan_wav(tmp_path):
         load_audio(tmp_path / "none.wav")
 
 
+def test_flac_ogg_and_mu_law_wav_are_read_through_libsndfile(tmp_path):
+    """A user's speech often comes as FLAC or OGG, or as a telephone-style WAV that SciPy cannot read:
+    each is read (libsndfile), with its rate and channels, and a damaged file names itself."""
+    import soundfile
+
+    rate = 22050
+    x = 0.5 * np.sin(np.linspace(0, 300, rate)).astype(np.float32)
+    st = np.stack([x, -x], 1)
+    soundfile.write(tmp_path / "s.flac", st, rate, subtype="PCM_16")
+    a = load_audio(tmp_path / "s.flac")
+    assert a.sample_rate == rate and a.num_channels == 2 and abs(a.duration - 1.0) < 1e-9
+    np.testing.assert_allclose(load_audio(tmp_path / "s.flac", channel=1).samples, -x, atol=1e-4)
+    soundfile.write(tmp_path / "m.ogg", x, rate, format="OGG", subtype="VORBIS")
+    b = load_audio(tmp_path / "m.ogg")
+    assert b.sample_rate == rate and b.num_channels == 1 and abs(b.duration - 1.0) < 0.01
+    assert np.corrcoef(b.samples[:len(x)], x[:len(b.samples)])[0, 1] > 0.9      # lossy, but the same signal
+    soundfile.write(tmp_path / "ulaw.wav", x, 8000, subtype="ULAW")
+    with pytest.raises(ValueError):                       # what SciPy alone would say
+        wavfile.read(tmp_path / "ulaw.wav")
+    c = load_audio(tmp_path / "ulaw.wav")
+    assert c.sample_rate == 8000 and np.abs(c.samples - x).max() < 0.05
+    (tmp_path / "bad.flac").write_bytes(b"fLaC not really")
+    with pytest.raises(AudioFormatError, match=r"bad\.flac: unreadable audio"):
+        load_audio(tmp_path / "bad.flac")
+
+
 def test_genea_layout_loads(tiny_corpus_dir):
     c = load_corpus(tiny_corpus_dir)
     assert [s.name for s in c.sessions] == ["session01", "session02", "session03"]

@@ -133,7 +133,7 @@ def test_zero_length_audio_is_an_error(tmp_path):
     from convsynth_jax.io.audio import load_audio
 
     wavfile.write(tmp_path / "empty.wav", 16000, np.zeros(0, np.int16))
-    with pytest.raises(AudioFormatError, match=r"empty\.wav: WAV holds no samples"):
+    with pytest.raises(AudioFormatError, match=r"empty\.wav: the file holds no samples"):
         load_audio(tmp_path / "empty.wav")
 
 

@@ -1,4 +1,6 @@
-"""WAV audio: mono or stereo, any sample rate, 8/16/24/32-bit integer or float samples."""
+"""Audio: WAV (mono or stereo, any sample rate, 8/16/24/32-bit integer or float samples) read by SciPy;
+FLAC, OGG/Vorbis, MP3, AIFF and the other formats of libsndfile (the ``soundfile`` package, which
+librosa brings) read by libsndfile, as is a WAV that SciPy cannot read (e.g. A-law or ADPCM)."""
 from __future__ import annotations
 
 import wave
@@ -54,18 +56,33 @@ def wav_duration(path: str | Path) -> float:
         return load_audio(path).duration  # the full reader says what is wrong
 
 
+def _read_libsndfile(path: Path, scipy_error: Exception | None = None) -> tuple[int, np.ndarray]:
+    """(rate, float32 samples) through libsndfile; its refusal names the file (and SciPy's, for a WAV)."""
+    import soundfile
+
+    try:
+        data, rate = soundfile.read(str(path), dtype="float32", always_2d=False)
+    except (RuntimeError, TypeError, ValueError, OSError) as e:  # soundfile.LibsndfileError is a RuntimeError
+        why = f"SciPy: {scipy_error}; libsndfile: {e}" if scipy_error is not None else f"{e}"
+        raise AudioFormatError(f"unreadable audio ({why})", path) from None
+    return int(rate), data
+
+
 def load_audio(path: str | Path, channel: int | None = None) -> Audio:
     path = Path(path)
     if not path.is_file():
         raise MissingFileError("audio file not found", path)
-    try:
-        rate, data = wavfile.read(path)
-    except (ValueError, EOFError, OSError) as e:
-        raise AudioFormatError(f"unreadable WAV ({e})", path) from None
-    except Exception as e:  # noqa: BLE001 - scipy's reader crashes on some damaged headers (RuntimeError, UnboundLocalError)
-        raise AudioFormatError(f"unreadable WAV (damaged header: {type(e).__name__} {e})", path) from None
+    if path.suffix.lower() not in (".wav", ".wave"):
+        rate, data = _read_libsndfile(path)
+    else:
+        try:
+            rate, data = wavfile.read(path)
+        except (ValueError, EOFError, OSError) as e:
+            rate, data = _read_libsndfile(path, e)
+        except Exception as e:  # noqa: BLE001 - scipy's reader crashes on some damaged headers (RuntimeError, UnboundLocalError)
+            raise AudioFormatError(f"unreadable WAV (damaged header: {type(e).__name__} {e})", path) from None
     if data.size == 0:
-        raise AudioFormatError("WAV holds no samples", path)
+        raise AudioFormatError("the file holds no samples", path)
     if data.dtype == np.uint8:
         x = (data.astype(np.float32) - 128.0) / 128.0
     elif np.issubdtype(data.dtype, np.integer):

@@ -65,3 +65,36 @@ def test_bad_json_and_missing(tmp_path):
         load_transcript(p)
     with pytest.raises(MissingFileError):
         load_transcript(tmp_path / "none.tsv")
+
+
+def test_whisper_and_whisperx_json(tmp_path, caplog):
+    """Word timings as Whisper (word_timestamps=True) and WhisperX write them; a word WhisperX could not
+    align (no times) is dropped with a warning naming it; an unknown JSON names both accepted kinds."""
+    import json
+
+    whisper = {"text": " So, yeah.", "segments": [
+        {"id": 0, "start": 0.0, "end": 1.2, "text": " So, yeah.",
+         "words": [{"word": " So,", "start": 0.1, "end": 0.4, "probability": 0.9},
+                   {"word": " yeah.", "start": 0.6, "end": 1.0, "probability": 0.8}]}]}
+    (tmp_path / "w.json").write_text(json.dumps(whisper))
+    df = load_transcript(tmp_path / "w.json")
+    assert df["word"].tolist() == ["So,", "yeah."]
+    np.testing.assert_allclose(df[["start", "end"]], [[0.1, 0.4], [0.6, 1.0]])
+    whisperx = {"segments": [{"start": 0.1, "end": 2.0, "text": "I have 2 cats",
+                              "words": [{"word": "I", "start": 0.1, "end": 0.2, "score": 0.9},
+                                        {"word": "have", "start": 0.25, "end": 0.5, "score": 0.9},
+                                        {"word": "2"},
+                                        {"word": "cats", "start": 1.1, "end": 1.5, "score": 0.8}]}],
+                "word_segments": [{"word": "I", "start": 0.1, "end": 0.2}, {"word": "have", "start": 0.25, "end": 0.5},
+                                  {"word": "2"}, {"word": "cats", "start": 1.1, "end": 1.5}]}
+    (tmp_path / "x.json").write_text(json.dumps(whisperx))
+    with caplog.at_level("WARNING"):
+        dx = load_transcript(tmp_path / "x.json")
+    assert dx["word"].tolist() == ["I", "have", "cats"]
+    assert "1 word(s) without start/end" in caplog.text and "'2' (word_segments[2])" in caplog.text
+    (tmp_path / "nowords.json").write_text(json.dumps({"segments": [{"start": 0, "end": 1, "text": "hi"}]}))
+    with pytest.raises(TranscriptFormatError, match=r"nowords\.json: segments\[0\].*word timestamps"):
+        load_transcript(tmp_path / "nowords.json")
+    (tmp_path / "other.json").write_text(json.dumps({"words": []}))
+    with pytest.raises(TranscriptFormatError, match=r"other\.json: expected IBM Watson.*Whisper"):
+        load_transcript(tmp_path / "other.json")

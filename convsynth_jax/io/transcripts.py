@@ -1,9 +1,11 @@
 """Word-level transcript readers: Praat TextGrid (long and short text formats), TSV/CSV word
-timings and IBM Watson Speech-to-Text JSON. All return a DataFrame with columns start, end, word
+timings, IBM Watson Speech-to-Text JSON and the word-timestamped JSON of OpenAI Whisper
+(``word_timestamps=True``), whisper-timestamped and WhisperX. All return a DataFrame with columns start, end, word
 (seconds, sorted by start, validated)."""
 from __future__ import annotations
 
 import json
+import logging
 import math
 import re
 from pathlib import Path
@@ -12,6 +14,8 @@ import pandas as pd
 
 from ..errors import MissingFileError, TranscriptFormatError
 from ..utils import atomic_path
+
+log = logging.getLogger(__name__)
 
 COLUMNS = ["start", "end", "word"]
 
@@ -37,7 +41,7 @@ def load_transcript(path: str | Path, tier: str = "words", fmt: str | None = Non
     elif fmt == "csv":
         df = _parse_delimited(text, ",", path)
     elif fmt == "json":
-        df = _parse_ibm_json(text, path)
+        df = _parse_json(text, path)
     else:
         raise TranscriptFormatError(f"unknown transcript format {fmt!r} (expected TextGrid, tsv, csv or json)", path)
     return validate_words(df, path)
@@ -83,14 +87,25 @@ def _parse_delimited(text: str, sep: str, path: Path) -> pd.DataFrame:
     return pd.DataFrame(rows, columns=COLUMNS)
 
 
-def _parse_ibm_json(text: str, path: Path) -> pd.DataFrame:
+def _parse_json(text: str, path: Path) -> pd.DataFrame:
+    """IBM Watson (``results``) or Whisper-family (``segments`` with ``words``, or WhisperX's
+    ``word_segments``) JSON, told apart by their keys."""
     try:
         data = json.loads(text)
     except json.JSONDecodeError as e:
         raise TranscriptFormatError(f"invalid JSON ({e.msg})", path, f"line {e.lineno}") from None
-    results = data.get("results") if isinstance(data, dict) else None
-    if results is None:
-        raise TranscriptFormatError("no 'results' list (expected IBM Watson Speech-to-Text JSON)", path)
+    if isinstance(data, dict) and "results" in data:
+        return _parse_ibm_json(data, path)
+    if isinstance(data, dict) and ("word_segments" in data or "segments" in data):
+        return _parse_whisper_json(data, path)
+    raise TranscriptFormatError("expected IBM Watson Speech-to-Text JSON (a 'results' list) or Whisper/WhisperX "
+                                "JSON with word timestamps (a 'segments' list with 'words', or 'word_segments')", path)
+
+
+def _parse_ibm_json(data: dict, path: Path) -> pd.DataFrame:
+    results = data.get("results")
+    if not isinstance(results, list):
+        raise TranscriptFormatError("'results' is not a list (expected IBM Watson Speech-to-Text JSON)", path)
     rows = []
     for r, res in enumerate(results):
         alts = res.get("alternatives") or []
@@ -103,6 +118,41 @@ def _parse_ibm_json(text: str, path: Path) -> pd.DataFrame:
                 raise TranscriptFormatError(f"bad timestamp entry {item!r}", path,
                                             f"results[{r}].alternatives[0].timestamps[{w}]") from None
             rows.append((start, end, str(word)))
+    return pd.DataFrame(rows, columns=COLUMNS)
+
+
+def _parse_whisper_json(data: dict, path: Path) -> pd.DataFrame:
+    """Words of Whisper-family JSON. WhisperX leaves ``start``/``end`` out for a token it could not align
+    (often a numeral): such a word is dropped with a warning that counts them, since a clause can do
+    without one word but a word without a time cannot be placed."""
+    if "word_segments" in data:
+        items = [(f"word_segments[{i}]", w) for i, w in enumerate(data["word_segments"] or [])]
+    else:
+        segs = data["segments"]
+        if not isinstance(segs, list):
+            raise TranscriptFormatError("'segments' is not a list", path)
+        items = []
+        for s, seg in enumerate(segs):
+            words = seg.get("words") if isinstance(seg, dict) else None
+            if words is None:
+                raise TranscriptFormatError("segment without 'words': transcribe with word timestamps (Whisper's "
+                                            "word_timestamps=True, or WhisperX's alignment)", path, f"segments[{s}]")
+            items += [(f"segments[{s}].words[{i}]", w) for i, w in enumerate(words)]
+    rows, unaligned = [], []
+    for where, w in items:
+        if not isinstance(w, dict) or "word" not in w:
+            raise TranscriptFormatError(f"bad word entry {w!r} (expected an object with 'word', 'start', 'end')", path,
+                                        where)
+        if w.get("start") is None or w.get("end") is None:
+            unaligned.append(f"{w['word'].strip()!r} ({where})")
+            continue
+        try:
+            rows.append((float(w["start"]), float(w["end"]), str(w["word"]).strip()))
+        except (TypeError, ValueError):
+            raise TranscriptFormatError(f"bad time in word entry {w!r}", path, where) from None
+    if unaligned:
+        log.warning("%s: %d word(s) without start/end times dropped: %s", path, len(unaligned),
+                    ", ".join(unaligned[:5]) + (" ..." if len(unaligned) > 5 else ""))
     return pd.DataFrame(rows, columns=COLUMNS)
 
 

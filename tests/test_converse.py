@@ -257,6 +257,25 @@ def test_stereo_input_gives_the_same_conversation(chained, tiny_corpus_dir, cach
     assert (tmp_path / "o" / "A.bvh").read_text() == (chained[0] / "A.bvh").read_text()
 
 
+def test_one_speaker_alone_gives_a_silent_partner(tiny_corpus_dir, cache, inputs, tmp_path):
+    """Only A's speech given (no task.audio_b, no task.transcript_b): B listens in silence for the whole
+    of it, exactly as with a silent WAV and an empty transcript given for B."""
+    from convsynth_jax.io import load_audio, save_wav
+
+    a = load_audio(inputs["audio_a"])
+    save_wav(tmp_path / "silent.wav", np.zeros(a.num_samples), a.sample_rate)
+    (tmp_path / "empty.tsv").write_text("start\tend\tword\n")
+    alone = {"audio_a": inputs["audio_a"], "transcript_a": inputs["transcript_a"]}
+    s = run_task(converse_cfg(tiny_corpus_dir, cache, alone, "task.video=false"), tmp_path / "alone")
+    given = {**alone, "audio_b": tmp_path / "silent.wav", "transcript_b": tmp_path / "empty.tsv"}
+    s2 = run_task(converse_cfg(tiny_corpus_dir, cache, given, "task.video=false"), tmp_path / "given")
+    assert s["success"] and s["constraints_total"] == s2["constraints_total"]
+    for who in "AB":
+        assert (tmp_path / "alone" / f"{who}.bvh").read_text() == (tmp_path / "given" / f"{who}.bvh").read_text()
+    rep = json.loads((tmp_path / "alone" / "report.json").read_text())
+    assert {c["kind"] for c in _constraints(rep, "B")} <= {"idle", "PH"} and rep["inputs"]["B"]["audio"] == "(silent)"
+
+
 def test_a_window_without_a_path_fails_naming_it_after_writing_the_report(chained, tiny_corpus_dir, cache, inputs,
                                                                           tmp_path, monkeypatch):
     import convsynth_jax.synth.pipeline as pipeline

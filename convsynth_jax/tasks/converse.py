@@ -86,8 +86,9 @@ def _require(value, key: str) -> str:
 
 
 def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
-    """(A, B, duration in seconds): both channels' audio and words, checked against each other."""
-    from ..io import load_audio, load_transcript
+    """(A, B, duration in seconds): both channels' audio and words, checked against each other. Without
+    ``audio_b`` and ``transcript_b`` (and no ``stereo``), B is silent for the whole of A's speech."""
+    from ..io import load_audio
 
     if p.stereo:
         if p.audio_a or p.audio_b:
@@ -97,6 +98,15 @@ def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
             raise AudioFormatError(f"task.stereo needs two channels (0 = A, 1 = B), the file has {st.num_channels}",
                                    p.stereo)
         auds, files = [st.channel(0), st.channel(1)], [str(p.stereo)] * 2
+    elif not p.audio_b and not p.transcript_b:
+        # one speaker's speech alone: B listens in silence for the whole of it
+        a = load_audio(_require(p.audio_a, "audio_a"))
+        a = a.channel(0) if a.num_channels > 1 else a
+        silent = type(a)(np.zeros(a.num_samples, np.float32), a.sample_rate, "")
+        log.info("no task.audio_b or task.transcript_b: B is silent for the whole conversation (%.2f s)", a.duration)
+        return (_speaker("A", a, str(p.audio_a), _require(p.transcript_a, "transcript_a"), p),
+                SpeakerInput("B", silent, pd.DataFrame({"start": pd.Series(dtype=float), "end": pd.Series(dtype=float),
+                                                        "word": pd.Series(dtype=str)}), "(silent)", "(none)"), a.duration)
     else:
         files = [_require(p.audio_a, "audio_a"), _require(p.audio_b, "audio_b")]
         auds = []
@@ -104,21 +114,26 @@ def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
             a = load_audio(f)
             auds.append(a.channel(0) if a.num_channels > 1 else a)
     trs = [_require(p.transcript_a, "transcript_a"), _require(p.transcript_b, "transcript_b")]
-    out = []
-    for name, a, f, tf in zip("AB", auds, files, trs):
-        words = load_transcript(tf, tier=p.tier)
-        words.attrs["path"] = tf
-        late = words.index[words["end"] > a.duration + 0.05]
-        if len(late):
-            i = int(late[0])
-            raise TranscriptFormatError(f"word {words['word'].iat[i]!r} ends at {words['end'].iat[i]:.3f} s, after the "
-                                        f"end of its audio {f} ({a.duration:.3f} s)", tf, f"word {i}")
-        out.append(SpeakerInput(name, a, words, f, tf))
+    out = [_speaker(name, a, f, tf, p) for name, a, f, tf in zip("AB", auds, files, trs)]
     duration = max(a.duration for a in auds)
     if abs(auds[0].duration - auds[1].duration) > 0.1:
         log.warning("A's audio lasts %.2f s, B's %.2f s: the conversation lasts %.2f s (the shorter is silent after "
                     "its end)", auds[0].duration, auds[1].duration, duration)
     return out[0], out[1], duration
+
+
+def _speaker(name: str, a, f: str, tf: str, p: ConverseParams) -> SpeakerInput:
+    """One speaker's input: the words of ``tf``, none of which may end after the audio ``a`` (file ``f``)."""
+    from ..io import load_transcript
+
+    words = load_transcript(tf, tier=p.tier)
+    words.attrs["path"] = tf
+    late = words.index[words["end"] > a.duration + 0.05]
+    if len(late):
+        i = int(late[0])
+        raise TranscriptFormatError(f"word {words['word'].iat[i]!r} ends at {words['end'].iat[i]:.3f} s, after the "
+                                    f"end of its audio {f} ({a.duration:.3f} s)", tf, f"word {i}")
+    return SpeakerInput(name, a, words, f, tf)
 
 
 def annotate(sp: SpeakerInput, params) -> pd.DataFrame:

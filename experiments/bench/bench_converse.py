@@ -25,6 +25,7 @@ start-up) and as the whole process.
 import argparse
 import json
 import os
+import resource
 import statistics
 import subprocess
 import sys
@@ -94,16 +95,19 @@ def run(overrides: list, cache: Path, out: Path, check: bool = True) -> dict:
            f"hydra.run.dir={out}"]
     load = os.getloadavg()[0]
     t = time.perf_counter()
+    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
     r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
     wall = time.perf_counter() - t
+    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)   # the process's CPU seconds
     if r.returncode != 0 and not check:
         summ = out / "summary.json"
-        return {"process_s": wall,
+        return {"process_s": wall, "process_cpu_s": cpu,
                 "summary": json.loads(summ.read_text()) if summ.is_file() else {"error": r.stderr[-2000:]},
                 "report_md": (out / "report.md").read_text() if (out / "report.md").is_file() else None}
     if r.returncode != 0:
         raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
-    return {"process_s": wall, "summary": json.loads((out / "summary.json").read_text()),
+    return {"process_s": wall, "process_cpu_s": cpu, "summary": json.loads((out / "summary.json").read_text()),
             "report": json.loads((out / "report.json").read_text()), "load_avg_1min": [load, os.getloadavg()[0]]}
 
 
@@ -116,7 +120,8 @@ def figures(res: dict, out: Path, fps: float) -> dict:
     frames = {w: load_bvh(out / f"{w}.bvh").num_frames for w in "AB"}
     video = probe_streams(out / "conversation.mp4") if (out / "conversation.mp4").is_file() else None
     chars = rep["characters"]
-    return {"process_s": res["process_s"], "task_total_s": rep["timings"]["total_s"], "parts_s": rep["timings"],
+    return {"process_s": res["process_s"], "process_cpu_s": res["process_cpu_s"],
+            "task_total_s": rep["timings"]["total_s"], "parts_s": rep["timings"],
             "audio_s": dur, "bvh_frames": frames, "audio_frames": dur * fps,
             "frames_off_by": {w: abs(frames[w] - dur * fps) for w in "AB"},
             "windows": len(rep["plan"]["windows"]),
@@ -214,7 +219,7 @@ def input_figures(res: dict, out: Path) -> dict:
             "transitions_per_min": {w: c["num_synthetic_transitions"] / (dur / 60.0) for w, c in chars.items()},
             "window_status": {w: [x["status"] for x in c["windows"]] for w, c in chars.items()},
             "task_s": rep["timings"]["total_s"], "task_s_per_min_speech": rep["timings"]["total_s"] / (dur / 60.0),
-            "process_s": res["process_s"], "video": rep["outputs"]["video"]}
+            "process_s": res["process_s"], "process_cpu_s": res["process_cpu_s"], "video": rep["outputs"]["video"]}
 
 
 def main():

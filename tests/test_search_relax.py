@@ -154,3 +154,37 @@ def test_bad_on_failure_and_retime_settings_are_config_errors():
         build_constraints(own, None, 20, FPS, SearchParams(retime_factor=1.5))
     with pytest.raises(ConfigError, match="matching=paper"):
         build_constraints(own, None, 20, FPS, SearchParams(matching="labels", retime_factor=0.2))
+
+
+@pytest.mark.parametrize("method", ["beam", "dfs"])
+def test_no_diagnostic_attempt_when_best_effort_takes_over(method, monkeypatch):
+    """Under the paper's rule an unsolvable window is searched once more without the look-ahead, to name
+    the frame where its paths die; under best effort that attempt would be discarded, so it is not made
+    (on a long silent listener it cost more than the relaxation), and the best-effort path is the same."""
+    from convsynth_jax.search import beam as beam_mod
+    from convsynth_jax.search import dfs as dfs_mod
+
+    g, audio = hub_graph(np.random.default_rng(0))
+    own, par = _relax_input(audio)
+    paper = SearchParams(max_degree=24, beam_size=64, n_start=20, n_save=50)
+    quality = dataclasses.replace(paper, on_failure="best_effort")
+    full = build_constraints(own, par, T, FPS, paper)
+    calls = []
+    if method == "beam":
+        real = beam_mod._beam_search_once
+        monkeypatch.setattr(beam_mod, "_beam_search_once", lambda *a, **k: calls.append(k.get("lookahead")) or real(*a, **k))
+        search = beam_search
+    else:
+        real = dfs_mod.stochastic_greedy_search
+        monkeypatch.setattr(dfs_mod, "stochastic_greedy_search", lambda *a, **k: calls.append(1) or real(*a, **k))
+        search = stochastic_greedy_search
+    res = search(g, full, paper, seed=2)
+    assert not res.success and "look-ahead" in res.failure and len(calls) == (2 if method == "beam" else 1)
+    calls.clear()
+    res = search(g, full, quality, seed=2)
+    assert not res.success and res.failure.startswith("look-ahead: no path")
+    assert len(calls) == (1 if method == "beam" else 0)
+    a = best_effort_search(search, g, own, par, T, FPS, quality, seed=3)
+    b = best_effort_search(search, g, own, par, T, FPS, paper, seed=3)
+    assert a.success and a.relaxed == b.relaxed
+    np.testing.assert_array_equal(a.path, b.path)

@@ -190,10 +190,16 @@ def beam_search(graph, constraints: Constraints, params: SearchParams, seed: int
         # the look-ahead and the first attempt in one kernel call (one program to load per graph)
         res, feas, ok = _beam_search_once(graph, constraints, params, seed, temps[0], lookahead=True, **kw)
         if not ok:
-            res = _beam_search_once(graph, constraints, params, seed, temps[0], None, **kw)
-            if not res.success:
-                res.failure = (f"{res.failure}; look-ahead: no path of the graph (each state's "
-                               f"{int(params.max_degree)} cheapest edges) meets every constraint of the window")
+            why = (f"look-ahead: no path of the graph (each state's {int(params.max_degree)} cheapest edges) meets "
+                   "every constraint of the window")
+            if params.on_failure == "best_effort":
+                # best effort takes over (search/relax.py) and discards this result: no attempt to name the frame
+                # where the paths die (on a long silent window that attempt cost more than the relaxation)
+                res.failure = why
+            else:
+                res = _beam_search_once(graph, constraints, params, seed, temps[0], None, **kw)
+                if not res.success:
+                    res.failure = f"{res.failure}; {why}"
             res.seconds = time.perf_counter() - t0
             return res
         first = 1

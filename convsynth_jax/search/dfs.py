@@ -97,6 +97,10 @@ def stochastic_greedy_search(graph, constraints: Constraints, params: SearchPara
         from .beam import lookahead
 
         f_dev, solvable = lookahead(graph, c, max_deg)
+        if not solvable and params.on_failure == "best_effort":   # search/relax.py takes over
+            return SearchResult(False, None, float("inf"), 0, c.total, 0, seconds=time.perf_counter() - t_begin,
+                                method="dfs", failure=f"look-ahead: no path of the graph (each state's {max_deg} "
+                                "cheapest edges) meets every constraint of the window")
         if not solvable:   # the search without it names the constraint where its paths die
             res = stochastic_greedy_search(graph, c, dataclasses.replace(params, lookahead=False), seed, start_states)
             if not res.success:

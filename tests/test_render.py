@@ -96,6 +96,11 @@ def test_stature_is_the_same_seated_or_standing():
     standing = R.Body(standing_pos, seated.parents, seated.head, seated.hands, seated.torso, seated.shoulders)
     assert R.stature(seated) == pytest.approx(R.stature(standing), rel=1e-6)
     assert R.stature(seated) == pytest.approx(0.75 + 0.45 + 0.5, rel=1e-6)
+    # a static world root far from the hips on the ground (bandai2's joint_Root) adds nothing: the
+    # walk-and-talk demo's characters were drawn with heads of different sizes
+    world = np.concatenate([np.zeros_like(seated.positions[:, :1]) + np.float32([3.0, 0.0, -2.0]), seated.positions], axis=1)
+    rooted = R.Body(world, (-1, *[q + 1 if q >= 0 else 0 for q in seated.parents]), 3, (6, 7), frozenset({1, 2, 3}), (4, 5))
+    assert R.stature(rooted) == pytest.approx(R.stature(seated), rel=1e-6)
 
 
 def test_three_quarter_camera_turns_the_side_view_and_fits_the_panel():

@@ -65,7 +65,7 @@ HEAD_LIFT = 0.05          # the head disc's centre above the head joint
 
 # ------------------------------------------------------------------------------------------ bodies
 @dataclass(frozen=True)
-class Body:
+class DrawnBody:
     """One character to draw. positions: (frames, joints, 3) world positions (Y up); parents:
     (joints,) parent index (-1 root, -2 not drawn); head, hands: joint indices (None / empty where
     the rig has none); torso: joints on the root-to-head chain (their bones are drawn thicker);
@@ -88,7 +88,7 @@ class Body:
         return int(self.positions.shape[0])
 
 
-def stature(body: Body) -> float:
+def stature(body: DrawnBody) -> float:
     """Bone lengths (frame 0) along the tree from the head down to the lowest joint: a body's height
     whether it sits or stands, whatever lies above the hips (a static world root joint adds
     nothing). Falls back to the vertical extent."""
@@ -116,8 +116,8 @@ def stature(body: Body) -> float:
     return s if s > 1e-9 else float(np.ptp(p[:, 1]) or 1.0)
 
 
-def body_from_motion(motion, name: str = "", color: int | None = None) -> Body:
-    """A :class:`Body` from a :class:`~convsynth_jax.skeleton.Motion` (forward kinematics and the rig's
+def body_from_motion(motion, name: str = "", color: int | None = None) -> DrawnBody:
+    """A :class:`DrawnBody` from a :class:`~convsynth_jax.skeleton.Motion` (forward kinematics and the rig's
     roles, :func:`convsynth_jax.rig.find_role`). Joints below a hand (fingers) are not drawn: the
     hand disc stands for them."""
     from .kinematics import forward_kinematics_np
@@ -145,16 +145,16 @@ def body_from_motion(motion, name: str = "", color: int | None = None) -> Body:
                 break
             q = parents[q]
     kept = tuple(-2 if j in below_hand else p for j, p in enumerate(parents))
-    b = Body(pos, kept, head, hands, frozenset(torso), shoulders if len(shoulders) == 2 else (), name, color=color)
+    b = DrawnBody(pos, kept, head, hands, frozenset(torso), shoulders if len(shoulders) == 2 else (), name, color=color)
     return replace(b, size=stature(b))
 
 
-def frozen(body: Body, frame: int = 0) -> Body:
+def frozen(body: DrawnBody, frame: int = 0) -> DrawnBody:
     """``body`` held at ``frame`` for its whole length (the study's attention checks)."""
     return replace(body, positions=np.repeat(body.positions[frame:frame + 1], body.num_frames, axis=0))
 
 
-def _facing(body: Body, frame: int) -> np.ndarray | None:
+def _facing(body: DrawnBody, frame: int) -> np.ndarray | None:
     """The horizontal unit vector the body faces at ``frame`` (up x (right shoulder - left shoulder)),
     None without shoulders."""
     if len(body.shoulders) != 2:

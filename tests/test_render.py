@@ -75,7 +75,7 @@ def test_later_shapes_cover_earlier_ones():
 
 
 # ------------------------------------------------------------------------------------------ bodies, camera
-def _seated(x: float, facing: float, frames: int = 8, phase: float = 0.0, lift: float = 0.0) -> R.Body:
+def _seated(x: float, facing: float, frames: int = 8, phase: float = 0.0, lift: float = 0.0) -> R.DrawnBody:
     """A seated body at ``x`` on the X axis facing ``facing`` (+1: +X, -1: -X), 1.6 units tall,
     waving its right hand. Joints: hips, chest, head, shoulders (l, r), hands (l, r), knee, foot."""
     f = float(facing)
@@ -85,7 +85,7 @@ def _seated(x: float, facing: float, frames: int = 8, phase: float = 0.0, lift: 
     t = np.arange(frames)
     pos[:, 6, 1] += 0.25 * np.sin(0.8 * t + phase) + lift
     pos[..., 0] += x
-    return R.Body(pos, (-1, 0, 1, 1, 1, 3, 4, 0, 7), head=2, hands=(5, 6), torso=frozenset({0, 1, 2}), shoulders=(3, 4))
+    return R.DrawnBody(pos, (-1, 0, 1, 1, 1, 3, 4, 0, 7), head=2, hands=(5, 6), torso=frozenset({0, 1, 2}), shoulders=(3, 4))
 
 
 def test_stature_is_the_same_seated_or_standing():
@@ -93,13 +93,13 @@ def test_stature_is_the_same_seated_or_standing():
     standing_pos = seated.positions.copy()
     standing_pos[:, 7] = standing_pos[:, 0] + (0, -0.45, 0)          # the thigh hangs down
     standing_pos[:, 8] = standing_pos[:, 7] + (0, -0.5, 0)
-    standing = R.Body(standing_pos, seated.parents, seated.head, seated.hands, seated.torso, seated.shoulders)
+    standing = R.DrawnBody(standing_pos, seated.parents, seated.head, seated.hands, seated.torso, seated.shoulders)
     assert R.stature(seated) == pytest.approx(R.stature(standing), rel=1e-6)
     assert R.stature(seated) == pytest.approx(0.75 + 0.45 + 0.5, rel=1e-6)
     # a static world root far from the hips on the ground (bandai2's joint_Root) adds nothing: the
     # walk-and-talk demo's characters were drawn with heads of different sizes
     world = np.concatenate([np.zeros_like(seated.positions[:, :1]) + np.float32([3.0, 0.0, -2.0]), seated.positions], axis=1)
-    rooted = R.Body(world, (-1, *[q + 1 if q >= 0 else 0 for q in seated.parents]), 3, (6, 7), frozenset({1, 2, 3}), (4, 5))
+    rooted = R.DrawnBody(world, (-1, *[q + 1 if q >= 0 else 0 for q in seated.parents]), 3, (6, 7), frozenset({1, 2, 3}), (4, 5))
     assert R.stature(rooted) == pytest.approx(R.stature(seated), rel=1e-6)
 
 
@@ -119,7 +119,7 @@ def test_three_quarter_camera_turns_the_side_view_and_fits_the_panel():
     one = R.three_quarter_camera([_seated(0.0, 1.0)], 100, 120, yaw_deg=0.0, pitch_deg=0.0)
     np.testing.assert_allclose(one.view, [-1, 0, 0], atol=1e-12)
     # a given direction wins (the walk-and-talk demo: X across the pair however they drift)
-    drift = [_seated(-0.6, 1.0), R.Body(_seated(0.6, -1.0).positions + np.float32([0, 0, 3.0]), bodies[1].parents)]
+    drift = [_seated(-0.6, 1.0), R.DrawnBody(_seated(0.6, -1.0).positions + np.float32([0, 0, 3.0]), bodies[1].parents)]
     np.testing.assert_allclose(R.three_quarter_camera(drift, 100, 120, 0.0, 0.0, across=(1, 0, 0)).right, [1, 0, 0])
     with pytest.raises(ConvSynthError, match="horizontal"):
         R.three_quarter_camera(bodies, 100, 120, across=(0, 1, 0))

@@ -224,7 +224,7 @@ def test_demo_video_camera_follows_the_pair_and_looks_along_the_walk():
     static top joint left at the start (bandai2's joint_Root). The camera keeps the mean of their
     hips at the origin on the ground (heights kept), draws the static joint at the hips, and the view
     has X across (a pair drifting apart along Z would otherwise turn it towards a side view)."""
-    from convsynth_jax.render import Body, three_quarter_camera
+    from convsynth_jax.render import DrawnBody, three_quarter_camera
     from convsynth_jax.tasks.walktalk_demo import _follow_pair
 
     t = np.arange(30, dtype=np.float64)
@@ -235,7 +235,7 @@ def test_demo_video_camera_follows_the_pair_and_looks_along_the_walk():
         pos[:, 0] = (x, 0.0, 0.0)
         pos[:, 1] = np.stack([x + 2 * np.sin(t), 90 + np.cos(t), speed * t], axis=1)
         pos[:, 2] = pos[:, 1] + (0.0, 60.0, 0.0)
-        return Body(pos, parents, head=2)
+        return DrawnBody(pos, parents, head=2)
 
     a, b = walker(-50.0, 40.0), walker(50.0, 48.0)
     fa, fb = _follow_pair((a, b), [1, 1])

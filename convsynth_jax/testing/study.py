@@ -9,18 +9,18 @@ import numpy as np
 
 from ..study import design
 from ..study.build import MANIFEST_COLUMNS, sha256_of
-from ..render import Body, render_pair_video
+from ..render import DrawnBody, render_pair_video
 from ..utils import write_json_atomic
 
 
-def _stick_body(offset: float, frames: int, phase: float) -> Body:
+def _stick_body(offset: float, frames: int, phase: float) -> DrawnBody:
     """A five-joint body (hips, chest, head, two hands) waving one hand; Y up, 1.7 units tall."""
     t = np.arange(frames)[:, None]
     base = np.array([[0, 0.9, 0], [0, 1.4, 0], [0, 1.7, 0], [0.3, 1.1, 0.1], [-0.3, 1.1, 0.1]], np.float32)
     pos = np.repeat(base[None], frames, axis=0)
     pos[:, 3, 1] += 0.2 * np.sin(0.4 * t[:, 0] + phase)
     pos[..., 0] += offset
-    return Body(pos, (-1, 0, 1, 1, 1), 2, (3, 4), frozenset({0, 1, 2}))
+    return DrawnBody(pos, (-1, 0, 1, 1, 1), 2, (3, 4), frozenset({0, 1, 2}))
 
 
 def make_fake_study(out: str | Path, segments: int = 3, pairs=design.PAPER_PAIRS[:2], attention: int = 1, seed: int = 0,

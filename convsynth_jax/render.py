@@ -9,9 +9,10 @@ character alone is seen from the front), turned ``yaw_deg`` about the vertical a
 ``pitch_deg`` down; nearer parts are drawn brighter. Sizes are fractions of the body's *stature*
 (bone lengths from the feet to the head, so a seated and a standing character are drawn alike, and
 any unit renders alike). The paper's viewers saw skinned characters (Section 8.1); a thin side-view
-stick figure hides the depth of gestures. Rasterization is NumPy: each primitive fills its bounding
-box with a one-pixel anti-aliased edge (:func:`_capsule`, compared with a per-pixel reference in
-the tests). A body keeps its colour all the time.
+stick figure hides the depth of gestures. Rasterization (:func:`rasterize`) is Pillow's C drawing
+at SUPERSAMPLE x SUPERSAMPLE samples per pixel, box-filtered down, over the bodies' bounding box
+only; ``convsynth_jax.testing.render_reference`` is its per-pixel reference. A body keeps its
+colour all the time.
 
 **Frames** (:class:`FrameRenderer`): panels side by side (e.g. synthesized | ground truth), one
 camera fitted to every body of every panel, the panels' titles and the clock in a header, and under

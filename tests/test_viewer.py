@@ -354,6 +354,19 @@ def test_browser_draws_both_characters_and_two_times_differ(driver, served):
     assert moved > 0.08 * sum(p1["sig"]), (moved, sum(p1["sig"]))   # the waving arms (about a tenth of each body)
 
 
+def test_browser_frames_the_characters_large_and_whole(driver, served):
+    """The reset view fits the pair: together they span over half the stage's height (the camera
+    used to stand so far back that seated characters filled about 40% of it) and stay inside it."""
+    base, _ = served
+    p = _open(driver, base + "/?t=1")
+    w, h = driver.execute_script("var s = document.getElementById('stage'); return [s.clientWidth, s.clientHeight];")
+    boxes = [driver.execute_script(f"return window.convsynthViewer.screen({k});") for k in (0, 1)]
+    x0, y0 = min(b[0] for b in boxes), min(b[1] for b in boxes)
+    x1, y1 = max(b[2] for b in boxes), max(b[3] for b in boxes)
+    assert p is not None and y1 - y0 > 0.55 * h, (boxes, w, h)
+    assert 0 <= x0 and x1 <= w and 0 <= y0 and y1 <= h, (boxes, w, h)
+
+
 def test_browser_timeline_cursor_follows_the_audio_clock(driver, served):
     base, _ = served
     _open(driver, base + "/?t=2")

@@ -223,8 +223,8 @@ def test_demo_video_camera_follows_the_pair_and_looks_along_the_walk():
     """Planted: two walkers 1 m apart along X, advancing along +Z at different speeds, each under a
     static top joint left at the start (bandai2's joint_Root). The camera keeps the mean of their
     hips at the origin on the ground (heights kept), draws the static joint at the hips, and the view
-    has X across (a pair drifting apart along Z would otherwise turn it into a side view)."""
-    from convsynth_jax.render import Panel, Timeline, Track, _Scene
+    has X across (a pair drifting apart along Z would otherwise turn it towards a side view)."""
+    from convsynth_jax.render import DrawnBody, three_quarter_camera
     from convsynth_jax.tasks.walktalk_demo import _follow_pair
 
     t = np.arange(30, dtype=np.float64)
@@ -235,7 +235,7 @@ def test_demo_video_camera_follows_the_pair_and_looks_along_the_walk():
         pos[:, 0] = (x, 0.0, 0.0)
         pos[:, 1] = np.stack([x + 2 * np.sin(t), 90 + np.cos(t), speed * t], axis=1)
         pos[:, 2] = pos[:, 1] + (0.0, 60.0, 0.0)
-        return Track("w", pos, parents)
+        return DrawnBody(pos, parents, head=2)
 
     a, b = walker(-50.0, 40.0), walker(50.0, 48.0)
     fa, fb = _follow_pair((a, b), [1, 1])
@@ -245,6 +245,8 @@ def test_demo_video_camera_follows_the_pair_and_looks_along_the_walk():
     np.testing.assert_allclose(fb.positions[:, 1, 0] - fa.positions[:, 1, 0], 100.0)  # 1 m apart across
     np.testing.assert_allclose(fa.positions[:, 0], fa.positions[:, 1])                # static root at the hips
     np.testing.assert_allclose(fa.positions[:, 2] - fa.positions[:, 1], a.positions[:, 2] - a.positions[:, 1])
-    panels = [Panel("walk", (fa, fb))]
-    assert _Scene(panels, [Timeline("A")], 30.0).h == 2          # the drift along Z wins without the axis given
-    assert _Scene(panels, [Timeline("A")], 30.0, ground_axis=0).h == 0
+    free = three_quarter_camera([fa, fb], 100, 100, yaw_deg=0.0, pitch_deg=0.0)
+    assert abs(free.right[2]) > 0.5                          # the drift along Z turns the view without the direction
+    cam = three_quarter_camera([fa, fb], 100, 100, yaw_deg=0.0, pitch_deg=0.0, across=(1.0, 0.0, 0.0))
+    np.testing.assert_allclose(cam.right, [1.0, 0.0, 0.0], atol=1e-12)               # as the demo's video has it
+    np.testing.assert_allclose(abs(cam.view[2]), 1.0, atol=1e-12)                     # looking along the walk

@@ -6,7 +6,7 @@ both characters in every condition the pairs name (seeds as :func:`convsynth_jax
 draws them, so a window solved in a sweep is solved here too); a window that fails in any condition
 is skipped. ``sweep_cases`` (the ``cases.csv`` rows of a finished sweep) restricts the candidates to
 windows the sweep solved in every condition. Each (segment, pair) becomes one side-by-side video
-(:mod:`.render`) with the window's audio (both participants mixed to mono), plus attention checks.
+(:mod:`convsynth_jax.render`) with the window's audio (both participants mixed to mono), plus attention checks.
 
 Output (``out_dir``): ``media/<id>.mp4``, ``audio/seg<k>.wav``, ``manifest.json`` (the study's
 settings and one record per stimulus) and ``manifest.csv`` (the records). The manifest is written
@@ -27,7 +27,7 @@ from ..errors import ConfigError
 from ..seeding import derive_seed
 from ..utils import atomic_path, write_json_atomic
 from . import design
-from .render import PanelRenderer, body_from_motion, frozen, join_panels, write_video
+from ..render import PanelRenderer, body_from_motion, frozen, join_panels, write_video
 
 log = logging.getLogger(__name__)
 

@@ -15,7 +15,8 @@ parameters), or graph files of ``task=build_graph`` (``task.graphs=DIR`` holding
 
 Writes ``A.bvh`` and ``B.bvh`` (the whole input duration at the graph's frame rate),
 ``A_blinks.csv``/``B_blinks.csv``, ``conversation.wav`` (A left, B right), ``conversation.mp4``
-(stick figures with the label timeline, the audio muxed in; ``task.video=false`` skips it),
+(both characters drawn by :mod:`convsynth_jax.render` over the label timeline, the audio muxed
+in; ``task.video=false`` skips it),
 ``report.json`` and ``report.md``: the windows (frames, seconds, status, search time), the
 constraints per window and in total, by kind, as the independent checker
 (:mod:`convsynth_jax.search.check`) confirms them from the path's source frames, and timings. A
@@ -65,7 +66,7 @@ class ConverseParams:
     chaining: str = "graph"              # graph (continuous) | independent (the control: a seam at every cut)
     video: bool = True                   # write conversation.mp4
     video_fps: float = 10.0              # frames per second drawn in the video
-    video_dpi: int = 80
+    video_dpi: int = 80                  # the video's size: 80 draws 640 x 360 pixels of bodies (scales with it)
 
 
 # ----------------------------------------------------------------------------------------------- inputs
@@ -427,15 +428,20 @@ def write_stereo(path: Path, a, b, duration: float, offsets_s=(0.0, 0.0)) -> Pat
 
 
 def render_conversation(results, seg, chars, plan, fps, path: Path, wav: Path, p: ConverseParams) -> Path:
-    from ..render import Panel, Timeline, render_video, track_from_motion
+    """``conversation.mp4`` (:func:`convsynth_jax.render.render_video`): both characters seen in their
+    chairs, a timeline of each speaker's labels with the character's synthetic transitions as ticks
+    (and the windows, when there are several), the conversation's audio. ``task.video_dpi`` sets the
+    size: 80 draws 640 x 360 pixels of bodies."""
+    from ..render import Panel, Timeline, body_from_motion, render_video
 
-    tracks = tuple(track_from_motion(results[w].motion, f"{w} ({chars[k]})",
-                                     results[w].output_frames(results[w].synthetic_at))
-                   for k, w in enumerate("AB"))
-    windows = pd.DataFrame({"kind": [f"W{i}" for i in range(len(plan))],
-                            "start": [r["start"] / fps for r in results["A"].windows],
-                            "end": [r["end"] / fps for r in results["A"].windows]})
-    timelines = [Timeline(f"A ({chars[0]})", seg["A"]), Timeline(f"B ({chars[1]})", seg["B"]),
-                 Timeline("windows (A)", windows)]
-    return render_video([Panel("conversation", tracks)], timelines, fps, path, audio=wav, render_fps=p.video_fps,
-                        dpi=p.video_dpi, width=5.0)
+    names = [f"{w} ({chars[k]})" for k, w in enumerate("AB")]
+    bodies = tuple(body_from_motion(results[w].motion, names[k]) for k, w in enumerate("AB"))
+    timelines = [Timeline(names[k], seg[w], tuple(t / fps for t in results[w].output_frames(results[w].synthetic_at)), k)
+                 for k, w in enumerate("AB")]
+    if len(plan) > 1:
+        timelines.append(Timeline("windows", pd.DataFrame({"kind": [f"W{i}" for i in range(len(plan))],
+                                                           "start": [r["start"] / fps for r in results["A"].windows],
+                                                           "end": [r["end"] / fps for r in results["A"].windows]})))
+    scale = p.video_dpi / 80.0
+    return render_video([Panel(f"{names[0]} and {names[1]}", bodies)], timelines, fps, path, audio=wav,
+                        render_fps=p.video_fps, panel_width=int(round(640 * scale)), panel_height=int(round(360 * scale)))

@@ -346,7 +346,7 @@ def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, pa
     if not task.render:
         return []
     from ..evaluation.loo import session_windows, window_input
-    from ..render import Panel, Timeline, contact_sheet, render_animation, track_from_motion
+    from ..render import Panel, Timeline, body_from_motion, contact_sheet, render_animation
     from ..seeding import derive_seed
 
     t0 = time.perf_counter()
@@ -364,21 +364,24 @@ def _render_window(cfg, system, annotations, fold, conditions, cases, fitted, pa
         seed = derive_seed(params.seed, fold=fold, condition=condition, session=held_out, window_frame=f0, role_index=k)
         win = window_input(held, role, w, fps, seed)
         res = system.synthesize(fitted[ann.character], win, condition)
-        truth.append(track_from_motion(ann.motion.slice(f0, f0 + win.num_frames), ann.character))
+        truth.append(body_from_motion(ann.motion.slice(f0, f0 + win.num_frames), ann.character, k))
+        ticks = ()
         if res.success:
-            synth.append(track_from_motion(res.motion, ann.character, () if res.synthetic_at is None else tuple(res.synthetic_at)))
+            synth.append(body_from_motion(res.motion, ann.character, k))
+            ticks = tuple(int(t) / fps for t in (res.synthetic_at if res.synthetic_at is not None else ()))
         else:
             missing.append((ann.character, res.failure or "no motion"))
-        lines.append(Timeline(f"{ann.character} audio", win.own_segments))
+        lines.append(Timeline(ann.character, win.own_segments, ticks, k))
     if not synth:
         return ["## Rendering", "", f"_(no character was synthesized in window {index} under `{condition}`)_", ""]
-    title = f"synthesized ({condition})" + "".join(f"\nno {c}: failed" for c, _ in missing)
+    title = f"synthesized ({condition})" + "".join(f", no {c}: failed" for c, _ in missing)
     panels = [Panel(title, tuple(synth)), Panel("ground truth", tuple(truth))]
     anim = render_animation(panels, lines, fps, out_dir / "window.gif", render_fps=task.render_fps)
     sheet = contact_sheet(panels, lines, fps, out_dir / "window_contact_sheet.png")
     log.info("rendered %s in %.1f s", anim, time.perf_counter() - t0)
     return [f"## Rendering: {held_out}, {w.start:.0f}-{w.end:.0f} s, condition `{condition}`", "",
-            f"Synthesized (left) and ground truth (right); red: within 3 frames of a synthetic transition. "
+            f"Synthesized (left) and ground truth (right); under them each character's audio labels and, as "
+            f"red ticks, its synthetic transitions. "
             f"Animation: [{anim.name}]({anim.name}).", "",
             *([f"No window of this session was solved for every character; here only "
                f"{', '.join(t.name for t in synth)} is synthesized."] if missing else []),

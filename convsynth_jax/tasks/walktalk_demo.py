@@ -164,51 +164,53 @@ def _speaker_audio(spec: dict, synthesized_dir: str | None, character: str | Non
     return load_audio(wav)
 
 
-def _follow_pair(tracks, hips: list[int]):
-    """Tracks with the camera on the pair: every frame shifted on the ground so the mean of the
-    characters' hips (``hips``: the hips joint per track) is at the origin; the walkers stay in view
+def _follow_pair(bodies, hips: list[int]):
+    """Bodies with the camera on the pair: every frame shifted on the ground so the mean of the
+    characters' hips (``hips``: the hips joint per body) is at the origin; the walkers stay in view
     and the locomotion shows in the legs. Joints above the hips (bandai2's static ``joint_Root``, left
     behind at the start of the walk) are drawn at the hips."""
-    from ..render import Track
+    from dataclasses import replace
 
-    centre = np.mean([t.positions[:, h] for t, h in zip(tracks, hips)], axis=0)
+    centre = np.mean([b.positions[:, h] for b, h in zip(bodies, hips)], axis=0)
     shift = np.zeros_like(centre)
     shift[:, [0, 2]] = centre[:, [0, 2]]
     out = []
-    for t, h in zip(tracks, hips):
-        pos = t.positions - shift[:, None, :]
-        j = t.parents[h]
+    for b, h in zip(bodies, hips):
+        pos = b.positions - shift[:, None, :]
+        j = b.parents[h]
         while j >= 0:
             pos[:, j] = pos[:, h]
-            j = t.parents[j]
-        out.append(Track(t.name, pos, t.parents, t.transitions))
+            j = b.parents[j]
+        out.append(replace(b, positions=pos))
     return tuple(out)
 
 
 def write_demo_video(motions_by_gait: dict, events: pd.DataFrame, names: list[str], fps: float, path: Path,
                      wav: Path, video_fps: float, dpi: int) -> Path:
-    """One panel per gait (the characters' motions, in ``names`` order) over a timeline of each
-    character's gestures per gait (t_Pb..t_Re), with ``wav`` as the audio track."""
-    from ..render import Panel, Timeline, render_video, track_from_motion
+    """One panel per gait (the characters' motions, in ``names`` order, seen from ahead of the walk)
+    over a timeline of each character's gestures per gait (t_Pb..t_Re), with ``wav`` as the audio
+    track. ``dpi``: the size, 80 draws 400 x 360 pixels per panel."""
+    from ..render import Panel, Timeline, body_from_motion, render_video
 
     panels = []
     for gait, motions in motions_by_gait.items():
-        tracks = tuple(track_from_motion(motions[n], n) for n in names)
+        bodies = tuple(body_from_motion(motions[n], n, k) for k, n in enumerate(names))
         hips = [motions[n].skeleton.find(*RIG_JOINTS["hips"]) for n in names]
-        panels.append(Panel(gait, _follow_pair(tracks, hips)))
+        panels.append(Panel(gait, _follow_pair(bodies, hips)))
     timelines = []
     for gait in motions_by_gait:
-        for n in names:
+        for k, n in enumerate(names):
             ev = events[(events["gait"] == gait) & (events["character"] == n)] if len(events) else events
             timelines.append(Timeline(f"{n}, {gait}", pd.DataFrame(
-                {"kind": ["G"] * len(ev), "start": list(ev.get("t_prep_begin", [])), "end": list(ev.get("t_retraction_end", []))})))
+                {"kind": ["G"] * len(ev), "start": list(ev.get("t_prep_begin", [])), "end": list(ev.get("t_retraction_end", []))}),
+                color=k))
+    scale = dpi / 80.0
     try:
-        # the view along the direction of travel (+Z, demo.place_character): X, across the pair, is horizontal
-        return render_video(panels, timelines, fps, path, audio=wav, render_fps=video_fps, dpi=dpi, width=3.0,
-                            ground_axis=0)
+        # X, across the pair (demo.place_character), is screen right before the yaw: the camera looks along the walk
+        return render_video(panels, timelines, fps, path, audio=wav, render_fps=video_fps,
+                            panel_width=int(round(400 * scale)), panel_height=int(round(360 * scale)), across=(1.0, 0.0, 0.0))
     except (OSError, RuntimeError) as e:   # ffmpeg's own failures (imageio-ffmpeg raises these)
         raise WalkTalkError(f"writing the demo video failed: {e}", path) from None
-
 
 
 @dataclass(frozen=True)
@@ -234,7 +236,7 @@ class WalkTalkDemoSettings:
     video: bool = True                  # also write the rendered video with both speakers' speech
     video_file: str = "walktalk_demo.mp4"   # relative to the output folder
     video_fps: float = 10.0             # frames drawn per second of motion (the motion is 30 fps)
-    video_dpi: int = 80
+    video_dpi: int = 80                 # the video's size: 80 draws 400 x 360 pixels per gait
 
 
 def run(cfg, out_dir: Path) -> dict:

@@ -9,7 +9,7 @@ import numpy as np
 
 from ..study import design
 from ..study.build import MANIFEST_COLUMNS, sha256_of
-from ..study.render import DrawnBody, render_pair_video
+from ..render import DrawnBody, render_pair_video
 from ..utils import write_json_atomic
 
 

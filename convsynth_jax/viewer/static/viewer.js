@@ -149,7 +149,8 @@
       }
     }
     n.applyAxisAngle(up, 0.35);       // a three-quarter view
-    var dist = 1.25 * span / (2 * Math.tan(camera.fov * Math.PI / 360)) / Math.min(1, camera.aspect);
+    // near enough that the bodies fill most of the height, far enough that the pair fits the width
+    var dist = Math.max(1.35 * H, 1.2 * span / camera.aspect) / (2 * Math.tan(camera.fov * Math.PI / 360));
     function place(sign) {
       camera.position.copy(center).addScaledVector(n, sign * dist).addScaledVector(up, 0.35 * H);
       controls.target.copy(center);

@@ -417,12 +417,16 @@ def _font(size: int, bold: bool = False):
 
     key = (int(size), bool(bold))
     if key not in _FONTS:
-        try:
-            import matplotlib
+        # the font file is found without importing matplotlib (its import costs about a second of a video)
+        import importlib.util
 
-            name = "DejaVuSans-Bold.ttf" if bold else "DejaVuSans.ttf"
-            _FONTS[key] = ImageFont.truetype(str(Path(matplotlib.get_data_path()) / "fonts" / "ttf" / name), int(size))
-        except (ImportError, OSError):   # pragma: no cover - matplotlib is a dependency
+        name = "DejaVuSans-Bold.ttf" if bold else "DejaVuSans.ttf"
+        spec = importlib.util.find_spec("matplotlib")
+        places = list(spec.submodule_search_locations or []) if spec is not None else []
+        try:
+            font = next(f for f in (Path(d) / "mpl-data" / "fonts" / "ttf" / name for d in places) if f.is_file())
+            _FONTS[key] = ImageFont.truetype(str(font), int(size))
+        except (StopIteration, OSError):   # pragma: no cover - matplotlib is a dependency
             _FONTS[key] = ImageFont.load_default(int(size))
     return _FONTS[key]
 

@@ -272,3 +272,17 @@ def test_continuation_end_stops_before_the_first_large_step():
     assert continuation_end(m.rotations, 3, 15.0, 5) == 8           # within the horizon
     assert continuation_end(m.rotations, 14, 15.0, 100) == 29       # after the glitch
     assert continuation_end(m.rotations, 12, 15.0, 100) == 13       # inside the glitch: stops before it ends
+
+
+def test_continuation_end_from_a_clips_large_steps_agrees_with_the_direct_scan():
+    """A realization computes each clip's large steps once; every (frame, horizon, limit) gives the same end."""
+    from convsynth_jax.synth.realize import continuation_end, large_steps
+
+    skel = seated_skeleton()
+    m = _with_glitch(_spinning_clip(skel, "s", 5.0, n=60), "RightArm", [12, 13, 40], 29.0)
+    for limit in (4.0, 15.0, 40.0):
+        big = large_steps(m.rotations, limit)
+        for frame in range(60):
+            for horizon in (0, 1, 2, 5, 27, 100):
+                assert continuation_end(m.rotations, frame, limit, horizon, big) == \
+                    continuation_end(m.rotations, frame, limit, horizon), (limit, frame, horizon)

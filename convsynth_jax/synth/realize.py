@@ -99,17 +99,28 @@ def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_f
     return out
 
 
-def continuation_end(rotations: np.ndarray, frame: int, max_step_deg: float, horizon: int) -> int:
+def continuation_end(rotations: np.ndarray, frame: int, max_step_deg: float, horizon: int, large_steps=None) -> int:
     """The last frame a continuation of a clip from ``frame`` plays (ours): the frame before the first
     step g - 1 -> g (frame < g <= frame + horizon) in which some joint below the root turns more than
     ``max_step_deg`` degrees, else frame + horizon (at most the clip's last frame). rotations: (n, J, 4)
-    the clip's rotations; ``max_step_deg`` <= 0: no limit."""
+    the clip's rotations; ``max_step_deg`` <= 0: no limit. ``large_steps``: the clip's
+    :func:`large_steps` when known (a realization asks for many continuations of one clip: the turns
+    are then computed once per clip, not once per transition over the rest of the clip)."""
     n = rotations.shape[0]
     stop = min(n - 1, int(frame) + int(horizon))
     if max_step_deg <= 0 or stop <= frame:
         return stop
+    if large_steps is not None:
+        i = int(np.searchsorted(large_steps, frame))
+        return int(large_steps[i]) if i < len(large_steps) and large_steps[i] < stop else stop
     big = np.flatnonzero(joint_turn_deg_np(rotations[frame:stop + 1]) > max_step_deg)
     return int(frame) + int(big[0]) if big.size else stop
+
+
+def large_steps(rotations: np.ndarray, max_step_deg: float) -> np.ndarray:
+    """Sorted frames g of a clip whose step g -> g + 1 turns some joint below the root more than
+    ``max_step_deg`` degrees (what :func:`continuation_end` stops before)."""
+    return np.flatnonzero(joint_turn_deg_np(rotations) > max_step_deg)
 
 
 def _quat_log(q: np.ndarray) -> np.ndarray:
@@ -195,9 +206,16 @@ def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0
     rot = np.stack([motions[c].rotations[f] for c, f in zip(source_clips, source_frames)]).astype(np.float64)
     trans = np.stack([motions[c].translations[f] for c, f in zip(source_clips, source_frames)]).astype(np.float64)
 
+    steps: dict = {}      # clip -> its large steps, computed on the first continuation of that clip
+    ends: dict = {}       # output frame -> prev_of's answer (asked once per blended channel)
+
     def prev_of(t):
-        c, f = source_clips[t - 1], int(source_frames[t - 1])
-        return c, f, continuation_end(motions[c].rotations, f, float(max_step_deg), T)
+        if t not in ends:
+            c, f = source_clips[t - 1], int(source_frames[t - 1])
+            if max_step_deg > 0 and c not in steps:
+                steps[c] = large_steps(motions[c].rotations, float(max_step_deg))
+            ends[t] = c, f, continuation_end(motions[c].rotations, f, float(max_step_deg), T, steps.get(c))
+        return ends[t]
 
     def get_rot(c, f):
         return np.asarray(motions[c].rotations[f, 1:], np.float64)

@@ -27,7 +27,9 @@ error naming the window and its time span, after the report is written, unless
 from __future__ import annotations
 
 import logging
+import resource
 import time
+from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import Any, List, Optional
@@ -67,6 +69,7 @@ class ConverseParams:
     video: bool = True                   # write conversation.mp4
     video_fps: float = 10.0              # frames per second drawn in the video
     video_dpi: int = 80                  # the video's size: 80 draws 640 x 360 pixels of bodies (scales with it)
+    parallel_characters: bool = True     # search and realize A and B side by side in two threads (same bytes)
 
 
 # ----------------------------------------------------------------------------------------------- inputs
@@ -289,6 +292,9 @@ def run(cfg, out_dir: Path) -> dict:
     from .synthesize import label_rows
 
     t_start = time.perf_counter()
+    cpu_start = time.process_time()
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    child_start = kids.ru_utime + kids.ru_stime
     timings = {}
     p = task_settings(cfg)
     params = params_of(cfg)
@@ -331,18 +337,18 @@ def run(cfg, out_dir: Path) -> dict:
               "condition": p.condition, "characters": {}, "success": True}
     results, failure = {}, None
     t0 = time.perf_counter()
-    for k, who in enumerate("AB"):
-        other = "BA"[k]
-        char = chars[k]
+
+    def character(k):
+        """Character k's whole conversation and its report entry (the two characters are independent)."""
+        who, other, char = "AB"[k], "BA"[k], chars[k]
         model = models[char]
 
-        def seed_of(frame, k=k):
+        def seed_of(frame):
             return derive_seed(params.seed, fold=0, condition=p.condition, session="converse", window_frame=frame,
                                role_index=k)
 
         res = synthesize_conversation(model.graph, model.motions, seg[who], seg[other], T, fps, plan, search,
                                       params.synth, seed_of, chair_index=k, backoff_s=p.backoff_s, chaining=p.chaining)
-        results[who] = res
         entry = {"character": char, "success": res.success,
                  "windows": [{**w, "start_s": w["start"] / fps, "end_s": w["end"] / fps} for w in res.windows],
                  "search_seconds": float(sum(w["seconds"] for w in res.windows))}
@@ -358,9 +364,19 @@ def run(cfg, out_dir: Path) -> dict:
             entry["graph"] = {"num_states": model.graph.num_states, "num_edges": model.graph.num_edges}
         else:
             entry["failure"] = res.failure
+        return res, entry
+
+    # the two characters' searches and realizations run side by side (XLA and NumPy release the GIL for
+    # most of their work: on two cores this takes about the longer of the two, not their sum); each
+    # character's result does not depend on the other's, so the files are the same bytes as one by one
+    with ThreadPoolExecutor(max_workers=2 if p.parallel_characters else 1, thread_name_prefix="character") as pool:
+        done = [f.result() for f in [pool.submit(character, k) for k in range(2)]]
+    for k, (who, (res, entry)) in enumerate(zip("AB", done)):
+        results[who] = res
+        if not res.success:
             report["success"] = False
-            failure = failure or f"character {who} ({char}): {res.failure}"
-            log.error("character %s (%s): %s", who, char, res.failure)
+            failure = failure or f"character {who} ({chars[k]}): {res.failure}"
+            log.error("character %s (%s): %s", who, chars[k], res.failure)
         report["characters"][who] = entry
     timings["synthesis_s"] = time.perf_counter() - t0
 
@@ -380,6 +396,11 @@ def run(cfg, out_dir: Path) -> dict:
         video = render_conversation(results, seg, chars, plan, fps, out_dir / "conversation.mp4", wav, p)
         timings["video_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
+    # CPU seconds of the task (all its threads) and of the programs it ran (ffmpeg): on a busy machine the
+    # wall times above say little, these do
+    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+    timings["cpu_s"] = time.process_time() - cpu_start
+    timings["child_cpu_s"] = kids.ru_utime + kids.ru_stime - child_start
     report["timings"] = timings
     report["segments"] = {w: label_rows(seg[w]) for w in "AB"}   # audio labels per character (task=view draws them)
     report["failure"] = failure

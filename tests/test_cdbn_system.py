@@ -41,16 +41,22 @@ def _talking_window(held, n):
     character: the features need voiced frames, and a listening window is reported by the system as a
     failure, not synthesized; where one lies depends on the tiny corpus's seed."""
     from convsynth_jax.annotate.types import PC
+
+    start = max(range(0, held.own.num_frames - n, 30), key=lambda s: int(np.sum(held.own.label[s:s + n] == PC)))
+    return start, _window(held, start, n)
+
+
+def _window(held, start, n):
+    """The held-out character's n frames from ``start`` with their labels and the audio under them."""
     from convsynth_jax.io.audio import Audio, load_audio
 
     fps = held.motion.fps
-    start = max(range(0, held.own.num_frames - n, 30), key=lambda s: int(np.sum(held.own.label[s:s + n] == PC)))
     aud = load_audio(held.audio_path, channel=held.audio_channel)
     a0 = round(start / fps * aud.sample_rate)
-    return start, WindowInput(held.session, held.role, held.character, start, n, fps, held.segments, held.partner_segments,
-                              own_frames=held.own.label[start:start + n], partner_frames=held.partner.label[start:start + n],
-                              own_audio=Audio(aud.samples[a0:a0 + round(n / fps * aud.sample_rate)], aud.sample_rate),
-                              seed=1)
+    return WindowInput(held.session, held.role, held.character, start, n, fps, held.segments, held.partner_segments,
+                       own_frames=held.own.label[start:start + n], partner_frames=held.partner.label[start:start + n],
+                       own_audio=Audio(aud.samples[a0:a0 + round(n / fps * aud.sample_rate)], aud.sample_rate),
+                       seed=1)
 
 
 def test_fit_and_synthesize_a_window(annotated):
@@ -80,6 +86,17 @@ def test_fit_and_synthesize_a_window(annotated):
 
     head = head_rotation(mo, CDBNFeatureParams())
     assert head.std(axis=0).max() > 0.05
+    # ... and with nothing else: the same speech a second later (or earlier, at the recording's end) gives
+    # the same head motion a second later (away from the window's ends, where the posteriors see other
+    # context), while the motion itself is far from what it was a second before
+    d = 30 if start + 30 + n <= held.own.num_frames else -30
+    other = sysm.synthesize(model, _window(held, start + d, n), condition)
+    assert other.success, other.failure
+    head_other = head_rotation(other.motion, CDBNFeatureParams())
+    m = 30                                          # a second of context either side
+    mine, theirs = slice(max(d, 0) + m, n - max(-d, 0) - m), slice(max(-d, 0) + m, n - max(d, 0) - m)
+    np.testing.assert_allclose(head_other[theirs], head[mine], atol=1e-3)
+    assert np.abs(head_other[theirs] - head[theirs]).max() > 0.1
     spine = mo.skeleton.names.index("Spine")
     assert np.allclose(mo.rotations[:, spine], mo.rotations[0, spine])
     # without audio the system fails cleanly

@@ -8,8 +8,9 @@ docs/, resolved from that page), not preceded by a letter, digit, ``.``, ``/`` o
 ``../shared/...`` or ``foo/tests/...`` do not count), and running over letters, digits and ``._/-``.
 A ``#section`` suffix is checked as a heading of the page; trailing punctuation is dropped. Tokens
 with a placeholder or glob (``*``, ``<name>``, ``{a,b}``, ``$VAR``, ``%s``) are patterns, not paths,
-and are skipped. Paths relative to the package (``graph/seams.py``) are not checked: they are
-ambiguous by design.
+and are skipped. A file named relative to the package (``graph/seams.py``: a subpackage of
+``convsynth_jax``, then a file with a suffix) must exist in the package or the repository, except in
+docs/changelog.md, which records the old names of moved files.
 """
 from __future__ import annotations
 
@@ -68,12 +69,36 @@ def test_every_named_repository_path_exists():
     assert not bad, "paths named but absent:\n" + "\n".join(f"{f.relative_to(ROOT)}:{i}: {t}" for f, i, t in bad)
 
 
+_SUBPACKAGES = sorted(p.name for p in (ROOT / "convsynth_jax").iterdir() if p.is_dir() and not p.name.startswith("_"))
+_PKG_TOKEN = re.compile(r"(?<![\w./-])((?:" + "|".join(_SUBPACKAGES) + r")/[\w./-]*\.(?:py|yaml|js|css|html))")
+
+
+def package_paths(files: list[Path]) -> list[tuple[Path, int, str]]:
+    """(file, line, path) for every file named relative to the package that is in neither the package
+    nor the repository."""
+    bad = []
+    for f in files:
+        for i, line in enumerate(f.read_text().splitlines(), 1):
+            for m in _PKG_TOKEN.finditer(line):
+                tok = m.group(1).rstrip(".")
+                if not (ROOT / "convsynth_jax" / tok).exists() and not (ROOT / tok).exists():
+                    bad.append((f, i, tok))
+    return bad
+
+
+def test_every_file_named_relative_to_the_package_exists():
+    bad = package_paths([f for f in _files() if f != ROOT / "docs" / "changelog.md"])
+    assert not bad, "package files named but absent:\n" + "\n".join(f"{f.relative_to(ROOT)}:{i}: {t}" for f, i, t in bad)
+
+
 def test_the_rule_catches_a_missing_path_and_a_missing_section(tmp_path):
     page = tmp_path / "page.md"
     page.write_text("see `experiments/no_such_script.py`, `docs/decisions.md#no-such-section`, "
                     "`experiments/bench/*.py` and `docs/decisions.md#decisions`\n")
     bad = [t for _, _, t in named_paths([page])]
     assert bad == ["experiments/no_such_script.py", "docs/decisions.md#no-such-section"]
+    page.write_text("`data/synthetic.py` moved to `data/synthetic/`; `graph/seams.py` and `conf/graph/default.yaml`\n")
+    assert [t for _, _, t in package_paths([page])] == ["data/synthetic.py"]
 
 
 @pytest.mark.parametrize("page", sorted((ROOT / "docs").glob("*.md")) + [ROOT / "README.md"], ids=lambda p: p.name)

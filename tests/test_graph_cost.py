@@ -273,3 +273,37 @@ def test_empty_inputs_give_no_edges():
     for src, dst, thr in ((np.arange(0), np.arange(10), 1.0), (np.arange(10), np.arange(10), 0.0)):
         a, b, c = candidate_edges(P, V, w, 0.2, src, dst, clip, thr, 1)
         assert a.size == b.size == c.size == 0
+
+
+@pytest.mark.parametrize("cap", [1, 3, 9])
+def test_cheapest_per_source_keeps_each_rows_cheapest_of_all_it_was_given(cap):
+    """The per-source table both candidate searches use, against sorting every (row, target, cost) it
+    was given: each row keeps its ``cap`` cheapest costs, each with a target it was given with. Tiles
+    come as row indices or a slice of rows, with targets per column or per entry."""
+    from convsynth_jax.graph.cost import CheapestPerSource
+
+    rng = np.random.default_rng(cap)
+    rows = 7
+    table = CheapestPerSource(rows, cap)
+    given = []
+    for t in range(12):
+        width = int(rng.integers(1, 12))
+        if t % 3:
+            r = np.sort(rng.choice(rows, size=int(rng.integers(1, rows + 1)), replace=False))
+            where = r
+        else:
+            r0 = int(rng.integers(0, rows - 1))
+            r = np.arange(r0, r0 + 2)
+            where = slice(r0, r0 + 2)
+        costs = rng.integers(0, 20, size=(r.size, width)).astype(np.float32)      # whole numbers: ties
+        costs[rng.uniform(size=costs.shape) < 0.3] = np.inf
+        targets = rng.integers(0, 1000, size=width) if t % 2 else rng.integers(0, 1000, size=(r.size, width))
+        table.add(where, costs, targets)
+        full = np.broadcast_to(targets, costs.shape)
+        given += [(int(r[i]), int(full[i, j]), float(costs[i, j])) for i, j in zip(*np.nonzero(np.isfinite(costs)))]
+    a, b, c = table.edges()
+    sources = np.arange(100, 100 + rows)
+    np.testing.assert_array_equal(table.edges(sources)[0], sources[a])
+    for row in range(rows):
+        assert sorted(c[a == row].tolist()) == sorted(x[2] for x in given if x[0] == row)[:cap], row
+        assert all((row, int(tgt), float(cost)) in given for tgt, cost in zip(b[a == row], c[a == row]))

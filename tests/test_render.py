@@ -247,7 +247,13 @@ def test_render_fixture_to_gif_mp4_and_contact_sheet(tmp_path):
     png = R.contact_sheet(panels, lines, m.fps, tmp_path / "x.png", num=4)
     with Image.open(png) as im:
         px = np.asarray(im.convert("RGB"))
-    assert _is_body(px, 0).sum() > 200                                       # both panels' bodies drawn
+    # one row per panel, one 220 x 200 cell per sampled frame (4 pitches of 224 at the right, rows of
+    # 204 under a 20-pixel header): each panel's body is drawn in every cell of its row
+    assert px.shape[0] > 20 + 2 * 204
+    for row in range(2):
+        for cell in range(4):
+            x0, y0 = px.shape[1] - (4 - cell) * 224, 20 + row * 204
+            assert _is_body(px[y0:y0 + 200, x0:x0 + 220], 0).sum() > 50, (row, cell)
     assert (np.abs(px.astype(int) - R.LABEL_RGB["PC"]).sum(-1) < 6).any()    # the PC label
     assert _is_tick(px).any()                                                # the transition at frame 10
     with pytest.raises(ConvSynthError, match="gif or an .mp4"):

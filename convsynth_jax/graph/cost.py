@@ -259,6 +259,38 @@ def _keep_cheapest(a, b, c, cap):
     return a[keep], b[keep], c[keep]
 
 
+class CheapestPerSource:
+    """A table of each source's ``cap`` cheapest candidate transitions seen so far (``costs`` (R, cap),
+    ``inf`` where empty; ``targets`` (R, cap), -1 where empty), updated tile by tile so that memory
+    stays rows x cap however many candidates pass. Which of equal costs a full row keeps is
+    unspecified; :func:`_keep_cheapest` on :meth:`edges` settles ties (lower target) when candidates of
+    several tables are merged. Used by both candidate searches (:func:`candidate_edges`, the sharded
+    ``graph.stream``)."""
+
+    def __init__(self, rows: int, cap: int):
+        self.cap = int(cap)
+        self.costs = np.full((int(rows), self.cap), np.inf, np.float32)
+        self.targets = np.full((int(rows), self.cap), -1, np.int64)
+
+    def add(self, rows, costs: np.ndarray, targets: np.ndarray) -> None:
+        """Merge candidates into the table rows ``rows`` (an index or a slice): ``costs`` (R, W) (``inf``:
+        none), their target frames ``targets`` (W,) shared by every row or (R, W)."""
+        targets = np.broadcast_to(targets, costs.shape)
+        if self.cap < costs.shape[1]:     # each row's cap cheapest of the tile first
+            cols = np.argpartition(costs, self.cap - 1, axis=1)[:, :self.cap]
+            costs, targets = np.take_along_axis(costs, cols, 1), np.take_along_axis(targets, cols, 1)
+        allc = np.concatenate([self.costs[rows], costs], 1)
+        allb = np.concatenate([self.targets[rows], targets], 1)
+        keep = np.argpartition(allc, self.cap - 1, axis=1)[:, :self.cap]
+        self.costs[rows] = np.take_along_axis(allc, keep, 1)
+        self.targets[rows] = np.take_along_axis(allb, keep, 1)
+
+    def edges(self, sources: np.ndarray | None = None):
+        """(a, b, cost) of the kept candidates, row by row; ``a`` is the row, or ``sources[row]``."""
+        r, c = np.nonzero(self.costs < np.inf)
+        return (r if sources is None else sources[r]), self.targets[r, c], self.costs[r, c]
+
+
 def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=128, n_pivots=8, seed=0,
                     stats: dict | None = None, workers: int | None = None, symmetric: str | bool = "auto",
                     features: np.ndarray | None = None, max_out_degree: int | None = None,
@@ -352,13 +384,12 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
 
     def work(k, chunk):
         """Candidates of the worker's tiles: a list of (a, b, cost), or with a cap the dense
-        per-source tables (best costs (N, cap), their targets (N, cap)) updated tile by tile."""
+        per-source table (:class:`CheapestPerSource`) updated tile by tile."""
         out = []
         if not cap and not sym and BATCHED_COMPACTION:
             return work_batched(k, chunk)
         if cap:
-            best_c = np.full((clip.size, cap), np.inf, np.float32)
-            best_b = np.full((clip.size, cap), -1, np.int64)
+            best = CheapestPerSource(clip.size, cap)
         for (pa, pb), m in dispatched(chunk):
             if overflow:
                 break
@@ -373,24 +404,12 @@ def candidate_edges(P, V, w, w_v, src, dst_prev, clip, threshold, min_gap, tile=
                     out.append((ra[r], rb[c], mm[r, c]))
                     continue
                 rows = np.flatnonzero(fin.any(1))
-                sub = mm[rows]
-                if cap < sub.shape[1]:
-                    cols = np.argpartition(sub, cap - 1, axis=1)[:, :cap]
-                    sub = np.take_along_axis(sub, cols, 1)
-                else:
-                    cols = np.broadcast_to(np.arange(sub.shape[1]), sub.shape)
-                src_rows = ra[rows]
-                allc = np.concatenate([best_c[src_rows], sub], 1)
-                allb = np.concatenate([best_b[src_rows], rb[cols]], 1)
-                keep = np.argpartition(allc, cap - 1, axis=1)[:, :cap]
-                best_c[src_rows] = np.take_along_axis(allc, keep, 1)
-                best_b[src_rows] = np.take_along_axis(allb, keep, 1)
+                best.add(ra[rows], mm[rows], rb)
             if limit is not None and sum(found) > limit:
                 overflow.append(sum(found))
                 break
         if cap:
-            r, c = np.nonzero(best_c < np.inf)
-            out.append((r, best_b[r, c], best_c[r, c]))
+            out.append(best.edges())
         return out
 
     def work_batched(k, chunk, depth=16):

@@ -52,7 +52,7 @@ from scipy.sparse.csgraph import connected_components
 from ..errors import ConfigError, GraphError
 from ..utils import write_json_atomic
 from .build import assemble_graph, construction_meta, construction_plan, scc_warning
-from .cost import BOUND_MARGIN, _keep_cheapest, _sum_of_norms, _tile_lower_bounds, _tiling, pivot_embedding
+from .cost import BOUND_MARGIN, CheapestPerSource, _keep_cheapest, _sum_of_norms, _tile_lower_bounds, _tiling, pivot_embedding
 from .database import MotionDatabase
 from .params import GraphParams
 from .seams import apply_glitch_filter, frame_acceleration, seam_filter_mask
@@ -191,9 +191,7 @@ def _block_candidates(stage: _EdgeStage, block: int, kernel, ndev: int, batch: i
     out_a, out_b, out_c = [], [], []
     found = [0]
     if cap:
-        k = min(int(cap), ids_b.shape[1])
-        best_c = np.full(((r1 - r0) * T, int(cap)), np.inf, np.float32)
-        best_b = np.full(((r1 - r0) * T, int(cap)), -1, np.int64)
+        best = CheapestPerSource((r1 - r0) * T, cap)
 
     def launch(s):
         ps = pairs[s:s + step]
@@ -211,18 +209,8 @@ def _block_candidates(stage: _EdgeStage, block: int, kernel, ndev: int, batch: i
             live = np.flatnonzero(fin.any(axis=(1, 2)))
             if live.size == 0:
                 return
-            m, ps = m[live], ps[live]
-            part = np.argpartition(m, k - 1, axis=2)[:, :, :k] if k < m.shape[2] else \
-                np.broadcast_to(np.arange(m.shape[2]), m.shape)
-            vals = np.take_along_axis(m, part, 2)
-            tgt = np.take_along_axis(ids_b[ps[:, 1]][:, None, :], part, 2)
-            for q in range(ps.shape[0]):
-                rows = slice((ps[q, 0] - r0) * T, (ps[q, 0] - r0 + 1) * T)
-                allc = np.concatenate([best_c[rows], vals[q]], 1)
-                allb = np.concatenate([best_b[rows], tgt[q]], 1)
-                keep = np.argpartition(allc, cap - 1, axis=1)[:, :cap]
-                best_c[rows] = np.take_along_axis(allc, keep, 1)
-                best_b[rows] = np.take_along_axis(allb, keep, 1)
+            for q in live:
+                best.add(slice((ps[q, 0] - r0) * T, (ps[q, 0] - r0 + 1) * T), m[q], ids_b[ps[q, 1]])
             return
         t, r, c = np.nonzero(m < np.inf)
         if t.size:
@@ -243,9 +231,8 @@ def _block_candidates(stage: _EdgeStage, block: int, kernel, ndev: int, batch: i
     if pending is not None:
         compact(*pending)
     if cap:
-        src = ids_a[r0:r1].reshape(-1)
-        r, c = np.nonzero(best_c < np.inf)
-        out_a, out_b, out_c = [src[r]], [best_b[r, c]], [best_c[r, c]]
+        a, b, c = best.edges(ids_a[r0:r1].reshape(-1))
+        out_a, out_b, out_c = [a], [b], [c]
     if not out_a or out_a[0].size == 0 and len(out_a) == 1:
         return np.zeros(0, np.int64), np.zeros(0, np.int64), np.zeros(0, np.float32), found[0]
     a, b, c = (np.concatenate(out_a).astype(np.int64), np.concatenate(out_b).astype(np.int64),

@@ -16,6 +16,7 @@ import numpy as np
 
 from ..errors import WalkTalkError
 from ..rig import find_role
+from ..rotations import quat_multiply_np, yaw_to_quat_np
 from ..skeleton import Motion
 from .gaze import (
     AAREvent,
@@ -51,10 +52,6 @@ class DemoParams:
     include_multi_peak: bool = True  # also use multi-peak gestures (never realigned)
 
 
-def _yaw_quat(angle: float) -> np.ndarray:
-    return np.array([np.cos(angle / 2), 0.0, np.sin(angle / 2), 0.0])
-
-
 def place_character(m: Motion, advance: np.ndarray, lateral_cm: float) -> Motion:
     """Turn the whole character about the origin so its loop advances along +Z, then shift it by
     ``lateral_cm`` along X, through the static top joint (joint_Root in bandai2): the locomotion
@@ -64,10 +61,8 @@ def place_character(m: Motion, advance: np.ndarray, lateral_cm: float) -> Motion
     tr = np.array(m.translations, dtype=np.float64)
     if np.ptp(tr[:, 0], axis=0).max() > 1e-6 or np.abs(rot[:, 0] - rot[0, 0]).max() > 1e-9:
         raise WalkTalkError("the top joint must be static to place a character", m.name, "frame 0")
-    q = _yaw_quat(ang)
-    from .locomotion import _qmul
-
-    rot[:, 0] = _qmul(np.broadcast_to(q, rot[:, 0].shape), rot[:, 0])
+    q = yaw_to_quat_np(ang)
+    rot[:, 0] = quat_multiply_np(np.broadcast_to(q, rot[:, 0].shape), rot[:, 0])
     tr[:, 0] = tr[:, 0] + np.array([lateral_cm, 0.0, 0.0])
     return dataclasses.replace(m, rotations=rot, translations=tr)
 

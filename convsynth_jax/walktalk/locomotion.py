@@ -38,6 +38,7 @@ import numpy as np
 
 from ..errors import WalkTalkError
 from ..kinematics import forward_kinematics_np
+from ..rotations import quat_conjugate_np, quat_multiply_np
 from ..skeleton import Motion
 from .body import Body, find_body
 from .params import GaitParams
@@ -216,26 +217,14 @@ def seam_correct(rotations: np.ndarray) -> np.ndarray:
     """
     n = rotations.shape[0] - 1
     q = np.asarray(rotations, dtype=np.float64)
-    r = _qmul(q[0], _qconj(q[n]))
+    r = quat_multiply_np(q[0], quat_conjugate_np(q[n]))
     r = np.where(r[:, :1] < 0, -r, r)  # shorter arc
     half = np.arccos(np.clip(r[:, 0], -1.0, 1.0))  # (J,)
     s = np.sin(half)
     axis = np.where(s[:, None] > 1e-12, r[:, 1:] / np.where(s > 1e-12, s, 1.0)[:, None], 0.0)
     a = np.arange(n)[:, None] / n  # (N, 1)
     corr = np.concatenate([np.cos(a * half)[..., None], np.sin(a * half)[..., None] * axis[None]], axis=-1)
-    return _qmul(corr, q[:n]).astype(rotations.dtype)
-
-
-def _qconj(q):
-    return q * np.array([1.0, -1.0, -1.0, -1.0])
-
-
-def _qmul(a, b):
-    """Hamilton product in NumPy, (..., 4)."""
-    aw, ax, ay, az = np.moveaxis(a, -1, 0)
-    bw, bx, by, bz = np.moveaxis(b, -1, 0)
-    return np.stack([aw * bw - ax * bx - ay * by - az * bz, aw * bx + ax * bw + ay * bz - az * by,
-                     aw * by - ax * bz + ay * bw + az * bx, aw * bz + ax * by - ay * bx + az * bw], -1)
+    return quat_multiply_np(corr, q[:n]).astype(rotations.dtype)
 
 
 def extract_loop(motion: Motion, p: GaitParams, body: Body | None = None, which: str = "middle") -> Loop:

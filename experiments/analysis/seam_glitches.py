@@ -6,21 +6,11 @@
 Runs the leave-one-out sweep (``run_fold`` per fold and condition, both characters, as
 ``experiments/bench/bench_loo.py`` does) with ``search.matching=labels`` on the default synthetic
 corpus, keeping each window's ``WindowResult`` (a thin wrapper around the system). For every
-synthesized window and every synthetic transition arriving at output frame t (a seam):
-
-* its seam ratio, the project's measure (``evaluation.metrics.seam_ratio`` with this one transition:
-  the largest root-relative joint acceleration within ``SEAM_RADIUS`` frames of t over the ground-truth
-  window's largest);
-* the source frames around it: the raw sources of output frames t - B .. t + B - 1 (B =
-  ``blend_frames``: the end of the clip the path leaves and the start of the new one) and the
-  continuation of the left clip that the blend fades out, frames f + 1 .. f + L of the clip played at
-  t - 1 (frame f). L spans the blend and every blend nested into it (a transition arriving before the
-  previous blend ended), so it is never shorter than what the realization shows. The continuation is
-  counted twice: ``nominal`` (all L frames, up to the clip's end) and ``played`` (stopped where the
-  realization holds it, ``synth.realize.continuation_end`` with ``synth.continuation_max_step_deg``;
-  the same as nominal when that is 0);
-* whether any of those frames is a planted glitch frame (``glitches.csv`` of the corpus: session,
-  participant, start_frame <= frame < end_frame) of that source clip.
+synthesized window and every synthetic transition arriving at output frame t (a seam): its seam ratio,
+the project's measure (``evaluation.metrics.seam_ratio`` with this one transition: the largest
+root-relative joint acceleration within ``SEAM_RADIUS`` frames of t over the ground-truth window's
+largest), and whether its blend span touches a planted glitch, raw or in the continuation, nominal or
+played (the detector: ``convsynth_jax/synth/seam_glitches.py``).
 
 Also counted: every output frame whose raw source is a glitch frame (a glitch played inside a clip,
 along an original transition, seam or not). Results: ``experiments/results/<name>.json`` and ``.md``
@@ -46,7 +36,8 @@ from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation import metrics  # noqa: E402
 from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold  # noqa: E402
 from convsynth_jax.kinematics import forward_kinematics  # noqa: E402
-from convsynth_jax.synth.realize import continuation_end  # noqa: E402
+from convsynth_jax.synth.seam_glitches import (glitch_frames, seam_glitch_counts, touching_rows,  # noqa: E402
+                                               window_seam_glitches)
 from convsynth_jax.systems.base import make_system  # noqa: E402
 from convsynth_jax.systems.playback import clip_name  # noqa: E402
 from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
@@ -68,54 +59,18 @@ class KeepResults:
         return res
 
 
-def glitch_frames(path: Path) -> dict:
-    """clip name -> set of planted glitch frames, from a corpus's glitches.csv."""
-    out: dict = {}
-    for r in pd.read_csv(path).itertuples():
-        out.setdefault(clip_name(r.session, r.participant), set()).update(range(int(r.start_frame), int(r.end_frame)))
-    return out
-
-
-def nested_span(syn: list, m: int, blend: int) -> int:
-    """Output frames from transition m on during which the old stream of its blend can still show:
-    its own blend, extended by every transition arriving before the running blend ended."""
-    end = syn[m] + blend
-    for t in syn[m + 1:]:
-        if t >= end:
-            break
-        end = t + blend
-    return end - syn[m]
-
-
 def window_seams(res, gt_motion, motions: dict, glitches: dict, max_step: float, fps: float) -> tuple[list, int]:
-    """(one dict per seam, output frames whose raw source is a glitch frame) of one window."""
-    clips, frames = list(res.source_clip), [int(f) for f in res.source_frame]
-    T, B = len(frames), int(res.blend_frames)
-    from_glitch = sum(f in glitches.get(c, ()) for c, f in zip(clips, frames))
-    syn = sorted({int(t) for t in (res.synthetic_at or []) if 0 < int(t) < T})
-    if not syn:
-        return [], from_glitch
-    pos = np.asarray(forward_kinematics(res.motion), np.float64)
-    gt = np.asarray(forward_kinematics(gt_motion), np.float64)
-    out = []
-    for m, t in enumerate(syn):
-        raw = [(clips[u], frames[u]) for u in range(max(0, t - B), min(T, t + B))]
-        c, f = clips[t - 1], frames[t - 1]
-        rot = motions[c].rotations
-        span = nested_span(syn, m, B)
-        nominal_end = min(rot.shape[0] - 1, f + span)
-        played_end = min(nominal_end, continuation_end(rot, f, max_step, span))
-        g_raw = sorted({(cc, ff) for cc, ff in raw if ff in glitches.get(cc, ())})
-        g_nom = sorted(ff for ff in range(f + 1, nominal_end + 1) if ff in glitches.get(c, ()))
-        g_play = sorted(ff for ff in range(f + 1, played_end + 1) if ff in glitches.get(c, ()))
-        out.append({"t": t, "seam_ratio": metrics.seam_ratio(pos, gt, fps, [t]),
-                    "left_clip": c, "left_frame": f, "new_clip": clips[t], "new_frame": frames[t],
-                    "continuation_nominal_end": nominal_end, "continuation_played_end": played_end,
-                    "glitch_raw": ";".join(f"{cc}:{ff}" for cc, ff in g_raw),
-                    "glitch_continuation_nominal": ";".join(map(str, g_nom)),
-                    "glitch_continuation_played": ";".join(map(str, g_play)),
-                    "touches_glitch_nominal": bool(g_raw or g_nom), "touches_glitch_played": bool(g_raw or g_play)})
-    return out, from_glitch
+    """(one dict per seam, output frames whose raw source is a glitch frame) of one window, each seam
+    with its seam ratio against the ground-truth window (``evaluation.metrics.seam_ratio``)."""
+    cache = {}
+
+    def ratio(t: int) -> float:
+        if not cache:
+            cache["pos"] = np.asarray(forward_kinematics(res.motion), np.float64)
+            cache["gt"] = np.asarray(forward_kinematics(gt_motion), np.float64)
+        return metrics.seam_ratio(cache["pos"], cache["gt"], fps, [t])
+
+    return window_seam_glitches(res, motions, glitches, max_step, seam_ratio=ratio)
 
 
 def summarize(seams: pd.DataFrame, windows: pd.DataFrame | None, top: int) -> dict:
@@ -133,60 +88,11 @@ def summarize(seams: pd.DataFrame, windows: pd.DataFrame | None, top: int) -> di
         "windows_from_glitch_frames": int((windows["frames_from_glitch"] > 0).sum()) if len(windows) else 0,
         "output_frames": int(windows["frames"].sum()) if len(windows) else 0,
         "output_frames_from_glitch_frames": int(windows["frames_from_glitch"].sum()) if len(windows) else 0,
-        "seams_total": int(len(seams)),
-        "seams_touching_glitch_played": int(seams["touches_glitch_played"].sum()) if len(seams) else 0,
-        "seams_touching_glitch_nominal": int(seams["touches_glitch_nominal"].sum()) if len(seams) else 0,
-        "seams_with_glitch_in_raw_sources": int((seams["glitch_raw"] != "").sum()) if len(seams) else 0,
-        "seams_over_1": int((ok["seam_ratio"] > 1).sum()) if len(ok) else 0,
+        **seam_glitch_counts(seams),
         "seam_ratio_max_touching_glitch_played": float(ok.loc[ok["touches_glitch_played"], "seam_ratio"].max())
         if len(ok) and ok["touches_glitch_played"].any() else None,
         "worst_seams": worst[cols].to_dict(orient="records") if len(worst) else [],
     }
-
-
-def _frames(cell) -> list:
-    return [] if pd.isna(cell) or cell == "" else [x for x in str(cell).split(";") if x]
-
-
-def touching_rows(seams: pd.DataFrame, blend: int, radius: int) -> list[dict]:
-    """Each seam whose blend span touches a glitch, with every glitch frame's place: the output frame
-    offset from the transition (u - t; None where another transition of the window lies between, so
-    the offset is not known from the seam table) and whether the seam measure reads it (its
-    accelerations at |u - t| <= ``radius`` are central differences, so they read |u - t| <= radius + 1).
-    ``raw after t``: the new clip's own frames, played by the path at the blend's
-    new-source weight; ``raw before t``: the left clip's frames before the transition;
-    ``continuation``: the left clip's continuation faded out by the blend."""
-    out = []
-    keys = ["fold", "condition", "character", "window"]
-    for _, s in seams[seams["touches_glitch_nominal"] | seams["touches_glitch_played"]].iterrows():
-        ts = sorted(seams.loc[(seams[keys] == s[keys]).all(axis=1), "t"])
-        t = int(s["t"])
-        places = []
-        for item in _frames(s["glitch_raw"]):
-            clip, ff = item.rsplit(":", 1)
-            ff = int(ff)
-            if clip == s["new_clip"] and 0 <= ff - int(s["new_frame"]) < blend:
-                k = ff - int(s["new_frame"])
-                known = not any(t < x <= t + k for x in ts)
-                places.append(("raw after t", clip, ff, k if known else None))
-            elif clip == s["left_clip"] and 0 <= int(s["left_frame"]) - ff < blend:
-                k = -(int(s["left_frame"]) - ff) - 1
-                known = not any(t + k < x < t for x in ts)
-                places.append(("raw before t", clip, ff, k if known else None))
-            else:
-                places.append(("raw", clip, ff, None))
-        played = set(_frames(s["glitch_continuation_played"]))
-        for ff in _frames(s["glitch_continuation_nominal"]):
-            if ff in played:
-                places.append(("continuation", s["left_clip"], int(ff), int(ff) - int(s["left_frame"]) - 1))
-            else:
-                places.append(("continuation, held (not played)", s["left_clip"], int(ff), None))
-        for where, clip, ff, k in places:
-            out.append({"fold": int(s["fold"]), "condition": str(s["condition"]), "character": str(s["character"]),
-                        "window": int(s["window"]), "t": t, "seam_ratio": float(s["seam_ratio"]), "where": where,
-                        "clip": clip, "frame": ff, "offset": k,
-                        "in_seam_measure": None if k is None else bool(abs(k) <= radius + 1)})
-    return out
 
 
 def report_touching(name: str, overrides) -> None:
@@ -298,7 +204,7 @@ if __name__ == "__main__":
     fps = float(params.features.fps)
     system = KeepResults(make_system(params, params.system))
     corpus, ann = annotated_corpus(params)
-    glitches = glitch_frames(Path(corpus.root) / "glitches.csv")
+    glitches = glitch_frames(Path(corpus.root) / "glitches.csv", clip_name)
     max_step = float(params.synth.continuation_max_step_deg)
     thresholds = recording_threshold_table(ann, params.annotate)
     cache = cache_dir(params)

@@ -507,10 +507,10 @@ def loop_seams(data_dir: Path) -> dict:
 
     from convsynth_jax.io.bvh import load_bvh
     from convsynth_jax.kinematics import forward_kinematics_np
+    from convsynth_jax.rotations import quat_conjugate_np, quat_multiply_np
     from convsynth_jax.walktalk.evaluate import EvalParams, torso_radius
     from convsynth_jax.walktalk.library import load_library
     from convsynth_jax.walktalk.torso import hand_torso_distance
-    from convsynth_jax.walktalk.locomotion import _qconj, _qmul
     from convsynth_jax.walktalk.params import WalkTalkParams
     from convsynth_jax.walktalk.conversation_gestures import torso_frame
 
@@ -529,7 +529,7 @@ def loop_seams(data_dir: Path) -> dict:
             raw = load_bvh(lp.source, fps=p.fps)
             a, n = lp.start, lp.num_frames
             q = np.asarray(raw.rotations, dtype=np.float64)
-            r = _qmul(q[a], _qconj(q[a + n]))
+            r = quat_multiply_np(q[a], quat_conjugate_np(q[a + n]))
             ang = np.degrees(2 * np.arccos(np.clip(np.abs(r[:, 0]), 0, 1)))
             pr, pl = forward_kinematics_np(raw)[a:a + n], forward_kinematics_np(lp.motion)
             world = max(float(np.linalg.norm((pl[:, body.joints[f"hand_{s}"]] - pl[:, hips])

@@ -338,6 +338,16 @@ def test_given_graph_folder(chained, tiny_corpus_dir, cache, inputs, tmp_path):
     assert (tmp_path / "o" / "B.bvh").read_text() == (chained[0] / "B.bvh").read_text()
     with pytest.raises(MissingFileError, match="nowhere"):
         run_task(converse_cfg(tiny_corpus_dir, cache, inputs, f"task.graphs={tmp_path / 'nowhere'}"), tmp_path / "o2")
+    # task=synthesize reads the same graph files (one function for both tasks)
+    s = run_task(compose(["task=synthesize", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}", f"cache_dir={cache}",
+                          "progress=false", "preset=quality",
+                          *[f"+task.graphs.{ch}={tmp_path / 'g' / f'graph_{ch}.npz'}" for ch in ("female", "male")]]),
+                 tmp_path / "o3")
+    rep = json.loads((tmp_path / "o3" / "report.json").read_text())
+    from convsynth_jax.graph import load_graph
+
+    assert s["success"] and {ch: rep["characters"][ch]["graph"]["num_states"] for ch in ("female", "male")} == \
+        {ch: load_graph(tmp_path / "g" / f"graph_{ch}.npz").num_states for ch in ("female", "male")}
 
 
 def test_only_motion_graph_systems(tiny_corpus_dir, cache, inputs, tmp_path):

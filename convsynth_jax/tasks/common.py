@@ -81,3 +81,24 @@ def make_configured_system(params):
     from ..systems.base import make_system
 
     return make_system(params, params.system)
+
+
+def graph_file_models(given, ann, system):
+    """Motion-graph models from graph files (``task.graphs.<character>=FILE``: task=synthesize and
+    task=converse), each clip checked against the configured corpus's recordings."""
+    from ..graph import load_graph
+    from ..systems.motion_graph import GraphModel
+
+    out = {}
+    for char, path in given.items():
+        g = load_graph(path)
+        motions, labels = {}, {}
+        for cn in g.clip_names:
+            s_name, role = cn.rsplit("_", 1)
+            if s_name not in ann or role not in ann[s_name]:
+                raise ConfigError(f"graph {path}: clip {cn!r} is not a recording of the configured corpus")
+            a = ann[s_name][role]
+            motions[cn], labels[cn] = a.motion, (a.own, a.partner)
+        out[char] = GraphModel(g, motions, 0.0, labels)
+    system.prepare(out)
+    return out

@@ -173,15 +173,14 @@ def _graph_files(given) -> dict:
 
 def fit_models(p: ConverseParams, params, system, ann, chars) -> dict:
     from ..evaluation.loo import fit_fold
-    from .common import cache_dir
-    from .synthesize import _given_graphs
+    from .common import cache_dir, graph_file_models
 
     if p.graphs:
         files = _graph_files(p.graphs)
         missing = [c for c in chars if c not in files]
         if missing:
             raise ConfigError(f"task.graphs has no graph of {missing} (has {sorted(files)})")
-        return _given_graphs({c: files[c] for c in chars}, ann, system)
+        return graph_file_models({c: files[c] for c in chars}, ann, system)
     # held_out None: every session of the corpus trains the models
     return fit_fold(system, ann, None, p.condition, cache_dir(params))
 

@@ -42,26 +42,6 @@ def label_rows(segments) -> list:
     return [{"kind": str(r.kind), "start": float(r.start), "end": float(r.end)} for r in segments.itertuples(index=False)]
 
 
-def _given_graphs(given, ann, system):
-    """Motion-graph models from graph files (``task.graphs.<character>=FILE``)."""
-    from ..graph import load_graph
-    from ..systems.motion_graph import GraphModel
-
-    out = {}
-    for char, path in given.items():
-        g = load_graph(path)
-        motions, labels = {}, {}
-        for cn in g.clip_names:
-            s_name, role = cn.rsplit("_", 1)
-            if s_name not in ann or role not in ann[s_name]:
-                raise ConfigError(f"graph {path}: clip {cn!r} is not a recording of the configured corpus")
-            a = ann[s_name][role]
-            motions[cn], labels[cn] = a.motion, (a.own, a.partner)
-        out[char] = GraphModel(g, motions, 0.0, labels)
-    system.prepare(out)
-    return out
-
-
 @dataclass(frozen=True)
 class InputFiles:
     """New speech for one role of ``task=synthesize``: a WAV and its word-level transcript."""
@@ -93,7 +73,7 @@ def run(cfg, out_dir: Path) -> dict:
     from ..search.check import check_path
     from ..seeding import derive_seed
     from ..systems.motion_graph import clip_name
-    from .common import annotated_corpus, cache_dir, make_configured_system, params_of
+    from .common import annotated_corpus, cache_dir, graph_file_models, make_configured_system, params_of
 
     t0 = time.perf_counter()
     task = task_settings(cfg)
@@ -135,7 +115,7 @@ def run(cfg, out_dir: Path) -> dict:
     roles = list(held)
     t_fit = time.perf_counter()
     given = task.graphs
-    fitted = _given_graphs(given, ann, system) if given else fit_fold(system, ann, session, condition, cache_dir(params))
+    fitted = graph_file_models(given, ann, system) if given else fit_fold(system, ann, session, condition, cache_dir(params))
     fit_seconds = time.perf_counter() - t_fit
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in ann.items() for r, a in d.items()}
     summary = {"system": system.name, "session": session, "window": [start, start + duration], "condition": condition,

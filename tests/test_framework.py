@@ -67,6 +67,21 @@ def test_every_system_config_builds_its_system(name):
         s.condition_options("no_such_condition")
 
 
+def test_a_models_graph_comes_from_the_systems_hook_not_an_attribute():
+    """Tasks ask the system for a model's motion graph; a model of another system that happens to have a
+    ``graph`` attribute is not taken for one (the tasks duck-typed it before)."""
+    from types import SimpleNamespace
+
+    from convsynth_jax.systems.base import make_system
+
+    stranger = SimpleNamespace(graph="a scene graph of another system", seconds=1.0)
+    p = default_params(["system=random_playback"])
+    assert make_system(p, p.system).motion_graph(stranger) is None
+    p = default_params(["system=motion_graph"])
+    g = object()
+    assert make_system(p, p.system).motion_graph(SimpleNamespace(graph=g)) is g
+
+
 def test_debug_config_composes():
     p = default_params(["debug=default"])
     assert p.loo.max_windows == 1 and p.corpus.name == "synthetic_tiny" and not p.progress

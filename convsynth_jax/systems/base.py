@@ -159,6 +159,12 @@ class SynthesisSystem(abc.ABC):
         """Construction / training time of ``model`` (for Table 3), NaN if unknown."""
         return float(getattr(model, "seconds", float("nan")))
 
+    def motion_graph(self, model: Any):
+        """The motion graph (``graph.MotionGraph``) ``model`` searches, for what the tasks report and save
+        of a graph (its size, threshold, the graph file, the paper's graph statistics); default: None
+        (the model has no graph)."""
+        return None
+
 
 def load_factory(spec: str):
     """``"package.module:Attr"`` -> the attribute (a SynthesisSystem subclass or factory)."""

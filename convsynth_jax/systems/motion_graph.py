@@ -107,3 +107,6 @@ class MotionGraphSystem(PlaybackSystem):
             source_frame=np.asarray(res.source_frame) if res.success else None,
             diagnostics={**diag, "blinks": res.blinks, "path": res.path, "transition_costs": res.transition_costs},
             synthetic_at=res.synthetic_at if res.success else None, blend_frames=int(self.params.synth.blend_frames))
+
+    def motion_graph(self, model: GraphModel):
+        return model.graph

@@ -109,7 +109,7 @@ def run(cfg, out_dir: Path) -> dict:
     model_rows = []
     for c, m in fitted.items():
         row = {"character": c, "fit_s": system.fit_seconds(m)}
-        g = getattr(m, "graph", None)
+        g = system.motion_graph(m)
         if g is not None:  # a motion graph: its size and threshold, and the graph file
             row.update({"num_states": g.num_states, "num_edges": g.num_edges, "threshold": g.meta.get("threshold")})
             g.save(out_dir / f"graph_{c}.npz")
@@ -215,7 +215,7 @@ def _graph_statistics(system, annotations, held_out, fitted, params, cache: Path
     from ..systems.motion_graph import clip_name
     from ..utils import write_json_atomic
 
-    if not all(getattr(m, "graph", None) is not None for m in fitted.values()):
+    if not all(system.motion_graph(m) is not None for m in fitted.values()):
         return None
     p = params
     t2, hist, fits = [], [], []
@@ -227,7 +227,7 @@ def _graph_statistics(system, annotations, held_out, fitted, params, cache: Path
         if path.is_file():
             stats = json.loads(path.read_text())
         else:
-            st = graph_statistics(build_database(items, p.features), p.graph, ks, char, {p.graph.k: model.graph})
+            st = graph_statistics(build_database(items, p.features), p.graph, ks, char, {p.graph.k: system.motion_graph(model)})
             stats = st._asdict()
             write_json_atomic(path, stats)
         t2 += stats["table2"]

@@ -162,7 +162,7 @@ def run(cfg, out_dir: Path) -> dict:
             if warp is not None:   # retiming (ours): output frame knots -> path frame knots
                 entry["warp"] = {"output_frames": [float(x) for x in warp[0]], "path_frames": [float(x) for x in warp[1]]}
         model = fitted[char]
-        g = getattr(model, "graph", None)
+        g = system.motion_graph(model)
         if g is not None:
             entry["path"] = [int(x) for x in res.diagnostics.get("path", [])]
             entry["graph"] = {"num_states": g.num_states, "num_edges": g.num_edges, "threshold": g.meta.get("threshold")}

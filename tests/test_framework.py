@@ -82,6 +82,21 @@ def test_a_models_graph_comes_from_the_systems_hook_not_an_attribute():
     assert make_system(p, p.system).motion_graph(SimpleNamespace(graph=g)) is g
 
 
+def test_system_options_are_typed_with_one_set_of_defaults():
+    from convsynth_jax.systems.base import make_system
+    from convsynth_jax.systems.random_playback import RandomPlaybackOptions
+
+    p = default_params(["system=random_playback"])
+    s = make_system(p, p.system)
+    assert s.options == RandomPlaybackOptions()      # the YAML restates the dataclass's defaults, nothing more
+    s = make_system(p, dataclasses.replace(p.system, options={"max_excerpt_seconds": 9}))
+    assert s.options.max_excerpt_seconds == 9.0 and s.options.min_excerpt_seconds == 2.0
+    with pytest.raises(ConfigError, match=r"system.options \(random_playback\).max_excerpt_secs"):
+        make_system(p, dataclasses.replace(p.system, options={"max_excerpt_secs": 9}))
+    with pytest.raises(ConfigError, match="min_excerpt_seconds <= max_excerpt_seconds"):
+        make_system(p, dataclasses.replace(p.system, options={"min_excerpt_seconds": 7}))
+
+
 def test_debug_config_composes():
     p = default_params(["debug=default"])
     assert p.loo.max_windows == 1 and p.corpus.name == "synthetic_tiny" and not p.progress

@@ -21,7 +21,9 @@ from two optional hooks the evaluation calls on every synthesized window (defaul
 ``window_diagnostics(model, window, result)`` adds system-specific columns (the motion graph's
 independent constraint checker), and ``source_positions(model, clip)`` gives the joint positions of
 a training clip the output was played back from (``WindowResult.source_clip``), for the seam
-content ratio.
+content ratio. ``motion_graph(model)`` gives the graph a model searches (the tasks report its size
+and save it; default: none). ``options_type``: the dataclass of the system's ``options`` (its
+defaults are the only ones; an unknown key is a ConfigError naming it).
 """
 from __future__ import annotations
 
@@ -34,6 +36,7 @@ import numpy as np
 import pandas as pd
 
 from ..errors import ConfigError
+from ..schema import build_params
 
 
 @dataclass(frozen=True)
@@ -111,9 +114,16 @@ class SynthesisSystem(abc.ABC):
     #: training clips carry ``audio_path``/``audio_channel`` for systems that need samples in fit()
     needs_audio: bool = False
 
+    #: the frozen dataclass of ``system.options`` (conf/system/<name>.yaml): its defaults are the only
+    #: ones, a key it lacks is a ConfigError naming it; None: the options stay a plain mapping
+    options_type: type | None = None
+
     def __init__(self, params, system: SystemParams):
         self.params = params
         self.system = system
+        opts = dict(system.options or {})
+        self.options = opts if self.options_type is None else \
+            build_params(self.options_type, opts, f"system.options ({system.name})")
 
     @property
     def name(self) -> str:

@@ -27,8 +27,22 @@ class PlaybackModel:
     labels: dict = field(default_factory=dict)  # clip name -> (own, partner) per-frame audio labels
 
 
+@dataclass(frozen=True)
+class RandomPlaybackOptions:
+    """``system.options`` of ``system=random_playback``."""
+
+    min_excerpt_seconds: float = 2.0   # play excerpts at least this long before jumping elsewhere
+    max_excerpt_seconds: float = 6.0
+
+    def __post_init__(self):
+        if not 0 < self.min_excerpt_seconds <= self.max_excerpt_seconds:
+            raise ConfigError(f"random_playback: need 0 < min_excerpt_seconds <= max_excerpt_seconds, "
+                              f"got {self.min_excerpt_seconds}, {self.max_excerpt_seconds}")
+
+
 class RandomPlaybackSystem(PlaybackSystem):
     produces_hands = True
+    options_type = RandomPlaybackOptions
 
     def fit(self, clips, character: str, condition: str, cache_dir=None) -> PlaybackModel:
         motions = {clip_name(c.session, c.role): c.motion for c in clips}
@@ -39,10 +53,7 @@ class RandomPlaybackSystem(PlaybackSystem):
     def synthesize(self, model: PlaybackModel, window: WindowInput, condition: str) -> WindowResult:
         self.condition_options(condition)
         t0 = time.perf_counter()
-        opts = self.system.options
-        lo, hi = float(opts.get("min_excerpt_seconds", 2.0)), float(opts.get("max_excerpt_seconds", 6.0))
-        if not 0 < lo <= hi:
-            raise ConfigError(f"random_playback: need 0 < min_excerpt_seconds <= max_excerpt_seconds, got {lo}, {hi}")
+        lo, hi = float(self.options.min_excerpt_seconds), float(self.options.max_excerpt_seconds)
         rng = np.random.default_rng(window.seed)
         names = sorted(model.motions)
         n, fps = window.num_frames, window.fps

@@ -118,3 +118,9 @@ def test_no_tracker_issue_numbers():
     assert not bad, "tracker references (say the reason or link docs/decisions.md):\n" + "\n".join(bad)
     assert _TRACKER.search("a comment (issue #14)") and _TRACKER.search("fixed in #31")
     assert not _TRACKER.search("color: #222; background: #0a0a0a")
+
+
+def test_the_readme_is_a_page():
+    """The README stays one page (at most 300 lines); methods, results and history live in docs/."""
+    n = len((ROOT / "README.md").read_text().splitlines())
+    assert n <= 300, f"README.md has {n} lines; move detail into docs/"

@@ -100,58 +100,73 @@ class LookaheadEdges(NamedTuple):
     sparse: SparseEdges | None = None   # the changed-state look-ahead's lists (None: the dense pass only)
 
 
-@partial(jax.tree_util.register_dataclass, data_fields=["out_ptr", "out_tgt", "in_ptr", "in_src"],
-         meta_fields=["capacity"])
+@partial(jax.tree_util.register_dataclass, data_fields=["in_ptr", "in_src", "is_entry"], meta_fields=["capacity"])
 @dataclasses.dataclass(frozen=True)
 class SparseEdges:
-    """The listed edges of :class:`LookaheadEdges` (the rows, not the original transitions) as two CSR
-    tables, for the changed-state look-ahead (:func:`_feasible_kernel` with ``sparse``): by source,
-    to recompute a state's OR over its edges, and by destination, to find the states whose OR may
-    change when a target's byte does. ``capacity`` (static): the fixed sizes of its per-frame buffers
-    (:class:`SparseCapacity`); a frame that would overflow one takes the dense pass."""
+    """The listed edges of :class:`LookaheadEdges` (the rows, not the original transitions) by
+    destination, for the changed-state look-ahead (:func:`_feasible_kernel` with ``sparse``): the
+    sources whose edge counts change when a target's arrival byte does. ``is_entry`` (S,) bool marks
+    the entry states (their arrival byte is recomputed every frame). ``capacity`` (static): the sizes
+    of its per-frame buffers (:class:`SparseCapacity`); a frame whose changes do not fit takes the
+    dense pass."""
 
-    out_ptr: np.ndarray     # (S + 1,) int32: state x's listed targets are out_tgt[out_ptr[x] : out_ptr[x + 1]]
-    out_tgt: np.ndarray     # (E,) int32 (padded: entries past out_ptr[S] are never read)
     in_ptr: np.ndarray      # (S + 1,) int32: state y's listed sources are in_src[in_ptr[y] : in_ptr[y + 1]]
-    in_src: np.ndarray      # (E,) int32
+    in_src: np.ndarray      # (E,) int32 (padded: entries past in_ptr[S] are never read)
+    is_entry: np.ndarray    # (S,) bool
     capacity: SparseCapacity
 
 
 class SparseCapacity(NamedTuple):
-    """Per-frame buffer sizes of the changed-state look-ahead (static)."""
-    changed: int     # states whose byte G changed from one frame to the next
-    arrivals: int    # states whose arrival byte A changed
-    sources: int     # their in-edge sources (the states whose byte is recomputed), duplicates included
-    edges: int       # the listed out-edges of those sources
+    """Per-frame buffer sizes of the changed-state look-ahead (static). Each buffer comes in tiers
+    ``smallest``, 4 x ``smallest``, ... up to its size; a frame uses the smallest tier that holds its
+    changes, so its work follows the number of changes, not the buffer's size."""
+    changed: int     # states whose byte G changed from one frame to the next (more: the dense pass)
+    sources: int     # in-edge entries of the states whose arrival byte changed (more: the dense pass)
+    smallest: int = 1024
 
 
-SPARSE_MIN_STATES = 1 << 17   # graphs of fewer (padded) states take the dense pass only (it is as fast there)
+def tiers(cap: int, smallest: int) -> tuple:
+    """The buffer sizes of a tiered buffer of capacity ``cap``: smallest, 4 x smallest, ..., cap."""
+    out = [cap]
+    while out[0] // 4 >= smallest:
+        out.insert(0, out[0] // 4)
+    return tuple(out)
+
+
+SPARSE_MIN_STATES = 1 << 17   # graphs of fewer (padded) states take the dense pass only under "auto"
+SPARSE_FRACTION = 16          # "auto": a frame with more than S / 16 changed states takes the dense pass
 
 
 def sparse_capacity(num_states: int) -> SparseCapacity | None:
     """The default buffer sizes for a graph of ``num_states`` padded states: None (dense only) below
-    SPARSE_MIN_STATES, else 1/32 of the states changed per frame (a median of about 0.6% change on the
-    1M-frame graph, docs/scale.md), as many changed arrivals, twice as many sources, eight times as
-    many edges."""
+    SPARSE_MIN_STATES, else S / SPARSE_FRACTION changed states (a median of about 0.6% change per
+    frame on the 1M-frame graph, docs/scale.md) and four times as many in-edge entries."""
     if num_states < SPARSE_MIN_STATES:
         return None
-    k = -(-num_states // 32 // 1024) * 1024
-    return SparseCapacity(k, k, 2 * k, 8 * k)
+    k = -(-num_states // SPARSE_FRACTION // 1024) * 1024
+    return SparseCapacity(k, 4 * k)
 
 
-def sparse_edges(src: np.ndarray, dst: np.ndarray, num_states: int, capacity: SparseCapacity) -> SparseEdges:
-    """:class:`SparseEdges` of the listed edges src -> dst (sorted by source) over ``num_states`` states.
-    Host NumPy."""
+def sparse_edges(src: np.ndarray, dst: np.ndarray, entry: np.ndarray, num_states: int,
+                 capacity: SparseCapacity) -> SparseEdges:
+    """:class:`SparseEdges` of the listed edges src -> dst over ``num_states`` states with the entry
+    states ``entry`` (padding entries point at the last state). Host NumPy."""
     src = np.asarray(src, np.int64)
     dst = np.asarray(dst, np.int64)
     if src.size and np.bincount(src).max() >= 256:
         raise ValueError("a state has 256 or more listed edges: the changed-state look-ahead counts them in bytes")
-    out_ptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=num_states))]).astype(np.int32)
     o = np.argsort(dst, kind="stable")
     in_ptr = np.concatenate([[0], np.cumsum(np.bincount(dst, minlength=num_states))]).astype(np.int32)
     n = max(src.size + (-src.size % ROW_BUCKET), ROW_BUCKET)
-    pad = lambda x: np.concatenate([x, np.zeros(n - x.size, np.int32)]).astype(np.int32)  # noqa: E731
-    return SparseEdges(out_ptr, pad(dst), in_ptr, pad(src[o]), SparseCapacity(*map(int, capacity)))
+    in_src = np.zeros(n, np.int32)
+    in_src[:src.size] = src[o]
+    is_entry = np.zeros(num_states, bool)
+    is_entry[np.asarray(entry)] = True
+    is_entry[num_states - 1] = False
+    cap = SparseCapacity(*map(int, capacity))
+    if min(cap) < 1:
+        raise ValueError(f"changed-state look-ahead buffers must be >= 1, got {cap}")
+    return SparseEdges(in_ptr, in_src, is_entry, cap)
 
 
 def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple):
@@ -212,7 +227,7 @@ def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np
     ent_p[:ent.size] = ent
     if isinstance(capacity, str):
         capacity = sparse_capacity(S)
-    sparse = None if capacity is None else sparse_edges(src, dst, S, capacity)
+    sparse = None if capacity is None else sparse_edges(src, dst, ent_p, S, capacity)
     return LookaheadEdges(has_next, s_rows, t_rows, ent_p, sparse)
 
 
@@ -229,7 +244,7 @@ def pad_lookahead(e: LookaheadEdges, min_rows, min_entries: int, min_edges: int 
 
     sp = e.sparse
     if sp is not None and min_edges is not None:
-        sp = dataclasses.replace(sp, out_tgt=grow(sp.out_tgt, min_edges), in_src=grow(sp.in_src, min_edges))
+        sp = dataclasses.replace(sp, in_src=grow(sp.in_src, min_edges))
     return LookaheadEdges(e.has_next, tuple(grow(x, n) for x, n in zip(e.src, min_rows)),
                           tuple(grow(x, n) for x, n in zip(e.tgt, min_rows)), grow(e.entry, min_entries), sp)
 
@@ -419,99 +434,142 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         return (feas, ok, info_out) if stats else (feas, ok)
 
     cap = sparse.capacity
-    K, KA, KX, KE = cap.changed, cap.arrivals, cap.sources, cap.edges
+    K, KX = cap.changed, cap.sources
+    k_tiers, x_tiers = tiers(K, min(cap.smallest, K)), tiers(KX, min(cap.smallest, KX))
+    n_entry = entry.shape[0] if paper else 0
+    KA = K + n_entry                                                      # changed arrivals: the list and the entries
     tables = jax.vmap(frame_table)(jnp.arange(Tp, dtype=jnp.int32))       # (Tp, 512 * 2^F)
     same_table = jnp.concatenate([jnp.all(tables[:-1] == tables[1:], axis=1), jnp.zeros(1, bool)])
-    bit_lane = (jnp.uint32(1) << (8 * fl).astype(jnp.uint32))             # bit f of a byte -> byte lane f
+    lanes_of = jnp.asarray(byte_lanes(F))                                 # byte -> one byte lane per flag bit
     hn_prev = jnp.concatenate([jnp.zeros(1, bool), has_next[:-1]])        # y - 1 reaches y by its original transition
-    in_deg = jnp.diff(sparse.in_ptr)
-    out_deg = jnp.diff(sparse.out_ptr)
+    in_ptr, in_src, is_entry = sparse.in_ptr, sparse.in_src, sparse.is_entry
+    in_deg = jnp.diff(in_ptr)
+    n_in = in_deg + hn_prev.astype(jnp.int32)                             # every in-edge whose count may change
+    ids = jnp.arange(S, dtype=jnp.int32)
 
-    def dense(carry, u, want_list):
-        G_next = carry[0]
-        A = arrival(G_next, u, tables[u])
+    def lanes_to_byte(counts):
+        G = jnp.zeros(counts.shape, u8)
+        for f in range(F):
+            G |= (((counts >> (8 * f)) & 255) > 0).astype(u8) << f
+        return G
+
+    def shifted(A, x):
+        return jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
+
+    # carry: G[t + 1]; A: arrival bytes of frame t + 2; counts: per state and flag bit, its listed
+    # out-edges whose target has the bit set in A (one byte lane per bit); lst / n: the states whose
+    # byte changed from G[t + 2] to G[t + 1]; usable: A, counts and lst are exact for G[t + 1];
+    # stamp: scratch for de-duplication; still: G[t + 1] == G[t + 2] (frame t + 2's rule)
+    def skipped(c, u, pad, want):
+        G = jax.lax.cond(pad, lambda g: jnp.full(S, all_ones), lambda g: g, c[0])
+        return (G, c[1], c[2], c[3], jnp.int32(0), c[5] & ~pad, c[6]), jnp.int32(2), jnp.int32(0)
+
+    def dense_plain(c, u, pad, want):
+        A = arrival(c[0], u, tables[u])
         G = propagate(A)
-        changed = G != G_next
-        lst, n = jax.lax.cond(want_list, lambda: _compact(jnp.arange(S, dtype=jnp.int32), changed, K, S),
-                              lambda: (jnp.full(K, S, jnp.int32), jnp.sum(changed, dtype=jnp.int32)))
-        return G, A, lst, n, want_list & (n <= K), carry[5], n, jnp.int32(0)
+        n = jnp.sum(G != c[0], dtype=jnp.int32)
+        return (G, A, c[2], c[3], n, jnp.bool_(False), c[6]), jnp.int32(0), n
 
-    def sparse_step(carry, u):
-        """(G[t], A, changed list, count, list usable, stamps, count, 1) from the carried changes."""
-        G_next, A_next, lst, n, _, stamp = carry
-        live = jnp.arange(K) < n
-        yc = jnp.where(live, lst, last)
-        A = A_next.at[yc].set(jnp.where(live, tables[u][lut_index[yc] | G_next[yc].astype(jnp.int32)], u8(0)))
+    def dense_counts(c, u, pad, want):
+        """The dense pass with counts instead of the OR (the next frame may take the changed states)."""
+        G_next = c[0]
+        A = jax.lax.optimization_barrier(arrival(G_next, u, tables[u]))
+        counts = edge_lane_counts(lanes_of[A], src, tgt, S)
+        G = lanes_to_byte(counts) | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
+        changed = G != G_next
+        n = jnp.sum(changed, dtype=jnp.int32)
+        lst = jax.lax.cond(n <= K, lambda: _compact(ids, changed, K, S)[0], lambda: c[3])
+        return (G, A, counts, lst, n, n <= K, c[6]), jnp.int32(0), n
+
+    def arrivals(c, u, k):
+        """Tier k of the arrival step: the changed states' and the entry states' arrival bytes anew;
+        (A, the states whose byte changed with their lane deltas (KA,), their count, in-edge entries)."""
+        G_next, A_next, _, lst, n = c[:5]
+        y = lst[:k]
+        live = (jnp.arange(k) < n) & (y < last)                           # the padding state arrives nowhere
         if paper:
-            A = A.at[entry].set(entry_rule(G_next, u))
-            A = A.at[last].set(0)
-            Y = jnp.concatenate([yc, entry])
-            moved = jnp.concatenate([live, jnp.ones(entry.shape[0], bool)])
-        else:
-            Y, moved = yc, live
-        moved &= A[Y] != A_next[Y]
-        ya, na = _compact(Y, moved, KA, last)                             # the states whose arrival byte changed
-        okA = na <= KA
-        # their in-edge sources: the listed ones (CSR by destination) and y - 1 by its original transition
-        cnt = jnp.where(jnp.arange(KA) < na, in_deg[ya] + hn_prev[ya], 0)
-        item, rank, used, nx = _expand(cnt, KX)
-        y = ya[item]
-        x = jnp.where(rank < in_deg[y], sparse.in_src[jnp.minimum(sparse.in_ptr[y] + rank, sparse.in_src.shape[0] - 1)],
-                      y - 1)
+            live &= ~is_entry[y]                                          # entry states: their full rule below
+        y = jnp.where(live, y, last)
+        a = jnp.where(live, tables[u][lut_index[y] | G_next[y].astype(jnp.int32)], u8(0))
+        if paper:
+            y = jnp.concatenate([y, entry])
+            a = jnp.concatenate([a, jnp.where(entry == last, u8(0), entry_rule(G_next, u))])
+            live = jnp.concatenate([live, entry != last])
+        old = A_next[y]
+        moved = live & (a != old)
+        A = A_next.at[jnp.where(moved, y, S)].set(a, mode="drop")
+        cnt = jnp.where(moved, n_in[y], 0)
+        keep = cnt > 0
+        pos = jnp.where(keep, jnp.cumsum(keep) - 1, KA)
+        ya = jnp.full(KA, last, jnp.int32).at[pos].set(y, mode="drop")
+        da = jnp.zeros(KA, jnp.uint32).at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
+        return A, ya, da, jnp.sum(keep, dtype=jnp.int32), jnp.sum(cnt)
+
+    def sources(c, A, ya, da, na, kx):
+        """Tier kx of the source step: the counts of the in-edge sources of the changed arrivals
+        updated by their lane deltas, those sources' bytes anew, and the list of the changed ones."""
+        G_next, _, counts, _, _, _, stamp = c
+        m = min(kx, KA)
+        ya, da = ya[:m], da[:m]
+        cnt = jnp.where(jnp.arange(m) < na, n_in[ya], 0)
+        item, rank, used, _ = _expand(cnt, kx)
+        y, d = ya[item], da[item]
+        listed = used & (rank < in_deg[y])
+        x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
         x = jnp.where(used, x, last)
-        slots = jnp.arange(KX, dtype=jnp.int32)
-        stamp = stamp.at[x].set(slots)                                    # one slot of each distinct source wins
-        uniq = used & (stamp[x] == slots)
-        # each distinct source's byte anew: the OR over its listed out-edges (CSR by source) and the shift
-        ocnt = jnp.where(uniq, out_deg[x], 0)
-        oitem, orank, oused, ne = _expand(ocnt, KE)
-        xo = x[oitem]
-        a = A[sparse.out_tgt[jnp.minimum(sparse.out_ptr[xo] + orank, sparse.out_tgt.shape[0] - 1)]]
-        lanes = jnp.zeros(KE, jnp.uint32)
-        for f in range(F):
-            lanes |= jnp.where(((a >> f) & 1) == 1, bit_lane[f], 0)
-        lanes = jnp.where(oused, lanes, 0)
-        counts = jax.ops.segment_sum(lanes, oitem, num_segments=KX, indices_are_sorted=True)
-        Gx = jnp.zeros(KX, u8)
-        for f in range(F):
-            Gx |= (((counts >> (8 * f)) & 255) > 0).astype(u8) << f
-        Gx |= jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
-        changed = uniq & (Gx != G_next[x])
-        G = G_next.at[jnp.where(uniq, x, S)].set(Gx, mode="drop")
-        lst2, n2 = _compact(x, changed, K, S)
-        ok = okA & (nx <= KX) & (ne <= KE)
-        return G, A, lst2, n2, n2 <= K, stamp, n2, jnp.int32(1), ok
+        counts = counts.at[jnp.where(listed, x, S)].add(d, mode="drop")
+        Gx = lanes_to_byte(counts[x]) | shifted(A, x)
+        G = G_next.at[jnp.where(used, x, S)].set(Gx, mode="drop")
+        slots = jnp.arange(kx, dtype=jnp.int32)
+        stamp = stamp.at[jnp.where(used, x, S)].set(slots, mode="drop")  # one slot of each distinct source wins
+        changed = used & (stamp[x] == slots) & (Gx != G_next[x])
+        lst, n = _compact(x, changed, K, S)
+        return (G, A, counts, lst, n, n <= K, stamp), jnp.int32(1), n
+
+    def sparse_step(c, u, pad, want):
+        kt = jnp.searchsorted(jnp.asarray(k_tiers), c[4]).astype(jnp.int32)   # the smallest tier that holds n
+        A, ya, da, na, nx = jax.lax.switch(kt, [partial(arrivals, k=k) for k in k_tiers], c, u)
+        xt = jnp.searchsorted(jnp.asarray(x_tiers), nx).astype(jnp.int32)
+        return jax.lax.cond(
+            xt < len(x_tiers),
+            lambda: jax.lax.switch(jnp.minimum(xt, len(x_tiers) - 1),
+                                   [partial(sources, kx=kx) for kx in x_tiers], c, A, ya, da, na),
+            lambda: dense_counts(c, u, pad, want))
 
     def step(carry, t):
-        # carry: G[t + 1], A of frame t + 2, the states whose G changed from t + 2 to t + 1 (list, count,
-        # usable), stamps (a scratch for de-duplication), still (G[t + 1] == G[t + 2], frame t + 2's rule)
-        G_next, A_next, lst, n, usable, stamp, still = carry
+        c, still = carry[:7], carry[7]
         u = jnp.minimum(t + 1, Tp - 1)
         pad = t >= num_frames - 1
         skip = pad | (still & same_op[u])
-        want_list = same_table[jnp.maximum(u - 1, 0)] & (u > 0)          # the next frame can use the list
-        go_sparse = usable & same_table[u]
-        inner = carry[:6]
-
-        def computed(c):
-            def try_sparse(c):
-                out = sparse_step(c, u)
-                return jax.lax.cond(out[-1], lambda: out[:-1], lambda: dense(c, u, want_list))
-            return jax.lax.cond(go_sparse, try_sparse, lambda c: dense(c, u, want_list), c)
-
-        def skipped(c):
-            G = jnp.where(pad, all_ones, c[0])
-            return G, c[1], c[2], jnp.int32(0), ~pad, c[5], jnp.int32(0), jnp.int32(2)
-
-        G, A, lst2, n2, usable2, stamp2, nchg, kind = jax.lax.cond(skip, skipped, computed, inner)
+        want = same_table[jnp.maximum(u - 1, 0)] & (u > 0)               # the next frame can take the changed states
+        go_sparse = c[5] & same_table[u]
+        which = jnp.where(skip, 0, jnp.where(go_sparse, 3, jnp.where(want, 2, 1)))
+        c2, kind, nchg = jax.lax.switch(which, [skipped, dense_plain, dense_counts, sparse_step], c, u, pad, want)
         still2 = ~pad & (skip | (nchg == 0))
-        return (G, A, lst2, n2, usable2, stamp2, still2), (G, jnp.where(pad, -1, kind), nchg)
+        return (*c2, still2), (c2[0], jnp.where(pad, -1, kind), nchg)
 
-    init = (jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.full(K, S, jnp.int32), jnp.int32(0), jnp.bool_(False),
-            jnp.zeros(S, jnp.int32), jnp.bool_(False))
+    init = (jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.zeros(S, jnp.uint32), jnp.full(K, S, jnp.int32),
+            jnp.int32(0), jnp.bool_(False), jnp.zeros(S, jnp.int32), jnp.bool_(False))
     _, (feas, kinds, nchg) = jax.lax.scan(step, init, jnp.arange(Tp, dtype=jnp.int32), reverse=True)
     ok = jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
     return (feas, ok, (kinds, nchg)) if stats else (feas, ok)
+
+
+def byte_lanes(F: int) -> np.ndarray:
+    """(256,) uint32: byte a -> bit f of a in byte lane f (the changed-state look-ahead's edge counts)."""
+    a = np.arange(256, dtype=np.uint32)
+    return sum(((a >> f) & 1) << (8 * f) for f in range(F)).astype(np.uint32)
+
+
+def edge_lane_counts(lanes, src, tgt, S: int):
+    """(S,) uint32: per state and flag bit, how many of its listed edges x -> y have the bit set, one
+    byte lane per bit: the sum of ``lanes[y]`` (:func:`byte_lanes` of the arrival bytes) over each
+    state's rows (:func:`edge_or`'s layout; fewer than 256 listed edges per state)."""
+    out = jnp.zeros(S, jnp.uint32)
+    for s_k, t_k in zip(src, tgt):
+        r = jnp.sum(lanes[t_k], axis=1, dtype=jnp.uint32)
+        out = out.at[s_k].set(r, indices_are_sorted=True)
+    return out
 
 
 def feasibility(prep, constraints: Constraints, padded_inputs, capacity=None, stats: bool = False):

@@ -112,7 +112,7 @@ class PreparedGraph:
             if self.peers:   # a group sharing one compiled kernel: every member's lists, padded alike
                 own = [p.own_lookahead_edges(key) for p in self.peers]
                 rows = [max(x.src[k].shape[0] for x in own) for k in range(len(e.src))]
-                flat = None if e.sparse is None else max(x.sparse.out_tgt.shape[0] for x in own)
+                flat = None if e.sparse is None else max(x.sparse.in_src.shape[0] for x in own)
                 e = pad_lookahead(e, rows, max(x.entry.shape[0] for x in own), flat)
             self._edges[key] = jax.tree.map(jax.device_put, e)
         return self._edges[key]

@@ -424,7 +424,7 @@ def test_changed_state_lookahead_equals_the_dense_pass_and_the_reference(matchin
     dense, ok_dense = feasibility(prep, cons, inp, None)
     np.testing.assert_array_equal(np.asarray(dense)[:30, :g.num_states], _reference_lookahead(1, matching, g, cons))
     kinds_seen = set()
-    for cap in (SparseCapacity(8, 16, 2), SparseCapacity(256, 2048, 4)):
+    for cap in (SparseCapacity(16, 4), SparseCapacity(2048, 8)):
         got, ok, (kinds, nchg) = feasibility(prep, cons, inp, cap, stats=True)
         np.testing.assert_array_equal(np.asarray(got), np.asarray(dense))
         assert bool(ok) == bool(ok_dense)

@@ -117,34 +117,25 @@ class SparseEdges:
 
 
 class SparseCapacity(NamedTuple):
-    """Per-frame buffer sizes of the changed-state look-ahead (static). Each buffer comes in tiers
-    ``smallest``, 4 x ``smallest``, ... up to its size; a frame uses the smallest tier that holds its
-    changes, so its work follows the number of changes, not the buffer's size."""
-    changed: int     # states whose byte G changed from one frame to the next (more: the dense pass)
-    sources: int     # in-edge entries of the states whose arrival byte changed (more: the dense pass)
-    smallest: int = 1024
-
-
-def tiers(cap: int, smallest: int) -> tuple:
-    """The buffer sizes of a tiered buffer of capacity ``cap``: smallest, 4 x smallest, ..., cap."""
-    out = [cap]
-    while out[0] // 4 >= smallest:
-        out.insert(0, out[0] // 4)
-    return tuple(out)
+    """Buffer sizes of the changed-state look-ahead (static). ``sources``: the most in-edge entries
+    (listed in-edges and original transitions) of the states whose arrival byte changes that one frame
+    may follow; a frame with more takes the dense pass. Its work is done in chunks of ``chunk``
+    entries, as many as it needs, so it follows the number of changes, not the buffer's size."""
+    sources: int
+    chunk: int = 4096
 
 
 SPARSE_MIN_STATES = 1 << 17   # graphs of fewer (padded) states take the dense pass only under "auto"
-SPARSE_FRACTION = 16          # "auto": a frame with more than S / 16 changed states takes the dense pass
+SPARSE_FRACTION = 4           # "auto": a frame with more than S / 4 in-edge entries to follow takes the dense pass
 
 
 def sparse_capacity(num_states: int) -> SparseCapacity | None:
     """The default buffer sizes for a graph of ``num_states`` padded states: None (dense only) below
-    SPARSE_MIN_STATES, else S / SPARSE_FRACTION changed states (a median of about 0.6% change per
-    frame on the 1M-frame graph, docs/scale.md) and four times as many in-edge entries."""
+    SPARSE_MIN_STATES, else S / SPARSE_FRACTION in-edge entries per frame (a median of about 0.6% of
+    the states change per frame on the 1M-frame graph, docs/scale.md)."""
     if num_states < SPARSE_MIN_STATES:
         return None
-    k = -(-num_states // SPARSE_FRACTION // 1024) * 1024
-    return SparseCapacity(k, 4 * k)
+    return SparseCapacity(num_states // SPARSE_FRACTION)
 
 
 def sparse_edges(src: np.ndarray, dst: np.ndarray, entry: np.ndarray, num_states: int,
@@ -166,6 +157,7 @@ def sparse_edges(src: np.ndarray, dst: np.ndarray, entry: np.ndarray, num_states
     cap = SparseCapacity(*map(int, capacity))
     if min(cap) < 1:
         raise ValueError(f"changed-state look-ahead buffers must be >= 1, got {cap}")
+    cap = cap._replace(sources=cap.sources + (-cap.sources % cap.chunk))    # whole chunks
     return SparseEdges(in_ptr, in_src, is_entry, cap)
 
 
@@ -434,18 +426,16 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         return (feas, ok, info_out) if stats else (feas, ok)
 
     cap = sparse.capacity
-    K, KX = cap.changed, cap.sources
-    k_tiers, x_tiers = tiers(K, min(cap.smallest, K)), tiers(KX, min(cap.smallest, KX))
-    n_entry = entry.shape[0] if paper else 0
-    KA = K + n_entry                                                      # changed arrivals: the list and the entries
+    KX, CH = cap.sources, cap.chunk
     tables = jax.vmap(frame_table)(jnp.arange(Tp, dtype=jnp.int32))       # (Tp, 512 * 2^F)
     same_table = jnp.concatenate([jnp.all(tables[:-1] == tables[1:], axis=1), jnp.zeros(1, bool)])
     lanes_of = jnp.asarray(byte_lanes(F))                                 # byte -> one byte lane per flag bit
     hn_prev = jnp.concatenate([jnp.zeros(1, bool), has_next[:-1]])        # y - 1 reaches y by its original transition
     in_ptr, in_src, is_entry = sparse.in_ptr, sparse.in_src, sparse.is_entry
     in_deg = jnp.diff(in_ptr)
-    n_in = in_deg + hn_prev.astype(jnp.int32)                             # every in-edge whose count may change
-    ids = jnp.arange(S, dtype=jnp.int32)
+    n_in = in_deg + hn_prev.astype(jnp.int32)                             # the in-edges whose counts may change
+    lane = jnp.arange(CH, dtype=jnp.int32)
+    i32 = jnp.int32
 
     def lanes_to_byte(counts):
         G = jnp.zeros(counts.shape, u8)
@@ -453,104 +443,151 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
             G |= (((counts >> (8 * f)) & 255) > 0).astype(u8) << f
         return G
 
-    def shifted(A, x):
-        return jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
+    def chunks(n, body, init):
+        """body(i, carry) over the chunks 0 .. ceil(n / CH) - 1 (a while loop: no work past n)."""
+        return jax.lax.while_loop(lambda c: c[0] * CH < n, lambda c: (c[0] + 1, body(c[0], c[1])), (i32(0), init))[1]
 
-    # carry: G[t + 1]; A: arrival bytes of frame t + 2; counts: per state and flag bit, its listed
-    # out-edges whose target has the bit set in A (one byte lane per bit); lst / n: the states whose
-    # byte changed from G[t + 2] to G[t + 1]; usable: A, counts and lst are exact for G[t + 1];
-    # stamp: scratch for de-duplication; still: G[t + 1] == G[t + 2] (frame t + 2's rule)
-    def skipped(c, u, pad, want):
-        G = jax.lax.cond(pad, lambda g: jnp.full(S, all_ones), lambda g: g, c[0])
-        return (G, c[1], c[2], c[3], jnp.int32(0), c[5] & ~pad, c[6]), jnp.int32(2), jnp.int32(0)
+    def sparse_frame(c):
+        """G[t] from G[t + 1] and the states whose byte changed from G[t + 2], when frame t + 1's table is
+        frame t + 2's. In place; skips the rest (over = True) when more than KX in-edge entries follow."""
+        t, G, A, counts, lst, n, stamp, ya, da, xs, vals, table, kinds, nchg = c
+        u = t + 1
+        tab = tables[u]
 
-    def dense_plain(c, u, pad, want):
-        A = arrival(c[0], u, tables[u])
-        G = propagate(A)
-        n = jnp.sum(G != c[0], dtype=jnp.int32)
-        return (G, A, c[2], c[3], n, jnp.bool_(False), c[6]), jnp.int32(0), n
+        def moved_arrivals(y, live, a, st):   # append the states whose arrival byte changes (and has in-edges)
+            A, ya, da, na, nx = st
+            old = A[y]
+            moved = live & (a != old)
+            A = A.at[jnp.where(moved, y, S)].set(a, mode="drop")
+            cnt = jnp.where(moved, n_in[y], 0)
+            keep = cnt > 0
+            pos = jnp.where(keep, na + jnp.cumsum(keep) - 1, KX)
+            ya = ya.at[pos].set(y, mode="drop")
+            da = da.at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
+            return A, ya, da, na + jnp.sum(keep, dtype=i32), nx + jnp.sum(cnt)
 
-    def dense_counts(c, u, pad, want):
-        """The dense pass with counts instead of the OR (the next frame may take the changed states)."""
-        G_next = c[0]
+        def arrive(i, st):        # chunk i of the changed states: their arrival byte by the frame's table
+            y = jax.lax.dynamic_slice(lst, (i * CH,), (CH,))
+            live = (i * CH + lane < n) & (y < last)
+            if paper:
+                live &= ~is_entry[y]                                      # the entry states: their full rule below
+            y = jnp.where(live, y, last)
+            return moved_arrivals(y, live, tab[lut_index[y] | G[y].astype(i32)], st)
+
+        st = chunks(n, arrive, (A, ya, da, i32(0), i32(0)))
+        if paper:
+            st = moved_arrivals(entry, entry != last, entry_rule(G, u), st)
+        A, ya, da, na, nx = st
+        over = nx > KX
+        na = jnp.where(over, 0, na)
+        nx = jnp.where(over, 0, nx)
+
+        def ends(i, st):          # running ends of each changed arrival's in-edge entries (in xs)
+            xs, run = st
+            y = jax.lax.dynamic_slice(ya, (i * CH,), (CH,))
+            cnt = jnp.where(i * CH + lane < na, n_in[y], 0)
+            e = run + jnp.cumsum(cnt)
+            return jax.lax.dynamic_update_slice(xs, e, (i * CH,)), e[-1]
+
+        ends_buf = chunks(na, ends, (xs, i32(0)))[0]
+        steps = max(int(np.ceil(np.log2(KX + 1))), 1)
+
+        def follow(i, st):        # chunk i of the in-edge entries: the counts of their sources updated
+            counts, src_buf = st
+            slot = i * CH + lane
+            lo, hi = jnp.zeros(CH, i32), jnp.full(CH, na, i32)           # the first item whose end > slot
+            for _ in range(steps):
+                mid = (lo + hi) >> 1
+                right = ends_buf[jnp.minimum(mid, KX - 1)] <= slot
+                lo, hi = jnp.where(right & (lo < hi), mid + 1, lo), jnp.where(right | (lo >= hi), hi, mid)
+            item = jnp.minimum(lo, KX - 1)
+            y = ya[item]
+            start = ends_buf[item] - n_in[y]
+            rank = slot - start
+            used = slot < nx
+            listed = used & (rank < in_deg[y])
+            x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
+            x = jnp.where(used, x, last)
+            counts = counts.at[jnp.where(listed, x, S)].add(da[item], mode="drop")
+            return counts, jax.lax.dynamic_update_slice(src_buf, x, (i * CH,))
+
+        # the ends are read from xs while the sources are written to a second buffer (vals doubles as it)
+        counts, srcs = chunks(nx, follow, (counts, vals))
+
+        def mark(i, stamp):       # one slot of each distinct source wins
+            x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
+            slot = i * CH + lane
+            return stamp.at[jnp.where(slot < nx, x, S)].set(slot, mode="drop")
+
+        stamp = chunks(nx, mark, stamp)
+
+        def recompute(i, st):     # each distinct source's byte anew; the changed ones listed with their byte
+            lst2, val2, m = st
+            x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
+            slot = i * CH + lane
+            Gx = lanes_to_byte(counts[x]) | jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
+            ch = (slot < nx) & (stamp[x] == slot) & (Gx != G[x])
+            pos = jnp.where(ch, m + jnp.cumsum(ch) - 1, KX)
+            return lst2.at[pos].set(x, mode="drop"), val2.at[pos].set(Gx.astype(i32), mode="drop"), \
+                m + jnp.sum(ch, dtype=i32)
+
+        lst2, val2, n2 = chunks(nx, recompute, (ends_buf, lst, i32(0)))
+
+        def write(i, G):
+            x = jax.lax.dynamic_slice(lst2, (i * CH,), (CH,))
+            v = jax.lax.dynamic_slice(val2, (i * CH,), (CH,)).astype(u8)
+            return G.at[jnp.where(i * CH + lane < n2, x, S)].set(v, mode="drop")
+
+        G = chunks(n2, write, G)
+        row = jnp.where(over, t + 1, t)         # an overflowing frame is left to the dense pass
+        table = jax.lax.dynamic_update_slice(table, G[None], (jnp.maximum(row, 0), 0))
+        kinds = kinds.at[row].set(jnp.where(over, kinds[row], 1), mode="drop")
+        nchg = nchg.at[row].set(jnp.where(over, nchg[row], n2), mode="drop")
+        # buffers swap roles: the new list is in the old ends buffer, its bytes in the old list
+        return (jnp.where(over, t, t - 1), G, A, counts, lst2, jnp.where(over, n, n2), stamp, ya, da, val2, srcs,
+                table, kinds, nchg), over
+
+    def sparse_ok(c, over):
+        t = c[0]
+        return (t >= 0) & ~over & same_table[jnp.minimum(t + 1, Tp - 1)]
+
+    def dense_frame(c):
+        """G[t] by the dense pass with edge counts, and (if the next frame may take the changed states)
+        the list of the states whose byte changed."""
+        t, G_next, A, counts, lst, n, stamp, ya, da, xs, vals, table, kinds, nchg = c
+        u = t + 1
         A = jax.lax.optimization_barrier(arrival(G_next, u, tables[u]))
         counts = edge_lane_counts(lanes_of[A], src, tgt, S)
         G = lanes_to_byte(counts) | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
-        changed = G != G_next
-        n = jnp.sum(changed, dtype=jnp.int32)
-        lst = jax.lax.cond(n <= K, lambda: _compact(ids, changed, K, S)[0], lambda: c[3])
-        return (G, A, counts, lst, n, n <= K, c[6]), jnp.int32(0), n
+        ch = G != G_next
+        n = jnp.sum(ch, dtype=i32)
+        want = (t > 0) & same_table[jnp.maximum(u - 1, 0)] & (n <= KX)
 
-    def arrivals(c, u, k):
-        """Tier k of the arrival step: the changed states' and the entry states' arrival bytes anew;
-        (A, the states whose byte changed with their lane deltas (KA,), their count, in-edge entries)."""
-        G_next, A_next, _, lst, n = c[:5]
-        y = lst[:k]
-        live = (jnp.arange(k) < n) & (y < last)                           # the padding state arrives nowhere
-        if paper:
-            live &= ~is_entry[y]                                          # entry states: their full rule below
-        y = jnp.where(live, y, last)
-        a = jnp.where(live, tables[u][lut_index[y] | G_next[y].astype(jnp.int32)], u8(0))
-        if paper:
-            y = jnp.concatenate([y, entry])
-            a = jnp.concatenate([a, jnp.where(entry == last, u8(0), entry_rule(G_next, u))])
-            live = jnp.concatenate([live, entry != last])
-        old = A_next[y]
-        moved = live & (a != old)
-        A = A_next.at[jnp.where(moved, y, S)].set(a, mode="drop")
-        cnt = jnp.where(moved, n_in[y], 0)
-        keep = cnt > 0
-        pos = jnp.where(keep, jnp.cumsum(keep) - 1, KA)
-        ya = jnp.full(KA, last, jnp.int32).at[pos].set(y, mode="drop")
-        da = jnp.zeros(KA, jnp.uint32).at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
-        return A, ya, da, jnp.sum(keep, dtype=jnp.int32), jnp.sum(cnt)
+        chp = jnp.pad(ch, (0, -S % CH))
 
-    def sources(c, A, ya, da, na, kx):
-        """Tier kx of the source step: the counts of the in-edge sources of the changed arrivals
-        updated by their lane deltas, those sources' bytes anew, and the list of the changed ones."""
-        G_next, _, counts, _, _, _, stamp = c
-        m = min(kx, KA)
-        ya, da = ya[:m], da[:m]
-        cnt = jnp.where(jnp.arange(m) < na, n_in[ya], 0)
-        item, rank, used, _ = _expand(cnt, kx)
-        y, d = ya[item], da[item]
-        listed = used & (rank < in_deg[y])
-        x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
-        x = jnp.where(used, x, last)
-        counts = counts.at[jnp.where(listed, x, S)].add(d, mode="drop")
-        Gx = lanes_to_byte(counts[x]) | shifted(A, x)
-        G = G_next.at[jnp.where(used, x, S)].set(Gx, mode="drop")
-        slots = jnp.arange(kx, dtype=jnp.int32)
-        stamp = stamp.at[jnp.where(used, x, S)].set(slots, mode="drop")  # one slot of each distinct source wins
-        changed = used & (stamp[x] == slots) & (Gx != G_next[x])
-        lst, n = _compact(x, changed, K, S)
-        return (G, A, counts, lst, n, n <= K, stamp), jnp.int32(1), n
+        def listing(i, st):
+            lst, m = st
+            c_ = jax.lax.dynamic_slice(chp, (i * CH,), (CH,))
+            pos = jnp.where(c_, m + jnp.cumsum(c_) - 1, KX)
+            ids = i * CH + lane
+            return lst.at[pos].set(ids, mode="drop"), m + jnp.sum(c_, dtype=i32)
 
-    def sparse_step(c, u, pad, want):
-        kt = jnp.searchsorted(jnp.asarray(k_tiers), c[4]).astype(jnp.int32)   # the smallest tier that holds n
-        A, ya, da, na, nx = jax.lax.switch(kt, [partial(arrivals, k=k) for k in k_tiers], c, u)
-        xt = jnp.searchsorted(jnp.asarray(x_tiers), nx).astype(jnp.int32)
-        return jax.lax.cond(
-            xt < len(x_tiers),
-            lambda: jax.lax.switch(jnp.minimum(xt, len(x_tiers) - 1),
-                                   [partial(sources, kx=kx) for kx in x_tiers], c, A, ya, da, na),
-            lambda: dense_counts(c, u, pad, want))
+        lst = chunks(jnp.where(want, S, 0), listing, (lst, i32(0)))[0]
+        table = jax.lax.dynamic_update_slice(table, G[None], (t, 0))
+        kinds, nchg = kinds.at[t].set(0), nchg.at[t].set(n)
+        return (t - 1, G, A, counts, lst, n, stamp, ya, da, xs, vals, table, kinds, nchg), ~want
 
-    def step(carry, t):
-        c, still = carry[:7], carry[7]
-        u = jnp.minimum(t + 1, Tp - 1)
-        pad = t >= num_frames - 1
-        skip = pad | (still & same_op[u])
-        want = same_table[jnp.maximum(u - 1, 0)] & (u > 0)               # the next frame can take the changed states
-        go_sparse = c[5] & same_table[u]
-        which = jnp.where(skip, 0, jnp.where(go_sparse, 3, jnp.where(want, 2, 1)))
-        c2, kind, nchg = jax.lax.switch(which, [skipped, dense_plain, dense_counts, sparse_step], c, u, pad, want)
-        still2 = ~pad & (skip | (nchg == 0))
-        return (*c2, still2), (c2[0], jnp.where(pad, -1, kind), nchg)
+    def outer(c):
+        c, over = dense_frame(c)
+        c, _ = jax.lax.while_loop(lambda s: sparse_ok(*s), lambda s: sparse_frame(s[0]), (c, over))
+        return c
 
-    init = (jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.zeros(S, jnp.uint32), jnp.full(K, S, jnp.int32),
-            jnp.int32(0), jnp.bool_(False), jnp.zeros(S, jnp.int32), jnp.bool_(False))
-    _, (feas, kinds, nchg) = jax.lax.scan(step, init, jnp.arange(Tp, dtype=jnp.int32), reverse=True)
+    zi = jnp.zeros(KX, i32)
+    init = (num_frames - 2, jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.zeros(S, jnp.uint32), zi, i32(0),
+            jnp.zeros(S, i32), zi, jnp.zeros(KX, jnp.uint32), zi, zi, jnp.full((Tp, S), all_ones),
+            jnp.where(jnp.arange(Tp) >= num_frames - 1, -1, 0).astype(i32), jnp.zeros(Tp, i32))
+    out = jax.lax.while_loop(lambda c: c[0] >= 0, outer, init)
+    feas, kinds, nchg = out[11], out[12], out[13]
     ok = jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
     return (feas, ok, (kinds, nchg)) if stats else (feas, ok)
 

@@ -122,11 +122,11 @@ class SparseCapacity(NamedTuple):
     may follow; a frame with more takes the dense pass. Its work is done in chunks of ``chunk``
     entries, as many as it needs, so it follows the number of changes, not the buffer's size."""
     sources: int
-    chunk: int = 4096
+    chunk: int = 2048
 
 
 SPARSE_MIN_STATES = 1 << 17   # graphs of fewer (padded) states take the dense pass only under "auto"
-SPARSE_FRACTION = 4           # "auto": a frame with more than S / 4 in-edge entries to follow takes the dense pass
+SPARSE_FRACTION = 32          # "auto": a frame with more than S / 32 in-edge entries to follow takes the dense pass
 
 
 def sparse_capacity(num_states: int) -> SparseCapacity | None:
@@ -213,7 +213,13 @@ def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np
     has_next[row[nxt]] = True
     widths = row_widths(int(max_degree) if max_degree else int(deg.max(initial=1)))
     s_rows, t_rows = edge_rows(src, dst, pad_state, widths)
-    ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
+    if codes is None:
+        ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
+    else:   # elsewhere the channel rule is the common one (no entry: paper_channel_step's entry is False)
+        own_label, par_label = state_code[:num_states] & 15, (state_code[:num_states] >> 4) & 15
+        cons_o = ((int(codes[0]) >> own_label) & 1) == 1
+        cons_p = ((int(codes[1]) >> par_label) & 1) == 1
+        ent = np.flatnonzero((cons_o & (info[:num_states, 0] == 0)) | (cons_p & (info[:num_states, 3] == 0)))
     m = ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET
     ent_p = np.full(m, pad_state, np.int32)
     ent_p[:ent.size] = ent
@@ -450,12 +456,12 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     def sparse_frame(c):
         """G[t] from G[t + 1] and the states whose byte changed from G[t + 2], when frame t + 1's table is
         frame t + 2's. In place; skips the rest (over = True) when more than KX in-edge entries follow."""
-        t, G, A, counts, lst, n, stamp, ya, da, xs, vals, table, kinds, nchg = c
+        t, G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval, table, kinds, nchg = c
         u = t + 1
         tab = tables[u]
 
         def moved_arrivals(y, live, a, st):   # append the states whose arrival byte changes (and has in-edges)
-            A, ya, da, na, nx = st
+            A, ya, da, na, nx, anye = st
             old = A[y]
             moved = live & (a != old)
             A = A.at[jnp.where(moved, y, S)].set(a, mode="drop")
@@ -464,55 +470,57 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
             pos = jnp.where(keep, na + jnp.cumsum(keep) - 1, KX)
             ya = ya.at[pos].set(y, mode="drop")
             da = da.at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
-            return A, ya, da, na + jnp.sum(keep, dtype=i32), nx + jnp.sum(cnt)
+            return A, ya, da, na + jnp.sum(keep, dtype=i32), nx + jnp.sum(cnt), anye
 
         def arrive(i, st):        # chunk i of the changed states: their arrival byte by the frame's table
             y = jax.lax.dynamic_slice(lst, (i * CH,), (CH,))
             live = (i * CH + lane < n) & (y < last)
             if paper:
-                live &= ~is_entry[y]                                      # the entry states: their full rule below
+                ent = live & is_entry[y]
+                st = st[:5] + (st[5] | jnp.any(ent),)
+                live &= ~ent                                              # the entry states: their full rule below
             y = jnp.where(live, y, last)
             return moved_arrivals(y, live, tab[lut_index[y] | G[y].astype(i32)], st)
 
-        st = chunks(n, arrive, (A, ya, da, i32(0), i32(0)))
-        if paper:
-            st = moved_arrivals(entry, entry != last, entry_rule(G, u), st)
-        A, ya, da, na, nx = st
+        st = chunks(n, arrive, (A, ya, da, i32(0), i32(0), jnp.bool_(False)))
+        if paper:   # the entry states' full rule: unchanged where the rule repeats and their bytes did not change
+            redo = ~same_op[u] | st[5]
+            st = chunks(jnp.where(redo, 1, 0), lambda i, st: moved_arrivals(entry, entry != last, entry_rule(G, u), st),
+                        st)
+        A, ya, da, na, nx, _ = st
         over = nx > KX
         na = jnp.where(over, 0, na)
         nx = jnp.where(over, 0, nx)
 
-        def ends(i, st):          # running ends of each changed arrival's in-edge entries (in xs)
-            xs, run = st
+        def ending(i, st):        # running ends of each changed arrival's in-edge entries
+            ends, run = st
             y = jax.lax.dynamic_slice(ya, (i * CH,), (CH,))
             cnt = jnp.where(i * CH + lane < na, n_in[y], 0)
             e = run + jnp.cumsum(cnt)
-            return jax.lax.dynamic_update_slice(xs, e, (i * CH,)), e[-1]
+            return jax.lax.dynamic_update_slice(ends, e, (i * CH,)), e[-1]
 
-        ends_buf = chunks(na, ends, (xs, i32(0)))[0]
+        ends = chunks(na, ending, (ends, i32(0)))[0]
         steps = max(int(np.ceil(np.log2(KX + 1))), 1)
 
         def follow(i, st):        # chunk i of the in-edge entries: the counts of their sources updated
-            counts, src_buf = st
+            counts, srcs = st
             slot = i * CH + lane
             lo, hi = jnp.zeros(CH, i32), jnp.full(CH, na, i32)           # the first item whose end > slot
             for _ in range(steps):
                 mid = (lo + hi) >> 1
-                right = ends_buf[jnp.minimum(mid, KX - 1)] <= slot
+                right = ends[jnp.minimum(mid, KX - 1)] <= slot
                 lo, hi = jnp.where(right & (lo < hi), mid + 1, lo), jnp.where(right | (lo >= hi), hi, mid)
             item = jnp.minimum(lo, KX - 1)
             y = ya[item]
-            start = ends_buf[item] - n_in[y]
-            rank = slot - start
+            rank = slot - (ends[item] - n_in[y])
             used = slot < nx
             listed = used & (rank < in_deg[y])
             x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
             x = jnp.where(used, x, last)
             counts = counts.at[jnp.where(listed, x, S)].add(da[item], mode="drop")
-            return counts, jax.lax.dynamic_update_slice(src_buf, x, (i * CH,))
+            return counts, jax.lax.dynamic_update_slice(srcs, x, (i * CH,))
 
-        # the ends are read from xs while the sources are written to a second buffer (vals doubles as it)
-        counts, srcs = chunks(nx, follow, (counts, vals))
+        counts, srcs = chunks(nx, follow, (counts, srcs))
 
         def mark(i, stamp):       # one slot of each distinct source wins
             x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
@@ -522,20 +530,19 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         stamp = chunks(nx, mark, stamp)
 
         def recompute(i, st):     # each distinct source's byte anew; the changed ones listed with their byte
-            lst2, val2, m = st
+            lst, lval, m = st
             x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
             slot = i * CH + lane
             Gx = lanes_to_byte(counts[x]) | jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
             ch = (slot < nx) & (stamp[x] == slot) & (Gx != G[x])
             pos = jnp.where(ch, m + jnp.cumsum(ch) - 1, KX)
-            return lst2.at[pos].set(x, mode="drop"), val2.at[pos].set(Gx.astype(i32), mode="drop"), \
-                m + jnp.sum(ch, dtype=i32)
+            return lst.at[pos].set(x, mode="drop"), lval.at[pos].set(Gx, mode="drop"), m + jnp.sum(ch, dtype=i32)
 
-        lst2, val2, n2 = chunks(nx, recompute, (ends_buf, lst, i32(0)))
+        lst2, lval, n2 = chunks(nx, recompute, (lst, lval, i32(0)))
 
         def write(i, G):
             x = jax.lax.dynamic_slice(lst2, (i * CH,), (CH,))
-            v = jax.lax.dynamic_slice(val2, (i * CH,), (CH,)).astype(u8)
+            v = jax.lax.dynamic_slice(lval, (i * CH,), (CH,))
             return G.at[jnp.where(i * CH + lane < n2, x, S)].set(v, mode="drop")
 
         G = chunks(n2, write, G)
@@ -543,8 +550,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         table = jax.lax.dynamic_update_slice(table, G[None], (jnp.maximum(row, 0), 0))
         kinds = kinds.at[row].set(jnp.where(over, kinds[row], 1), mode="drop")
         nchg = nchg.at[row].set(jnp.where(over, nchg[row], n2), mode="drop")
-        # buffers swap roles: the new list is in the old ends buffer, its bytes in the old list
-        return (jnp.where(over, t, t - 1), G, A, counts, lst2, jnp.where(over, n, n2), stamp, ya, da, val2, srcs,
+        return (jnp.where(over, t, t - 1), G, A, counts, lst2, jnp.where(over, n, n2), stamp, ya, da, ends, srcs, lval,
                 table, kinds, nchg), over
 
     def sparse_ok(c, over):
@@ -554,7 +560,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
     def dense_frame(c):
         """G[t] by the dense pass with edge counts, and (if the next frame may take the changed states)
         the list of the states whose byte changed."""
-        t, G_next, A, counts, lst, n, stamp, ya, da, xs, vals, table, kinds, nchg = c
+        t, G_next, A, counts, lst, n, stamp, ya, da, ends, srcs, lval, table, kinds, nchg = c
         u = t + 1
         A = jax.lax.optimization_barrier(arrival(G_next, u, tables[u]))
         counts = edge_lane_counts(lanes_of[A], src, tgt, S)
@@ -575,7 +581,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         lst = chunks(jnp.where(want, S, 0), listing, (lst, i32(0)))[0]
         table = jax.lax.dynamic_update_slice(table, G[None], (t, 0))
         kinds, nchg = kinds.at[t].set(0), nchg.at[t].set(n)
-        return (t - 1, G, A, counts, lst, n, stamp, ya, da, xs, vals, table, kinds, nchg), ~want
+        return (t - 1, G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval, table, kinds, nchg), ~want
 
     def outer(c):
         c, over = dense_frame(c)
@@ -584,10 +590,10 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
 
     zi = jnp.zeros(KX, i32)
     init = (num_frames - 2, jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.zeros(S, jnp.uint32), zi, i32(0),
-            jnp.zeros(S, i32), zi, jnp.zeros(KX, jnp.uint32), zi, zi, jnp.full((Tp, S), all_ones),
+            jnp.zeros(S, i32), zi, jnp.zeros(KX, jnp.uint32), zi, zi, jnp.zeros(KX, u8), jnp.full((Tp, S), all_ones),
             jnp.where(jnp.arange(Tp) >= num_frames - 1, -1, 0).astype(i32), jnp.zeros(Tp, i32))
     out = jax.lax.while_loop(lambda c: c[0] >= 0, outer, init)
-    feas, kinds, nchg = out[11], out[12], out[13]
+    feas, kinds, nchg = out[12], out[13], out[14]
     ok = jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
     return (feas, ok, (kinds, nchg)) if stats else (feas, ok)
 

@@ -433,6 +433,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
 
     cap = sparse.capacity
     KX, CH = cap.sources, cap.chunk
+    KB = KX + CH                                                          # the changed arrivals' buffers
     tables = jax.vmap(frame_table)(jnp.arange(Tp, dtype=jnp.int32))       # (Tp, 512 * 2^F)
     same_table = jnp.concatenate([jnp.all(tables[:-1] == tables[1:], axis=1), jnp.zeros(1, bool)])
     lanes_of = jnp.asarray(byte_lanes(F))                                 # byte -> one byte lane per flag bit
@@ -467,7 +468,7 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
             A = A.at[jnp.where(moved, y, S)].set(a, mode="drop")
             cnt = jnp.where(moved, n_in[y], 0)
             keep = cnt > 0
-            pos = jnp.where(keep, na + jnp.cumsum(keep) - 1, KX)
+            pos = jnp.where(keep, na + jnp.cumsum(keep) - 1, KB)
             ya = ya.at[pos].set(y, mode="drop")
             da = da.at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
             return A, ya, da, na + jnp.sum(keep, dtype=i32), nx + jnp.sum(cnt), anye
@@ -500,17 +501,16 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
             return jax.lax.dynamic_update_slice(ends, e, (i * CH,)), e[-1]
 
         ends = chunks(na, ending, (ends, i32(0)))[0]
-        steps = max(int(np.ceil(np.log2(KX + 1))), 1)
 
         def follow(i, st):        # chunk i of the in-edge entries: the counts of their sources updated
-            counts, srcs = st
-            slot = i * CH + lane
-            lo, hi = jnp.zeros(CH, i32), jnp.full(CH, na, i32)           # the first item whose end > slot
-            for _ in range(steps):
-                mid = (lo + hi) >> 1
-                right = ends[jnp.minimum(mid, KX - 1)] <= slot
-                lo, hi = jnp.where(right & (lo < hi), mid + 1, lo), jnp.where(right | (lo >= hi), hi, mid)
-            item = jnp.minimum(lo, KX - 1)
+            counts, srcs, i0 = st    # i0: the first changed arrival whose entries start in this chunk or later
+            base = i * CH
+            slot = base + lane
+            first = jax.lax.dynamic_slice(ends, (i0,), (CH,)) - n_in[jax.lax.dynamic_slice(ya, (i0,), (CH,))]
+            here = (i0 + lane < na) & (first < base + CH)                 # a prefix: the starts are increasing
+            mark = jnp.full(CH, -1, i32).at[jnp.where(here, first - base, CH)].max(lane, mode="drop")
+            rel = jax.lax.cummax(mark)
+            item = jnp.maximum(jnp.where(rel >= 0, i0 + rel, i0 - 1), 0)  # before the first start: the item before
             y = ya[item]
             rank = slot - (ends[item] - n_in[y])
             used = slot < nx
@@ -518,9 +518,9 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
             x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
             x = jnp.where(used, x, last)
             counts = counts.at[jnp.where(listed, x, S)].add(da[item], mode="drop")
-            return counts, jax.lax.dynamic_update_slice(srcs, x, (i * CH,))
+            return counts, jax.lax.dynamic_update_slice(srcs, x, (base,)), i0 + jnp.sum(here, dtype=i32)
 
-        counts, srcs = chunks(nx, follow, (counts, srcs))
+        counts, srcs, _ = chunks(nx, follow, (counts, srcs, i32(0)))
 
         def mark(i, stamp):       # one slot of each distinct source wins
             x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
@@ -588,9 +588,9 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         c, _ = jax.lax.while_loop(lambda s: sparse_ok(*s), lambda s: sparse_frame(s[0]), (c, over))
         return c
 
-    zi = jnp.zeros(KX, i32)
+    zi, zb = jnp.zeros(KX, i32), jnp.zeros(KB, i32)
     init = (num_frames - 2, jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.zeros(S, jnp.uint32), zi, i32(0),
-            jnp.zeros(S, i32), zi, jnp.zeros(KX, jnp.uint32), zi, zi, jnp.zeros(KX, u8), jnp.full((Tp, S), all_ones),
+            jnp.zeros(S, i32), zb, jnp.zeros(KB, jnp.uint32), zb, zi, jnp.zeros(KX, u8), jnp.full((Tp, S), all_ones),
             jnp.where(jnp.arange(Tp) >= num_frames - 1, -1, 0).astype(i32), jnp.zeros(Tp, i32))
     out = jax.lax.while_loop(lambda c: c[0] >= 0, outer, init)
     feas, kinds, nchg = out[12], out[13], out[14]

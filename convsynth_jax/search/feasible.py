@@ -38,6 +38,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import kernel_cache
+from ..errors import ConfigError
 from .constraints import Constraints, EntryWindows, label_ok, paper_channel_step
 from .rules import start_rule, unpack_code
 
@@ -136,6 +137,21 @@ def sparse_capacity(num_states: int) -> SparseCapacity | None:
     if num_states < SPARSE_MIN_STATES:
         return None
     return SparseCapacity(num_states // SPARSE_FRACTION)
+
+
+LOOKAHEAD_PASSES = ("auto", "changed", "dense")
+
+
+def lookahead_capacity(mode: str, num_states: int) -> SparseCapacity | None:
+    """The changed-state buffers of ``search.lookahead_pass`` = ``mode`` on a graph of ``num_states``
+    padded states (None: the dense pass)."""
+    if mode not in LOOKAHEAD_PASSES:
+        raise ConfigError(f"search.lookahead_pass must be one of {', '.join(LOOKAHEAD_PASSES)}, got {mode!r}")
+    if mode == "dense":
+        return None
+    if mode == "changed":
+        return SparseCapacity(max(num_states // SPARSE_FRACTION, 1))
+    return sparse_capacity(num_states)
 
 
 def sparse_edges(src: np.ndarray, dst: np.ndarray, entry: np.ndarray, num_states: int,
@@ -459,96 +475,106 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         frame t + 2's. In place; skips the rest (over = True) when more than KX in-edge entries follow."""
         t, G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval, table, kinds, nchg = c
         u = t + 1
-        tab = tables[u]
+        # nothing to do where no byte changed and the rule repeats (entry states included): a fixed point
+        busy = (n > 0) | ~same_op[u] if paper else n > 0
 
-        def moved_arrivals(y, live, a, st):   # append the states whose arrival byte changes (and has in-edges)
-            A, ya, da, na, nx, anye = st
-            old = A[y]
-            moved = live & (a != old)
-            A = A.at[jnp.where(moved, y, S)].set(a, mode="drop")
-            cnt = jnp.where(moved, n_in[y], 0)
-            keep = cnt > 0
-            pos = jnp.where(keep, na + jnp.cumsum(keep) - 1, KB)
-            ya = ya.at[pos].set(y, mode="drop")
-            da = da.at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
-            return A, ya, da, na + jnp.sum(keep, dtype=i32), nx + jnp.sum(cnt), anye
+        def work(w):
+            G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval = w[:11]
+            tab = tables[u]
 
-        def arrive(i, st):        # chunk i of the changed states: their arrival byte by the frame's table
-            y = jax.lax.dynamic_slice(lst, (i * CH,), (CH,))
-            live = (i * CH + lane < n) & (y < last)
-            if paper:
-                ent = live & is_entry[y]
-                st = st[:5] + (st[5] | jnp.any(ent),)
-                live &= ~ent                                              # the entry states: their full rule below
-            y = jnp.where(live, y, last)
-            return moved_arrivals(y, live, tab[lut_index[y] | G[y].astype(i32)], st)
+            def moved_arrivals(y, live, a, st):   # append the states whose arrival byte changes (and has in-edges)
+                A, ya, da, na, nx, anye = st
+                old = A[y]
+                moved = live & (a != old)
+                A = A.at[jnp.where(moved, y, S)].set(a, mode="drop")
+                cnt = jnp.where(moved, n_in[y], 0)
+                keep = cnt > 0
+                pos = jnp.where(keep, na + jnp.cumsum(keep) - 1, KB)
+                ya = ya.at[pos].set(y, mode="drop")
+                da = da.at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
+                return A, ya, da, na + jnp.sum(keep, dtype=i32), nx + jnp.sum(cnt), anye
 
-        st = chunks(n, arrive, (A, ya, da, i32(0), i32(0), jnp.bool_(False)))
-        if paper:   # the entry states' full rule: unchanged where the rule repeats and their bytes did not change
-            redo = ~same_op[u] | st[5]
-            st = chunks(jnp.where(redo, 1, 0), lambda i, st: moved_arrivals(entry, entry != last, entry_rule(G, u), st),
-                        st)
-        A, ya, da, na, nx, _ = st
-        over = nx > KX
-        na = jnp.where(over, 0, na)
-        nx = jnp.where(over, 0, nx)
+            def arrive(i, st):        # chunk i of the changed states: their arrival byte by the frame's table
+                y = jax.lax.dynamic_slice(lst, (i * CH,), (CH,))
+                live = (i * CH + lane < n) & (y < last)
+                if paper:
+                    ent = live & is_entry[y]
+                    st = st[:5] + (st[5] | jnp.any(ent),)
+                    live &= ~ent                                              # the entry states: their full rule below
+                y = jnp.where(live, y, last)
+                return moved_arrivals(y, live, tab[lut_index[y] | G[y].astype(i32)], st)
 
-        def ending(i, st):        # running ends of each changed arrival's in-edge entries
-            ends, run = st
-            y = jax.lax.dynamic_slice(ya, (i * CH,), (CH,))
-            cnt = jnp.where(i * CH + lane < na, n_in[y], 0)
-            e = run + jnp.cumsum(cnt)
-            return jax.lax.dynamic_update_slice(ends, e, (i * CH,)), e[-1]
+            st = chunks(n, arrive, (A, ya, da, i32(0), i32(0), jnp.bool_(False)))
+            if paper:   # the entry states' full rule: unchanged where the rule repeats and their bytes did not change
+                redo = ~same_op[u] | st[5]
+                st = chunks(jnp.where(redo, 1, 0), lambda i, st: moved_arrivals(entry, entry != last, entry_rule(G, u), st),
+                            st)
+            A, ya, da, na, nx, _ = st
+            over = nx > KX
+            na = jnp.where(over, 0, na)
+            nx = jnp.where(over, 0, nx)
 
-        ends = chunks(na, ending, (ends, i32(0)))[0]
+            def ending(i, st):        # running ends of each changed arrival's in-edge entries
+                ends, run = st
+                y = jax.lax.dynamic_slice(ya, (i * CH,), (CH,))
+                cnt = jnp.where(i * CH + lane < na, n_in[y], 0)
+                e = run + jnp.cumsum(cnt)
+                return jax.lax.dynamic_update_slice(ends, e, (i * CH,)), e[-1]
 
-        def follow(i, st):        # chunk i of the in-edge entries: the counts of their sources updated
-            counts, srcs, i0 = st    # i0: the first changed arrival whose entries start in this chunk or later
-            base = i * CH
-            slot = base + lane
-            first = jax.lax.dynamic_slice(ends, (i0,), (CH,)) - n_in[jax.lax.dynamic_slice(ya, (i0,), (CH,))]
-            here = (i0 + lane < na) & (first < base + CH)                 # a prefix: the starts are increasing
-            mark = jnp.full(CH, -1, i32).at[jnp.where(here, first - base, CH)].max(lane, mode="drop")
-            rel = jax.lax.cummax(mark)
-            item = jnp.maximum(jnp.where(rel >= 0, i0 + rel, i0 - 1), 0)  # before the first start: the item before
-            y = ya[item]
-            rank = slot - (ends[item] - n_in[y])
-            used = slot < nx
-            listed = used & (rank < in_deg[y])
-            x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
-            x = jnp.where(used, x, last)
-            counts = counts.at[jnp.where(listed, x, S)].add(da[item], mode="drop")
-            return counts, jax.lax.dynamic_update_slice(srcs, x, (base,)), i0 + jnp.sum(here, dtype=i32)
+            ends = chunks(na, ending, (ends, i32(0)))[0]
 
-        counts, srcs, _ = chunks(nx, follow, (counts, srcs, i32(0)))
+            def follow(i, st):        # chunk i of the in-edge entries: the counts of their sources updated
+                counts, srcs, i0 = st    # i0: the first changed arrival whose entries start in this chunk or later
+                base = i * CH
+                slot = base + lane
+                first = jax.lax.dynamic_slice(ends, (i0,), (CH,)) - n_in[jax.lax.dynamic_slice(ya, (i0,), (CH,))]
+                here = (i0 + lane < na) & (first < base + CH)                 # a prefix: the starts are increasing
+                mark = jnp.full(CH, -1, i32).at[jnp.where(here, first - base, CH)].max(lane, mode="drop")
+                rel = jax.lax.cummax(mark)
+                item = jnp.maximum(jnp.where(rel >= 0, i0 + rel, i0 - 1), 0)  # before the first start: the item before
+                y = ya[item]
+                rank = slot - (ends[item] - n_in[y])
+                used = slot < nx
+                listed = used & (rank < in_deg[y])
+                x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
+                x = jnp.where(used, x, last)
+                counts = counts.at[jnp.where(listed, x, S)].add(da[item], mode="drop")
+                return counts, jax.lax.dynamic_update_slice(srcs, x, (base,)), i0 + jnp.sum(here, dtype=i32)
 
-        def mark(i, stamp):       # one slot of each distinct source wins
-            x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
-            slot = i * CH + lane
-            return stamp.at[jnp.where(slot < nx, x, S)].set(slot, mode="drop")
+            counts, srcs, _ = chunks(nx, follow, (counts, srcs, i32(0)))
 
-        stamp = chunks(nx, mark, stamp)
+            def mark(i, stamp):       # one slot of each distinct source wins
+                x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
+                slot = i * CH + lane
+                return stamp.at[jnp.where(slot < nx, x, S)].set(slot, mode="drop")
 
-        def recompute(i, st):     # each distinct source's byte anew; the changed ones listed with their byte
-            lst, lval, m = st
-            x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
-            slot = i * CH + lane
-            Gx = lanes_to_byte(counts[x]) | jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
-            ch = (slot < nx) & (stamp[x] == slot) & (Gx != G[x])
-            pos = jnp.where(ch, m + jnp.cumsum(ch) - 1, KX)
-            return lst.at[pos].set(x, mode="drop"), lval.at[pos].set(Gx, mode="drop"), m + jnp.sum(ch, dtype=i32)
+            stamp = chunks(nx, mark, stamp)
 
-        lst2, lval, n2 = chunks(nx, recompute, (lst, lval, i32(0)))
+            def recompute(i, st):     # each distinct source's byte anew; the changed ones listed with their byte
+                lst, lval, m = st
+                x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
+                slot = i * CH + lane
+                Gx = lanes_to_byte(counts[x]) | jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
+                ch = (slot < nx) & (stamp[x] == slot) & (Gx != G[x])
+                pos = jnp.where(ch, m + jnp.cumsum(ch) - 1, KX)
+                return lst.at[pos].set(x, mode="drop"), lval.at[pos].set(Gx, mode="drop"), m + jnp.sum(ch, dtype=i32)
 
-        def write(i, G):
-            x = jax.lax.dynamic_slice(lst2, (i * CH,), (CH,))
-            v = jax.lax.dynamic_slice(lval, (i * CH,), (CH,))
-            return G.at[jnp.where(i * CH + lane < n2, x, S)].set(v, mode="drop")
+            lst2, lval, n2 = chunks(nx, recompute, (lst, lval, i32(0)))
 
-        G = chunks(n2, write, G)
+            def write(i, G):
+                x = jax.lax.dynamic_slice(lst2, (i * CH,), (CH,))
+                v = jax.lax.dynamic_slice(lval, (i * CH,), (CH,))
+                return G.at[jnp.where(i * CH + lane < n2, x, S)].set(v, mode="drop")
+
+            G = chunks(n2, write, G)
+            return G, A, counts, lst2, n2, stamp, ya, da, ends, srcs, lval, over, jnp.bool_(False)
+
+        w = jax.lax.while_loop(lambda w: w[-1], work, (G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval,
+                                                        jnp.bool_(False), busy))
+        G, A, counts, lst2, n2, stamp, ya, da, ends, srcs, lval, over = w[:12]
         row = jnp.where(over, t + 1, t)         # an overflowing frame is left to the dense pass
         table = jax.lax.dynamic_update_slice(table, G[None], (jnp.maximum(row, 0), 0))
-        kinds = kinds.at[row].set(jnp.where(over, kinds[row], 1), mode="drop")
+        kinds = kinds.at[row].set(jnp.where(over, kinds[row], jnp.where(busy, 1, 2)), mode="drop")
         nchg = nchg.at[row].set(jnp.where(over, nchg[row], n2), mode="drop")
         return (jnp.where(over, t, t - 1), G, A, counts, lst2, jnp.where(over, n, n2), stamp, ya, da, ends, srcs, lval,
                 table, kinds, nchg), over

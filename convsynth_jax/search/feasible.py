@@ -23,7 +23,9 @@ window (short of the beam's candidate budget dropping every completable edge of 
 frame the arrival rule, computed per state only where it depends on the state, and the OR over the
 kept edges as a shift for the original transitions plus a bitwise OR over the others, gathered as
 dense rows per source state (:func:`edge_or`),
-the statically forbidden ones dropped on the host: :class:`LookaheadEdges`);
+the statically forbidden ones dropped on the host: :class:`LookaheadEdges`), or, on big graphs
+(``search.lookahead_pass``), frame to frame over the states whose bits changed and their in-edges
+only (the same bits; :func:`_feasible_kernel`, docs/scale.md);
 :func:`reference_feasibility` is the slow, obvious version (Python sets, one edge at a time) the
 tests compare it with. Both return (T, S) uint8, bit f of [t, s] set iff (s, f) is in G[t].
 """
@@ -89,10 +91,11 @@ class LookaheadEdges(NamedTuple):
     lists the states of width k and ``tgt[k]`` (n_k, w_k) their targets, padded with the padding
     state (no bits), rows padded with rows of the padding state. A gather and a reduction along the
     rows is about twice as fast on the CPU as the scatter-add over a flat list used before.
-    ``entry`` (n,) lists the states at the first frame of some source segment (own or partner offset
-    0), padded with the padding state: only there do the ``paper`` entry rules depend on the state;
-    elsewhere the arrival rule of a frame is the same for every state (module docstring of
-    :func:`_feasible_kernel`)."""
+    ``entry`` (n,) lists the states at the first frame of a source segment of a kind the window
+    constrains (own or partner offset 0, label in the window's codes; for ``labels``, where it is
+    unused, every segment start), padded with the padding state: only there do the ``paper`` entry
+    rules depend on the state; elsewhere the arrival rule of a frame is the same for every state
+    (module docstring of :func:`_feasible_kernel`)."""
 
     has_next: np.ndarray    # (S,) bool
     src: tuple              # per width: (n_k,) int32 source states
@@ -336,17 +339,25 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
       over the graph (a rule applied to its own fixed point gives it back). Unconstrained stretches of
       a window cost one comparison per frame once their bits settle; the bits are unchanged.
 
-    Changed states (``edges.sparse`` set: :class:`SparseEdges`): when frame t's table of the common rule
-    equals frame t + 1's, A[t] differs from A[t + 1] only at the states whose byte G changed between
-    the two frames (the table looks them up anew) and at entry states (their full rule is computed
-    every frame, as in the dense pass). Then only the in-edge sources of the states whose A changed
-    (their CSR by destination, and x - 1 for the original transition) can change their byte; each is
-    recomputed from its own out-edges (CSR by source) and the states whose byte changed are carried
-    to the next frame. The buffers have fixed sizes (``SparseEdges.capacity``); a frame whose table
-    changes, that follows an overflow, or whose lists would overflow takes the dense pass, which also
-    lists its changed states for the next frame. Both give the same bytes.
+    Changed states (``edges.sparse`` set: :class:`SparseEdges`): instead of the OR, each state carries
+    its edge counts, per flag bit how many of its listed out-edges arrive in a state with that bit set
+    in A (one byte lane per bit, :func:`edge_lane_counts`); G[t-1][x] is the set of nonzero lanes
+    (plus the shift). When frame t's table of the common rule equals frame t + 1's, A[t] differs from
+    A[t + 1] only at the states whose byte G changed between the two frames (looked up anew) and at
+    entry states (their full rule, recomputed where the rule does not repeat or one of their bytes
+    changed). Each changed A[y] adds its lane differences to the counts of its in-edge sources (CSR
+    by destination) and y - 1 (original transition); only those sources are recomputed, and the ones
+    whose byte changed are carried to the next frame. A frame without changes whose rule repeats
+    (:func:`same_rule`) does nothing. The work of a frame is done in chunks of ``capacity.chunk``
+    entries in while loops (as many as its changes need; the full-size arrays are updated in place,
+    never copied); a frame whose table changes or that follows more than ``capacity.sources``
+    in-edge entries takes the dense pass (with counts), which also lists its changed states for the
+    next frame. Both give the same bytes. The frames run as nested while loops, backwards: a dense
+    frame, then changed-state frames while they may; each frame's row is written in place into the
+    (Tp, S) table, initialized to all ones (the padding frames).
 
-    The scan runs backwards (``reverse=True``) so each frame's row lands in place in the (Tp, S) table."""
+    The dense pass (``edges.sparse`` None) is a reverse ``lax.scan``, so each frame's row lands in
+    place in the (Tp, S) table."""
 
     has_next, src, tgt, entry, sparse = edges
     own_y, par_y, peak_y = unpack_code(state_code)
@@ -645,8 +656,9 @@ def feasibility(prep, constraints: Constraints, padded_inputs, capacity=None, st
     """((Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring), solvable
     (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs``: the window's
     ``beam_kernel.WindowInputs`` (reqs, pw, reset, check, paper), padded to Tp frames exactly as the beam
-    kernel gets them. ``capacity``: the changed-state buffers (:func:`lookahead_edges`; None: the dense
-    pass only); ``stats``: also the per-frame statistics of :func:`_feasible_kernel`."""
+    kernel gets them. ``capacity``: the changed-state buffers (:class:`SparseCapacity`,
+    :func:`lookahead_capacity`; None: the dense pass); ``stats``: also the per-frame statistics of
+    :func:`_feasible_kernel`."""
     c = constraints
     edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes), capacity)
     static = {"F": num_flags(c), "paper": c.paper is not None}

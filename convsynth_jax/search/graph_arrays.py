@@ -103,9 +103,8 @@ class PreparedGraph:
     def lookahead_edges(self, codes=None, capacity=None):
         """The look-ahead's edge lists (feasible.LookaheadEdges, device arrays) for a ``paper`` window
         with (own codes, partner codes), or for ``labels`` (None); built once per codes. ``capacity``:
-        the changed-state look-ahead's buffers (``feasible.lookahead_edges``; "auto": by the graph's
-        size; None, the default: the dense pass only, which is still the faster one on the 1M-frame
-        graph, docs/scale.md)."""
+        the changed-state look-ahead's buffers (``feasible.SparseCapacity``, ``search.lookahead_pass``
+        through ``feasible.lookahead_capacity``; "auto": by the graph's size; None: the dense pass)."""
         key = (None if codes is None else (int(codes[0]), int(codes[1])), capacity)
         if key not in self._edges:
             e = self.own_lookahead_edges(key)

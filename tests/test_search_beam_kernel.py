@@ -409,24 +409,87 @@ def test_same_rule_marks_frames_whose_arrival_rule_repeats(matching):
 
 
 @pytest.mark.parametrize("matching", ["paper", "labels"])
-def test_changed_state_lookahead_equals_the_dense_pass_and_the_reference(matching):
+@pytest.mark.parametrize("seed", range(3))
+def test_changed_state_lookahead_equals_the_dense_pass_and_the_reference(seed, matching):
     """The changed-state look-ahead (feasible._feasible_kernel with SparseEdges) gives the dense pass's
-    bits and solvability bit for bit, and the slow reference's; with buffers so small that some frames
-    overflow into the dense pass and with buffers that hold every frame's changes."""
+    bits and solvability bit for bit, and the slow reference's, on windows copied from the database (PC,
+    LR, partner HP and idle frames) and shifted ones (seed 2: some placements no longer fit): with
+    buffers so small (2 in-edge entries) that frames overflow into the dense pass, with chunks of 4
+    entries (many chunks per frame) and with one chunk that holds every frame's changes."""
     from convsynth_jax.search.beam import _prepare
     from convsynth_jax.search.beam_kernel import padded_inputs
     from convsynth_jax.search.feasible import SparseCapacity, feasibility
 
-    g, audio = hub_graph(np.random.default_rng(1))
-    own, par = input_from_clip(audio, "c1", 30)
+    g, audio = hub_graph(np.random.default_rng(seed))
+    own, par = input_from_clip(audio, f"c{(seed + 1) % 5}", 30)
+    if seed == 2:
+        own = own.assign(start=own.start + 0.3, end=own.end + 0.3, peak=own.peak + 0.3)
     cons = build_constraints(own, par, 30, FPS, SearchParams(max_degree=24, matching=matching))
     prep, inp = _prepare(g, 24), padded_inputs(cons)
-    dense, ok_dense = feasibility(prep, cons, inp, None)
-    np.testing.assert_array_equal(np.asarray(dense)[:30, :g.num_states], _reference_lookahead(1, matching, g, cons))
+    dense, ok_dense, (dkinds, dchg) = feasibility(prep, cons, inp, None, stats=True)
+    np.testing.assert_array_equal(np.asarray(dense)[:30, :g.num_states], _reference_lookahead(seed, matching, g, cons))
     kinds_seen = set()
-    for cap in (SparseCapacity(8, 8, 16, 64), SparseCapacity(256, 256, 512, 2048)):
+    for cap in (SparseCapacity(2, 1), SparseCapacity(2048, 4), SparseCapacity(2048, 2048)):
         got, ok, (kinds, nchg) = feasibility(prep, cons, inp, cap, stats=True)
         np.testing.assert_array_equal(np.asarray(got), np.asarray(dense))
         assert bool(ok) == bool(ok_dense)
-        kinds_seen |= set(np.asarray(kinds).tolist())
+        real = np.asarray(kinds) >= 0
+        np.testing.assert_array_equal(np.asarray(kinds) < 0, np.asarray(dkinds) < 0)   # the same padding frames
+        np.testing.assert_array_equal(np.asarray(nchg)[real], np.asarray(dchg)[real])  # the same changes per frame
+        kinds_seen |= set(np.asarray(kinds)[real].tolist())
+        if cap.sources == 2:   # a frame following more than 2 in-edge entries takes the dense pass
+            assert np.asarray(nchg)[np.asarray(kinds) == 1].max(initial=0) <= 2
     assert {0, 1} <= kinds_seen          # both the dense pass and the changed states ran
+    assert (np.asarray(dchg)[real] > 2).any()    # so the smallest buffers overflowed into the dense pass
+
+
+def test_edge_lane_counts_count_each_flag_bit_over_each_states_edges():
+    """feasible.edge_lane_counts (the changed-state look-ahead's per-state edge counts, one byte lane per
+    flag bit) against np.add.at over the flat edges, on the dense rows of feasible.edge_rows; and
+    byte_lanes against a bit-by-bit loop."""
+    import jax.numpy as jnp
+
+    from convsynth_jax.search.feasible import byte_lanes, edge_lane_counts, edge_rows, row_widths
+
+    lanes = byte_lanes(4)
+    for a in range(16):
+        assert lanes[a] == sum(((a >> f) & 1) << (8 * f) for f in range(4))
+    rng = np.random.default_rng(0)
+    S = 300
+    pad = S - 1
+    src = np.sort(rng.integers(0, pad, 3000)).astype(np.int32)
+    tgt = rng.integers(0, pad, 3000).astype(np.int32)
+    A = rng.integers(0, 16, S).astype(np.uint8)
+    A[pad] = 0
+    want = np.zeros((S, 4), np.int64)
+    for f in range(4):
+        np.add.at(want[:, f], src, (A[tgt] >> f) & 1)
+    s_rows, t_rows = edge_rows(src, tgt, pad, row_widths(int(np.bincount(src).max())))
+    got = np.asarray(jax.jit(edge_lane_counts, static_argnums=3)(jnp.asarray(lanes)[A], s_rows, t_rows, S))
+    for f in range(4):
+        np.testing.assert_array_equal((got >> (8 * f)) & 255, want[:, f])
+
+
+@pytest.mark.parametrize("matching", ["paper", "labels"])
+def test_lookahead_pass_option_gives_the_same_searches(matching):
+    """search.lookahead_pass: the changed-state and the dense look-ahead give the same search (path, cost,
+    solvability) through beam_search and beam.lookahead; an unknown pass is a ConfigError naming the
+    setting."""
+    from convsynth_jax.errors import ConfigError
+    from convsynth_jax.search.beam import lookahead
+
+    g, audio = hub_graph(np.random.default_rng(3))
+    own, par = input_from_clip(audio, "c2", 40)
+    out = {}
+    for mode in ("dense", "changed", "auto"):
+        cfg = SearchParams(beam_size=16, max_candidates=64, max_degree=24, matching=matching, lookahead_pass=mode)
+        cons = build_constraints(own, par, 40, FPS, cfg)
+        res = beam_search(g, cons, cfg, seed=5)
+        feas, ok = lookahead(g, cons, 24, lookahead_pass=mode)
+        out[mode] = (res.success, None if res.path is None else list(res.path), res.cost, np.asarray(feas), ok)
+    for mode in ("changed", "auto"):
+        assert out[mode][:3] == out["dense"][:3] and out[mode][4] == out["dense"][4]
+        np.testing.assert_array_equal(out[mode][3], out["dense"][3])
+    cfg = SearchParams(max_degree=24, matching=matching, lookahead_pass="sparse")
+    with pytest.raises(ConfigError, match="search.lookahead_pass"):
+        beam_search(g, build_constraints(own, par, 40, FPS, cfg), cfg)

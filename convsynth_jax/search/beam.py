@@ -49,7 +49,7 @@ from ..errors import ConfigError, GraphError
 from .beam_kernel import (FRAME_BUCKET, PaperInputs, WindowInputs, _beam_kernel,  # noqa: F401  (re-exported)
                           _lookahead_beam_kernel, noise, padded_inputs, prng_key, sizes)
 from .constraints import Constraints, constrained, median_synthetic_cost, segment_info
-from .feasible import feasibility, num_flags, solvable
+from .feasible import feasibility, lookahead_capacity, num_flags, solvable
 from .graph_arrays import (CODE_BITS, GraphArrays, HostGraph, PaperGraphArrays, PreparedGraph,  # noqa: F401
                            kept_degrees, kept_edges, state_codes)
 from .params import SearchParams
@@ -135,15 +135,17 @@ def share_shapes(graphs, max_degree: int) -> None:
         object.__setattr__(p, "peers", tuple(preps))
 
 
-def lookahead(graph, constraints: Constraints, max_degree: int, start_states=None):
+def lookahead(graph, constraints: Constraints, max_degree: int, start_states=None, lookahead_pass: str = "auto"):
     """(feas (Tp, S_pad) uint8 device array, solvable): the look-ahead of ``search.lookahead``
     (:mod:`convsynth_jax.search.feasible`) over the beam's edge set (each state's ``max_degree``
     cheapest out-edges) and whether any start state can complete the window. ``start_states``: the
     allowed frame-0 states (None: any), as the searches take them (a chained window continues the
-    previous one's path); solvable then asks for a completable one among them."""
+    previous one's path); solvable then asks for a completable one among them. ``lookahead_pass``:
+    ``search.lookahead_pass`` (the same bits either way)."""
     prep = _prepare(graph, max_degree)
     inputs = padded_inputs(constraints)
-    feas, ok = feasibility(prep, constraints, inputs)
+    feas, ok = feasibility(prep, constraints, inputs,
+                           lookahead_capacity(lookahead_pass, prep.device.state_code.shape[0]))
     if start_states is None or not bool(ok):
         return feas, bool(ok)
     paper = constraints.paper is not None
@@ -239,7 +241,8 @@ def _beam_search_once(graph, constraints: Constraints, params: SearchParams, see
     static = {"beam": B, "M": M, "N": N, "H": H, "D": prep.kernel_degree, "paper": paper}
     key, scalars = prng_key(seed), (np.float32(temp), np.int32(T), np.int32(graph.num_states))
     if lookahead:
-        edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes))
+        edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes),
+                                     lookahead_capacity(params.lookahead_pass, prep.device.state_code.shape[0]))
         feas, ok, out = kernel_cache.call(_lookahead_beam_kernel, "lookahead_beam",
                                           (edges, key, prep.device, inputs, *scalars, prep.paper_device, start),
                                           {**static, "F": num_flags(c)})

@@ -23,7 +23,9 @@ window (short of the beam's candidate budget dropping every completable edge of 
 frame the arrival rule, computed per state only where it depends on the state, and the OR over the
 kept edges as a shift for the original transitions plus a bitwise OR over the others, gathered as
 dense rows per source state (:func:`edge_or`),
-the statically forbidden ones dropped on the host: :class:`LookaheadEdges`);
+the statically forbidden ones dropped on the host: :class:`LookaheadEdges`), or, on big graphs
+(``search.lookahead_pass``), frame to frame over the states whose bits changed and their in-edges
+only (the same bits; :func:`_feasible_kernel`, docs/scale.md);
 :func:`reference_feasibility` is the slow, obvious version (Python sets, one edge at a time) the
 tests compare it with. Both return (T, S) uint8, bit f of [t, s] set iff (s, f) is in G[t].
 """
@@ -38,6 +40,7 @@ import jax.numpy as jnp
 import numpy as np
 
 from .. import kernel_cache
+from ..errors import ConfigError
 from .constraints import Constraints, EntryWindows, label_ok, paper_channel_step
 from .rules import start_rule, unpack_code
 
@@ -88,10 +91,11 @@ class LookaheadEdges(NamedTuple):
     lists the states of width k and ``tgt[k]`` (n_k, w_k) their targets, padded with the padding
     state (no bits), rows padded with rows of the padding state. A gather and a reduction along the
     rows is about twice as fast on the CPU as the scatter-add over a flat list used before.
-    ``entry`` (n,) lists the states at the first frame of some source segment (own or partner offset
-    0), padded with the padding state: only there do the ``paper`` entry rules depend on the state;
-    elsewhere the arrival rule of a frame is the same for every state (module docstring of
-    :func:`_feasible_kernel`)."""
+    ``entry`` (n,) lists the states at the first frame of a source segment of a kind the window
+    constrains (own or partner offset 0, label in the window's codes; for ``labels``, where it is
+    unused, every segment start), padded with the padding state: only there do the ``paper`` entry
+    rules depend on the state; elsewhere the arrival rule of a frame is the same for every state
+    (module docstring of :func:`_feasible_kernel`)."""
 
     has_next: np.ndarray    # (S,) bool
     src: tuple              # per width: (n_k,) int32 source states
@@ -100,58 +104,80 @@ class LookaheadEdges(NamedTuple):
     sparse: SparseEdges | None = None   # the changed-state look-ahead's lists (None: the dense pass only)
 
 
-@partial(jax.tree_util.register_dataclass, data_fields=["out_ptr", "out_tgt", "in_ptr", "in_src"],
-         meta_fields=["capacity"])
+@partial(jax.tree_util.register_dataclass, data_fields=["in_ptr", "in_src", "is_entry"], meta_fields=["capacity"])
 @dataclasses.dataclass(frozen=True)
 class SparseEdges:
-    """The listed edges of :class:`LookaheadEdges` (the rows, not the original transitions) as two CSR
-    tables, for the changed-state look-ahead (:func:`_feasible_kernel` with ``sparse``): by source,
-    to recompute a state's OR over its edges, and by destination, to find the states whose OR may
-    change when a target's byte does. ``capacity`` (static): the fixed sizes of its per-frame buffers
-    (:class:`SparseCapacity`); a frame that would overflow one takes the dense pass."""
+    """The listed edges of :class:`LookaheadEdges` (the rows, not the original transitions) by
+    destination, for the changed-state look-ahead (:func:`_feasible_kernel` with ``sparse``): the
+    sources whose edge counts change when a target's arrival byte does. ``is_entry`` (S,) bool marks
+    the entry states (their arrival byte is recomputed every frame). ``capacity`` (static): the sizes
+    of its per-frame buffers (:class:`SparseCapacity`); a frame whose changes do not fit takes the
+    dense pass."""
 
-    out_ptr: np.ndarray     # (S + 1,) int32: state x's listed targets are out_tgt[out_ptr[x] : out_ptr[x + 1]]
-    out_tgt: np.ndarray     # (E,) int32 (padded: entries past out_ptr[S] are never read)
     in_ptr: np.ndarray      # (S + 1,) int32: state y's listed sources are in_src[in_ptr[y] : in_ptr[y + 1]]
-    in_src: np.ndarray      # (E,) int32
+    in_src: np.ndarray      # (E,) int32 (padded: entries past in_ptr[S] are never read)
+    is_entry: np.ndarray    # (S,) bool
     capacity: SparseCapacity
 
 
 class SparseCapacity(NamedTuple):
-    """Per-frame buffer sizes of the changed-state look-ahead (static)."""
-    changed: int     # states whose byte G changed from one frame to the next
-    arrivals: int    # states whose arrival byte A changed
-    sources: int     # their in-edge sources (the states whose byte is recomputed), duplicates included
-    edges: int       # the listed out-edges of those sources
+    """Buffer sizes of the changed-state look-ahead (static). ``sources``: the most in-edge entries
+    (listed in-edges and original transitions) of the states whose arrival byte changes that one frame
+    may follow; a frame with more takes the dense pass. Its work is done in chunks of ``chunk``
+    entries, as many as it needs, so it follows the number of changes, not the buffer's size."""
+    sources: int
+    chunk: int = 2048
 
 
-SPARSE_MIN_STATES = 1 << 17   # graphs of fewer (padded) states take the dense pass only (it is as fast there)
+SPARSE_MIN_STATES = 1 << 17   # graphs of fewer (padded) states take the dense pass only under "auto"
+SPARSE_FRACTION = 32          # "auto": a frame with more than S / 32 in-edge entries to follow takes the dense pass
 
 
 def sparse_capacity(num_states: int) -> SparseCapacity | None:
     """The default buffer sizes for a graph of ``num_states`` padded states: None (dense only) below
-    SPARSE_MIN_STATES, else 1/32 of the states changed per frame (a median of about 0.6% change on the
-    1M-frame graph, docs/scale.md), as many changed arrivals, twice as many sources, eight times as
-    many edges."""
+    SPARSE_MIN_STATES, else S / SPARSE_FRACTION in-edge entries per frame (a median of about 0.6% of
+    the states change per frame on the 1M-frame graph, docs/scale.md)."""
     if num_states < SPARSE_MIN_STATES:
         return None
-    k = -(-num_states // 32 // 1024) * 1024
-    return SparseCapacity(k, k, 2 * k, 8 * k)
+    return SparseCapacity(num_states // SPARSE_FRACTION)
 
 
-def sparse_edges(src: np.ndarray, dst: np.ndarray, num_states: int, capacity: SparseCapacity) -> SparseEdges:
-    """:class:`SparseEdges` of the listed edges src -> dst (sorted by source) over ``num_states`` states.
-    Host NumPy."""
+LOOKAHEAD_PASSES = ("auto", "changed", "dense")
+
+
+def lookahead_capacity(mode: str, num_states: int) -> SparseCapacity | None:
+    """The changed-state buffers of ``search.lookahead_pass`` = ``mode`` on a graph of ``num_states``
+    padded states (None: the dense pass)."""
+    if mode not in LOOKAHEAD_PASSES:
+        raise ConfigError(f"search.lookahead_pass must be one of {', '.join(LOOKAHEAD_PASSES)}, got {mode!r}")
+    if mode == "dense":
+        return None
+    if mode == "changed":
+        return SparseCapacity(max(num_states // SPARSE_FRACTION, 1))
+    return sparse_capacity(num_states)
+
+
+def sparse_edges(src: np.ndarray, dst: np.ndarray, entry: np.ndarray, num_states: int,
+                 capacity: SparseCapacity) -> SparseEdges:
+    """:class:`SparseEdges` of the listed edges src -> dst over ``num_states`` states with the entry
+    states ``entry`` (padding entries point at the last state). Host NumPy."""
     src = np.asarray(src, np.int64)
     dst = np.asarray(dst, np.int64)
     if src.size and np.bincount(src).max() >= 256:
         raise ValueError("a state has 256 or more listed edges: the changed-state look-ahead counts them in bytes")
-    out_ptr = np.concatenate([[0], np.cumsum(np.bincount(src, minlength=num_states))]).astype(np.int32)
     o = np.argsort(dst, kind="stable")
     in_ptr = np.concatenate([[0], np.cumsum(np.bincount(dst, minlength=num_states))]).astype(np.int32)
     n = max(src.size + (-src.size % ROW_BUCKET), ROW_BUCKET)
-    pad = lambda x: np.concatenate([x, np.zeros(n - x.size, np.int32)]).astype(np.int32)  # noqa: E731
-    return SparseEdges(out_ptr, pad(dst), in_ptr, pad(src[o]), SparseCapacity(*map(int, capacity)))
+    in_src = np.zeros(n, np.int32)
+    in_src[:src.size] = src[o]
+    is_entry = np.zeros(num_states, bool)
+    is_entry[np.asarray(entry)] = True
+    is_entry[num_states - 1] = False
+    cap = SparseCapacity(*map(int, capacity))
+    if min(cap) < 1:
+        raise ValueError(f"changed-state look-ahead buffers must be >= 1, got {cap}")
+    cap = cap._replace(sources=cap.sources + (-cap.sources % cap.chunk))    # whole chunks
+    return SparseEdges(in_ptr, in_src, is_entry, cap)
 
 
 def edge_rows(src: np.ndarray, dst: np.ndarray, pad_state: int, widths: tuple):
@@ -206,13 +232,19 @@ def lookahead_edges(first: np.ndarray, deg: np.ndarray, tgt: np.ndarray, syn: np
     has_next[row[nxt]] = True
     widths = row_widths(int(max_degree) if max_degree else int(deg.max(initial=1)))
     s_rows, t_rows = edge_rows(src, dst, pad_state, widths)
-    ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
+    if codes is None:
+        ent = np.flatnonzero((info[:num_states, 0] == 0) | (info[:num_states, 3] == 0))
+    else:   # elsewhere the channel rule is the common one (no entry: paper_channel_step's entry is False)
+        own_label, par_label = state_code[:num_states] & 15, (state_code[:num_states] >> 4) & 15
+        cons_o = ((int(codes[0]) >> own_label) & 1) == 1
+        cons_p = ((int(codes[1]) >> par_label) & 1) == 1
+        ent = np.flatnonzero((cons_o & (info[:num_states, 0] == 0)) | (cons_p & (info[:num_states, 3] == 0)))
     m = ent.size + (-ent.size % ENTRY_BUCKET) if ent.size else ENTRY_BUCKET
     ent_p = np.full(m, pad_state, np.int32)
     ent_p[:ent.size] = ent
     if isinstance(capacity, str):
         capacity = sparse_capacity(S)
-    sparse = None if capacity is None else sparse_edges(src, dst, S, capacity)
+    sparse = None if capacity is None else sparse_edges(src, dst, ent_p, S, capacity)
     return LookaheadEdges(has_next, s_rows, t_rows, ent_p, sparse)
 
 
@@ -229,7 +261,7 @@ def pad_lookahead(e: LookaheadEdges, min_rows, min_entries: int, min_edges: int 
 
     sp = e.sparse
     if sp is not None and min_edges is not None:
-        sp = dataclasses.replace(sp, out_tgt=grow(sp.out_tgt, min_edges), in_src=grow(sp.in_src, min_edges))
+        sp = dataclasses.replace(sp, in_src=grow(sp.in_src, min_edges))
     return LookaheadEdges(e.has_next, tuple(grow(x, n) for x, n in zip(e.src, min_rows)),
                           tuple(grow(x, n) for x, n in zip(e.tgt, min_rows)), grow(e.entry, min_entries), sp)
 
@@ -307,17 +339,25 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
       over the graph (a rule applied to its own fixed point gives it back). Unconstrained stretches of
       a window cost one comparison per frame once their bits settle; the bits are unchanged.
 
-    Changed states (``edges.sparse`` set: :class:`SparseEdges`): when frame t's table of the common rule
-    equals frame t + 1's, A[t] differs from A[t + 1] only at the states whose byte G changed between
-    the two frames (the table looks them up anew) and at entry states (their full rule is computed
-    every frame, as in the dense pass). Then only the in-edge sources of the states whose A changed
-    (their CSR by destination, and x - 1 for the original transition) can change their byte; each is
-    recomputed from its own out-edges (CSR by source) and the states whose byte changed are carried
-    to the next frame. The buffers have fixed sizes (``SparseEdges.capacity``); a frame whose table
-    changes, that follows an overflow, or whose lists would overflow takes the dense pass, which also
-    lists its changed states for the next frame. Both give the same bytes.
+    Changed states (``edges.sparse`` set: :class:`SparseEdges`): instead of the OR, each state carries
+    its edge counts, per flag bit how many of its listed out-edges arrive in a state with that bit set
+    in A (one byte lane per bit, :func:`edge_lane_counts`); G[t-1][x] is the set of nonzero lanes
+    (plus the shift). When frame t's table of the common rule equals frame t + 1's, A[t] differs from
+    A[t + 1] only at the states whose byte G changed between the two frames (looked up anew) and at
+    entry states (their full rule, recomputed where the rule does not repeat or one of their bytes
+    changed). Each changed A[y] adds its lane differences to the counts of its in-edge sources (CSR
+    by destination) and y - 1 (original transition); only those sources are recomputed, and the ones
+    whose byte changed are carried to the next frame. A frame without changes whose rule repeats
+    (:func:`same_rule`) does nothing. The work of a frame is done in chunks of ``capacity.chunk``
+    entries in while loops (as many as its changes need; the full-size arrays are updated in place,
+    never copied); a frame whose table changes or that follows more than ``capacity.sources``
+    in-edge entries takes the dense pass (with counts), which also lists its changed states for the
+    next frame. Both give the same bytes. The frames run as nested while loops, backwards: a dense
+    frame, then changed-state frames while they may; each frame's row is written in place into the
+    (Tp, S) table, initialized to all ones (the padding frames).
 
-    The scan runs backwards (``reverse=True``) so each frame's row lands in place in the (Tp, S) table."""
+    The dense pass (``edges.sparse`` None) is a reverse ``lax.scan``, so each frame's row lands in
+    place in the (Tp, S) table."""
 
     has_next, src, tgt, entry, sparse = edges
     own_y, par_y, peak_y = unpack_code(state_code)
@@ -419,107 +459,206 @@ def _feasible_kernel(edges, state_code, info, reqs, pw, reset, check, paper_arrs
         return (feas, ok, info_out) if stats else (feas, ok)
 
     cap = sparse.capacity
-    K, KA, KX, KE = cap.changed, cap.arrivals, cap.sources, cap.edges
+    KX, CH = cap.sources, cap.chunk
+    KB = KX + CH                                                          # the changed arrivals' buffers
     tables = jax.vmap(frame_table)(jnp.arange(Tp, dtype=jnp.int32))       # (Tp, 512 * 2^F)
     same_table = jnp.concatenate([jnp.all(tables[:-1] == tables[1:], axis=1), jnp.zeros(1, bool)])
-    bit_lane = (jnp.uint32(1) << (8 * fl).astype(jnp.uint32))             # bit f of a byte -> byte lane f
+    lanes_of = jnp.asarray(byte_lanes(F))                                 # byte -> one byte lane per flag bit
     hn_prev = jnp.concatenate([jnp.zeros(1, bool), has_next[:-1]])        # y - 1 reaches y by its original transition
-    in_deg = jnp.diff(sparse.in_ptr)
-    out_deg = jnp.diff(sparse.out_ptr)
+    in_ptr, in_src, is_entry = sparse.in_ptr, sparse.in_src, sparse.is_entry
+    in_deg = jnp.diff(in_ptr)
+    n_in = in_deg + hn_prev.astype(jnp.int32)                             # the in-edges whose counts may change
+    lane = jnp.arange(CH, dtype=jnp.int32)
+    i32 = jnp.int32
 
-    def dense(carry, u, want_list):
-        G_next = carry[0]
-        A = arrival(G_next, u, tables[u])
-        G = propagate(A)
-        changed = G != G_next
-        lst, n = jax.lax.cond(want_list, lambda: _compact(jnp.arange(S, dtype=jnp.int32), changed, K, S),
-                              lambda: (jnp.full(K, S, jnp.int32), jnp.sum(changed, dtype=jnp.int32)))
-        return G, A, lst, n, want_list & (n <= K), carry[5], n, jnp.int32(0)
-
-    def sparse_step(carry, u):
-        """(G[t], A, changed list, count, list usable, stamps, count, 1) from the carried changes."""
-        G_next, A_next, lst, n, _, stamp = carry
-        live = jnp.arange(K) < n
-        yc = jnp.where(live, lst, last)
-        A = A_next.at[yc].set(jnp.where(live, tables[u][lut_index[yc] | G_next[yc].astype(jnp.int32)], u8(0)))
-        if paper:
-            A = A.at[entry].set(entry_rule(G_next, u))
-            A = A.at[last].set(0)
-            Y = jnp.concatenate([yc, entry])
-            moved = jnp.concatenate([live, jnp.ones(entry.shape[0], bool)])
-        else:
-            Y, moved = yc, live
-        moved &= A[Y] != A_next[Y]
-        ya, na = _compact(Y, moved, KA, last)                             # the states whose arrival byte changed
-        okA = na <= KA
-        # their in-edge sources: the listed ones (CSR by destination) and y - 1 by its original transition
-        cnt = jnp.where(jnp.arange(KA) < na, in_deg[ya] + hn_prev[ya], 0)
-        item, rank, used, nx = _expand(cnt, KX)
-        y = ya[item]
-        x = jnp.where(rank < in_deg[y], sparse.in_src[jnp.minimum(sparse.in_ptr[y] + rank, sparse.in_src.shape[0] - 1)],
-                      y - 1)
-        x = jnp.where(used, x, last)
-        slots = jnp.arange(KX, dtype=jnp.int32)
-        stamp = stamp.at[x].set(slots)                                    # one slot of each distinct source wins
-        uniq = used & (stamp[x] == slots)
-        # each distinct source's byte anew: the OR over its listed out-edges (CSR by source) and the shift
-        ocnt = jnp.where(uniq, out_deg[x], 0)
-        oitem, orank, oused, ne = _expand(ocnt, KE)
-        xo = x[oitem]
-        a = A[sparse.out_tgt[jnp.minimum(sparse.out_ptr[xo] + orank, sparse.out_tgt.shape[0] - 1)]]
-        lanes = jnp.zeros(KE, jnp.uint32)
+    def lanes_to_byte(counts):
+        G = jnp.zeros(counts.shape, u8)
         for f in range(F):
-            lanes |= jnp.where(((a >> f) & 1) == 1, bit_lane[f], 0)
-        lanes = jnp.where(oused, lanes, 0)
-        counts = jax.ops.segment_sum(lanes, oitem, num_segments=KX, indices_are_sorted=True)
-        Gx = jnp.zeros(KX, u8)
-        for f in range(F):
-            Gx |= (((counts >> (8 * f)) & 255) > 0).astype(u8) << f
-        Gx |= jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
-        changed = uniq & (Gx != G_next[x])
-        G = G_next.at[jnp.where(uniq, x, S)].set(Gx, mode="drop")
-        lst2, n2 = _compact(x, changed, K, S)
-        ok = okA & (nx <= KX) & (ne <= KE)
-        return G, A, lst2, n2, n2 <= K, stamp, n2, jnp.int32(1), ok
+            G |= (((counts >> (8 * f)) & 255) > 0).astype(u8) << f
+        return G
 
-    def step(carry, t):
-        # carry: G[t + 1], A of frame t + 2, the states whose G changed from t + 2 to t + 1 (list, count,
-        # usable), stamps (a scratch for de-duplication), still (G[t + 1] == G[t + 2], frame t + 2's rule)
-        G_next, A_next, lst, n, usable, stamp, still = carry
-        u = jnp.minimum(t + 1, Tp - 1)
-        pad = t >= num_frames - 1
-        skip = pad | (still & same_op[u])
-        want_list = same_table[jnp.maximum(u - 1, 0)] & (u > 0)          # the next frame can use the list
-        go_sparse = usable & same_table[u]
-        inner = carry[:6]
+    def chunks(n, body, init):
+        """body(i, carry) over the chunks 0 .. ceil(n / CH) - 1 (a while loop: no work past n)."""
+        return jax.lax.while_loop(lambda c: c[0] * CH < n, lambda c: (c[0] + 1, body(c[0], c[1])), (i32(0), init))[1]
 
-        def computed(c):
-            def try_sparse(c):
-                out = sparse_step(c, u)
-                return jax.lax.cond(out[-1], lambda: out[:-1], lambda: dense(c, u, want_list))
-            return jax.lax.cond(go_sparse, try_sparse, lambda c: dense(c, u, want_list), c)
+    def sparse_frame(c):
+        """G[t] from G[t + 1] and the states whose byte changed from G[t + 2], when frame t + 1's table is
+        frame t + 2's. In place; skips the rest (over = True) when more than KX in-edge entries follow."""
+        t, G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval, table, kinds, nchg = c
+        u = t + 1
+        # nothing to do where no byte changed and the rule repeats (entry states included): a fixed point
+        busy = (n > 0) | ~same_op[u] if paper else n > 0
 
-        def skipped(c):
-            G = jnp.where(pad, all_ones, c[0])
-            return G, c[1], c[2], jnp.int32(0), ~pad, c[5], jnp.int32(0), jnp.int32(2)
+        def work(w):
+            G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval = w[:11]
+            tab = tables[u]
 
-        G, A, lst2, n2, usable2, stamp2, nchg, kind = jax.lax.cond(skip, skipped, computed, inner)
-        still2 = ~pad & (skip | (nchg == 0))
-        return (G, A, lst2, n2, usable2, stamp2, still2), (G, jnp.where(pad, -1, kind), nchg)
+            def moved_arrivals(y, live, a, st):   # append the states whose arrival byte changes (and has in-edges)
+                A, ya, da, na, nx, anye = st
+                old = A[y]
+                moved = live & (a != old)
+                A = A.at[jnp.where(moved, y, S)].set(a, mode="drop")
+                cnt = jnp.where(moved, n_in[y], 0)
+                keep = cnt > 0
+                pos = jnp.where(keep, na + jnp.cumsum(keep) - 1, KB)
+                ya = ya.at[pos].set(y, mode="drop")
+                da = da.at[pos].set(lanes_of[a] - lanes_of[old], mode="drop")
+                return A, ya, da, na + jnp.sum(keep, dtype=i32), nx + jnp.sum(cnt), anye
 
-    init = (jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.full(K, S, jnp.int32), jnp.int32(0), jnp.bool_(False),
-            jnp.zeros(S, jnp.int32), jnp.bool_(False))
-    _, (feas, kinds, nchg) = jax.lax.scan(step, init, jnp.arange(Tp, dtype=jnp.int32), reverse=True)
+            def arrive(i, st):        # chunk i of the changed states: their arrival byte by the frame's table
+                y = jax.lax.dynamic_slice(lst, (i * CH,), (CH,))
+                live = (i * CH + lane < n) & (y < last)
+                if paper:
+                    ent = live & is_entry[y]
+                    st = st[:5] + (st[5] | jnp.any(ent),)
+                    live &= ~ent                                              # the entry states: their full rule below
+                y = jnp.where(live, y, last)
+                return moved_arrivals(y, live, tab[lut_index[y] | G[y].astype(i32)], st)
+
+            st = chunks(n, arrive, (A, ya, da, i32(0), i32(0), jnp.bool_(False)))
+            if paper:   # the entry states' full rule: unchanged where the rule repeats and their bytes did not change
+                redo = ~same_op[u] | st[5]
+                st = chunks(jnp.where(redo, 1, 0), lambda i, st: moved_arrivals(entry, entry != last, entry_rule(G, u), st),
+                            st)
+            A, ya, da, na, nx, _ = st
+            over = nx > KX
+            na = jnp.where(over, 0, na)
+            nx = jnp.where(over, 0, nx)
+
+            def ending(i, st):        # running ends of each changed arrival's in-edge entries
+                ends, run = st
+                y = jax.lax.dynamic_slice(ya, (i * CH,), (CH,))
+                cnt = jnp.where(i * CH + lane < na, n_in[y], 0)
+                e = run + jnp.cumsum(cnt)
+                return jax.lax.dynamic_update_slice(ends, e, (i * CH,)), e[-1]
+
+            ends = chunks(na, ending, (ends, i32(0)))[0]
+
+            def follow(i, st):        # chunk i of the in-edge entries: the counts of their sources updated
+                counts, srcs, i0 = st    # i0: the first changed arrival whose entries start in this chunk or later
+                base = i * CH
+                slot = base + lane
+                first = jax.lax.dynamic_slice(ends, (i0,), (CH,)) - n_in[jax.lax.dynamic_slice(ya, (i0,), (CH,))]
+                here = (i0 + lane < na) & (first < base + CH)                 # a prefix: the starts are increasing
+                mark = jnp.full(CH, -1, i32).at[jnp.where(here, first - base, CH)].max(lane, mode="drop")
+                rel = jax.lax.cummax(mark)
+                item = jnp.maximum(jnp.where(rel >= 0, i0 + rel, i0 - 1), 0)  # before the first start: the item before
+                y = ya[item]
+                rank = slot - (ends[item] - n_in[y])
+                used = slot < nx
+                listed = used & (rank < in_deg[y])
+                x = jnp.where(listed, in_src[jnp.minimum(in_ptr[y] + rank, in_src.shape[0] - 1)], y - 1)
+                x = jnp.where(used, x, last)
+                counts = counts.at[jnp.where(listed, x, S)].add(da[item], mode="drop")
+                return counts, jax.lax.dynamic_update_slice(srcs, x, (base,)), i0 + jnp.sum(here, dtype=i32)
+
+            counts, srcs, _ = chunks(nx, follow, (counts, srcs, i32(0)))
+
+            def mark(i, stamp):       # one slot of each distinct source wins
+                x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
+                slot = i * CH + lane
+                return stamp.at[jnp.where(slot < nx, x, S)].set(slot, mode="drop")
+
+            stamp = chunks(nx, mark, stamp)
+
+            def recompute(i, st):     # each distinct source's byte anew; the changed ones listed with their byte
+                lst, lval, m = st
+                x = jax.lax.dynamic_slice(srcs, (i * CH,), (CH,))
+                slot = i * CH + lane
+                Gx = lanes_to_byte(counts[x]) | jnp.where(has_next[x], A[jnp.minimum(x + 1, last)], u8(0))
+                ch = (slot < nx) & (stamp[x] == slot) & (Gx != G[x])
+                pos = jnp.where(ch, m + jnp.cumsum(ch) - 1, KX)
+                return lst.at[pos].set(x, mode="drop"), lval.at[pos].set(Gx, mode="drop"), m + jnp.sum(ch, dtype=i32)
+
+            lst2, lval, n2 = chunks(nx, recompute, (lst, lval, i32(0)))
+
+            def write(i, G):
+                x = jax.lax.dynamic_slice(lst2, (i * CH,), (CH,))
+                v = jax.lax.dynamic_slice(lval, (i * CH,), (CH,))
+                return G.at[jnp.where(i * CH + lane < n2, x, S)].set(v, mode="drop")
+
+            G = chunks(n2, write, G)
+            return G, A, counts, lst2, n2, stamp, ya, da, ends, srcs, lval, over, jnp.bool_(False)
+
+        w = jax.lax.while_loop(lambda w: w[-1], work, (G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval,
+                                                        jnp.bool_(False), busy))
+        G, A, counts, lst2, n2, stamp, ya, da, ends, srcs, lval, over = w[:12]
+        row = jnp.where(over, t + 1, t)         # an overflowing frame is left to the dense pass
+        table = jax.lax.dynamic_update_slice(table, G[None], (jnp.maximum(row, 0), 0))
+        kinds = kinds.at[row].set(jnp.where(over, kinds[row], jnp.where(busy, 1, 2)), mode="drop")
+        nchg = nchg.at[row].set(jnp.where(over, nchg[row], n2), mode="drop")
+        return (jnp.where(over, t, t - 1), G, A, counts, lst2, jnp.where(over, n, n2), stamp, ya, da, ends, srcs, lval,
+                table, kinds, nchg), over
+
+    def sparse_ok(c, over):
+        t = c[0]
+        return (t >= 0) & ~over & same_table[jnp.minimum(t + 1, Tp - 1)]
+
+    def dense_frame(c):
+        """G[t] by the dense pass with edge counts, and (if the next frame may take the changed states)
+        the list of the states whose byte changed."""
+        t, G_next, A, counts, lst, n, stamp, ya, da, ends, srcs, lval, table, kinds, nchg = c
+        u = t + 1
+        A = jax.lax.optimization_barrier(arrival(G_next, u, tables[u]))
+        counts = edge_lane_counts(lanes_of[A], src, tgt, S)
+        G = lanes_to_byte(counts) | jnp.where(has_next, jnp.concatenate([A[1:], jnp.zeros(1, u8)]), u8(0))
+        ch = G != G_next
+        n = jnp.sum(ch, dtype=i32)
+        want = (t > 0) & same_table[jnp.maximum(u - 1, 0)] & (n <= KX)
+
+        chp = jnp.pad(ch, (0, -S % CH))
+
+        def listing(i, st):
+            lst, m = st
+            c_ = jax.lax.dynamic_slice(chp, (i * CH,), (CH,))
+            pos = jnp.where(c_, m + jnp.cumsum(c_) - 1, KX)
+            ids = i * CH + lane
+            return lst.at[pos].set(ids, mode="drop"), m + jnp.sum(c_, dtype=i32)
+
+        lst = chunks(jnp.where(want, S, 0), listing, (lst, i32(0)))[0]
+        table = jax.lax.dynamic_update_slice(table, G[None], (t, 0))
+        kinds, nchg = kinds.at[t].set(0), nchg.at[t].set(n)
+        return (t - 1, G, A, counts, lst, n, stamp, ya, da, ends, srcs, lval, table, kinds, nchg), ~want
+
+    def outer(c):
+        c, over = dense_frame(c)
+        c, _ = jax.lax.while_loop(lambda s: sparse_ok(*s), lambda s: sparse_frame(s[0]), (c, over))
+        return c
+
+    zi, zb = jnp.zeros(KX, i32), jnp.zeros(KB, i32)
+    init = (num_frames - 2, jnp.full(S, all_ones), jnp.zeros(S, u8), jnp.zeros(S, jnp.uint32), zi, i32(0),
+            jnp.zeros(S, i32), zb, jnp.zeros(KB, jnp.uint32), zb, zi, jnp.zeros(KX, u8), jnp.full((Tp, S), all_ones),
+            jnp.where(jnp.arange(Tp) >= num_frames - 1, -1, 0).astype(i32), jnp.zeros(Tp, i32))
+    out = jax.lax.while_loop(lambda c: c[0] >= 0, outer, init)
+    feas, kinds, nchg = out[12], out[13], out[14]
     ok = jnp.any(valid0 & (((feas[0] >> flag0.astype(u8)) & 1) == 1))
     return (feas, ok, (kinds, nchg)) if stats else (feas, ok)
+
+
+def byte_lanes(F: int) -> np.ndarray:
+    """(256,) uint32: byte a -> bit f of a in byte lane f (the changed-state look-ahead's edge counts)."""
+    a = np.arange(256, dtype=np.uint32)
+    return sum(((a >> f) & 1) << (8 * f) for f in range(F)).astype(np.uint32)
+
+
+def edge_lane_counts(lanes, src, tgt, S: int):
+    """(S,) uint32: per state and flag bit, how many of its listed edges x -> y have the bit set, one
+    byte lane per bit: the sum of ``lanes[y]`` (:func:`byte_lanes` of the arrival bytes) over each
+    state's rows (:func:`edge_or`'s layout; fewer than 256 listed edges per state)."""
+    out = jnp.zeros(S, jnp.uint32)
+    for s_k, t_k in zip(src, tgt):
+        r = jnp.sum(lanes[t_k], axis=1, dtype=jnp.uint32)
+        out = out.at[s_k].set(r, indices_are_sorted=True)
+    return out
 
 
 def feasibility(prep, constraints: Constraints, padded_inputs, capacity=None, stats: bool = False):
     """((Tp, S_pad) uint8 device array of completable (state, flags) bits (module docstring), solvable
     (a device bool)) for a graph prepared by ``beam._prepare``; ``padded_inputs``: the window's
     ``beam_kernel.WindowInputs`` (reqs, pw, reset, check, paper), padded to Tp frames exactly as the beam
-    kernel gets them. ``capacity``: the changed-state buffers (:func:`lookahead_edges`; None: the dense
-    pass only); ``stats``: also the per-frame statistics of :func:`_feasible_kernel`."""
+    kernel gets them. ``capacity``: the changed-state buffers (:class:`SparseCapacity`,
+    :func:`lookahead_capacity`; None: the dense pass); ``stats``: also the per-frame statistics of
+    :func:`_feasible_kernel`."""
     c = constraints
     edges = prep.lookahead_edges(None if c.paper is None else (c.paper.own_codes, c.paper.par_codes), capacity)
     static = {"F": num_flags(c), "paper": c.paper is not None}

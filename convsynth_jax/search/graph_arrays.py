@@ -103,16 +103,15 @@ class PreparedGraph:
     def lookahead_edges(self, codes=None, capacity=None):
         """The look-ahead's edge lists (feasible.LookaheadEdges, device arrays) for a ``paper`` window
         with (own codes, partner codes), or for ``labels`` (None); built once per codes. ``capacity``:
-        the changed-state look-ahead's buffers (``feasible.lookahead_edges``; "auto": by the graph's
-        size; None, the default: the dense pass only, which is still the faster one on the 1M-frame
-        graph, docs/scale.md)."""
+        the changed-state look-ahead's buffers (``feasible.SparseCapacity``, ``search.lookahead_pass``
+        through ``feasible.lookahead_capacity``; "auto": by the graph's size; None: the dense pass)."""
         key = (None if codes is None else (int(codes[0]), int(codes[1])), capacity)
         if key not in self._edges:
             e = self.own_lookahead_edges(key)
             if self.peers:   # a group sharing one compiled kernel: every member's lists, padded alike
                 own = [p.own_lookahead_edges(key) for p in self.peers]
                 rows = [max(x.src[k].shape[0] for x in own) for k in range(len(e.src))]
-                flat = None if e.sparse is None else max(x.sparse.out_tgt.shape[0] for x in own)
+                flat = None if e.sparse is None else max(x.sparse.in_src.shape[0] for x in own)
                 e = pad_lookahead(e, rows, max(x.entry.shape[0] for x in own), flat)
             self._edges[key] = jax.tree.map(jax.device_put, e)
         return self._edges[key]

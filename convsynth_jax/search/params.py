@@ -31,6 +31,10 @@ class SearchParams:
     # (state, flags), search/feasible.py): the beam then solves every solvable window at its first
     # attempt, and an unsolvable one is known at once (no retries); the DFS prunes the same way
     lookahead: bool = True
+    # ours: how the look-ahead is computed (search/feasible.py, docs/scale.md), the same bits either way:
+    # "changed" (frame to frame, only the states whose bits changed and their in-edges), "dense" (every
+    # state every frame), "auto" (changed on graphs of 131,072 padded states or more, else dense)
+    lookahead_pass: str = "auto"
     n_start: int = 50             # DFS: random start states (our bound; the paper gives none)
     n_save: int = 200             # DFS: candidates kept per segment (paper: 200)
     max_paths_per_start: int = 20  # DFS: our bound

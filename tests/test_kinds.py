@@ -153,6 +153,17 @@ def test_made_up_kind_is_searched_and_checked(laughter, matching, method):
         register_kind(laughter)
 
 
+def test_a_switched_kind_names_its_condition_in_failures():
+    from convsynth_jax.search.result import next_step
+
+    register_kind(ConstraintKind("Q", "Q", channel="partner", switch="use_questions", description="questions"))
+    try:
+        assert "leaving the questions out (condition no_questions)" in next_step(SearchParams(), {"kind": "Q"})
+        assert kinds.constraint_kind("Q").enabled(SearchParams())     # a switch SearchParams lacks is on
+    finally:
+        unregister_kind("Q")
+
+
 def test_made_up_kind_weight_orders_best_effort(laughter):
     keys = [("idle", 0, 3), ("LR", 5, 9), ("LG", 12, 20), ("PC", 30, 40), ("PH", 1, 4)]
     order = constraint_order(keys, SearchParams())

@@ -50,7 +50,9 @@ class ConstraintKind:
     """One kind of audio constraint (module docstring). ``name`` names it in constraint keys, reports
     and the checker's details; ``label`` is the annotation's segment kind (and per-frame label) it
     constrains on ``channel``; ``weight``: a SearchParams field name or a number; ``switch``: a
-    SearchParams bool field that turns the kind on (None: always on)."""
+    SearchParams bool field that turns the kind on (None: always on); the condition of
+    ``conf/system/motion_graph.yaml`` that leaves the kind out is ``no_`` + the switch without its
+    ``use_`` (:attr:`condition_off`); ``description``: what its segments are, in words (plural)."""
 
     name: str
     label: str
@@ -59,10 +61,16 @@ class ConstraintKind:
     retimable: bool = False
     weight: str | float = 1.0
     switch: str | None = None
+    description: str = ""
 
     @property
     def code(self) -> int:
         return AUDIO_LABELS[self.label]
+
+    @property
+    def condition_off(self) -> str | None:
+        """The ablation condition that leaves the kind out (``use_lr`` -> ``no_lr``; None: no switch)."""
+        return None if self.switch is None else "no_" + self.switch.removeprefix("use_")
 
     def weight_of(self, params) -> float:
         """The best-effort weight under ``params`` (SearchParams)."""
@@ -91,11 +99,14 @@ class Hypothesis:
     planting: str
 
 
-IDLE_KIND = ConstraintKind("idle", "idle", "own", weight="weight_idle")
+IDLE_KIND = ConstraintKind("idle", "idle", "own", weight="weight_idle", description="idle runs")
 _KINDS: dict = {}
-for _k in (ConstraintKind("PC", "PC", "own", has_peak=True, retimable=True, weight="weight_pc"),
-           ConstraintKind("LR", "LR", "own", retimable=True, weight="weight_lr", switch="use_lr"),
-           ConstraintKind("PH", "HP", "partner", weight="weight_hp", switch="use_hp")):
+for _k in (ConstraintKind("PC", "PC", "own", has_peak=True, retimable=True, weight="weight_pc",
+                          description="phonemic clauses"),
+           ConstraintKind("LR", "LR", "own", retimable=True, weight="weight_lr", switch="use_lr",
+                          description="listener responses"),
+           ConstraintKind("PH", "HP", "partner", weight="weight_hp", switch="use_hp",
+                          description="partner hesitations")):
     _KINDS[_k.name] = _k
 
 MOTION_KINDS = ("LH", "RH", "Nod")

@@ -48,6 +48,8 @@ def test_registration_errors_name_the_kind():
         register_kind(ConstraintKind("X", "X", channel="partner", has_peak=True))
     with pytest.raises(ConfigError, match="unknown constraint kind 'X'"):
         kinds.constraint_kind("X")
+    with pytest.raises(ConfigError, match="'X': its weight names search.weight_x"):
+        ConstraintKind("X", "X", weight="weight_x").weight_of(SearchParams())
 
 
 # ------------------------------------------------------------------------------------ a made-up kind

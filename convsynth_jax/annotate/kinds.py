@@ -32,6 +32,7 @@ constraints, checker, relaxation, retiming and the playback diagnostics read thi
 """
 from __future__ import annotations
 
+from collections.abc import Mapping
 from dataclasses import dataclass
 
 from ..errors import ConfigError, LabelError
@@ -74,14 +75,19 @@ class ConstraintKind:
 
     def weight_of(self, params) -> float:
         """The best-effort weight under ``params`` (SearchParams)."""
-        return float(getattr(params, self.weight)) if isinstance(self.weight, str) else float(self.weight)
+        if not isinstance(self.weight, str):
+            return float(self.weight)
+        if not hasattr(params, self.weight):
+            raise ConfigError(f"constraint kind {self.name!r}: its weight names search.{self.weight}, "
+                              "which the search parameters do not have")
+        return float(getattr(params, self.weight))
 
     def enabled(self, switches) -> bool:
         """Is the kind on? ``switches``: SearchParams (or any object with the switch as an attribute)
         or a mapping switch -> bool; a switch it does not name is on."""
         if self.switch is None:
             return True
-        if isinstance(switches, dict):
+        if isinstance(switches, Mapping):
             return bool(switches.get(self.switch, True))
         return bool(getattr(switches, self.switch, True))
 
@@ -191,10 +197,3 @@ def kind_of_segment(channel: str, label: str) -> ConstraintKind | None:
 def hypotheses() -> tuple:
     """The co-occurrence hypotheses (:class:`Hypothesis`) in table order."""
     return tuple(_HYPOTHESES.values())
-
-
-def hypothesis(name: str) -> Hypothesis:
-    try:
-        return _HYPOTHESES[name]
-    except KeyError:
-        raise ConfigError(f"unknown hypothesis {name!r}; expected one of {list(_HYPOTHESES)}") from None

@@ -6,6 +6,7 @@ import pandas as pd
 import pytest
 from scipy import stats
 
+from convsynth_jax.annotate.kinds import hypotheses
 from convsynth_jax.data import ensure_synthetic_corpus, make_synthetic_corpus, resolve_config
 from convsynth_jax.errors import ConfigError
 from convsynth_jax.io import load_bvh, load_corpus
@@ -335,9 +336,8 @@ def _reference_window_rate(ev, role, akind, kinds, whose):
     return hits / n, n
 
 
-HYPS = {"PC-LH": ("PC", ["LH"], "own", "p_pc_lh"), "PC-RH": ("PC", ["RH"], "own", "p_pc_rh"),
-        "PC-LH/RH": ("PC", ["LH", "RH"], "own", "p_pc_either"), "LR-Nod": ("LR", ["Nod"], "own", "p_lr_nod"),
-        "PH-Nod": ("HP", ["Nod"], "partner", "p_ph_nod")}
+# hypothesis -> (audio kind, motion kinds, channel, planting key): the registry's table
+HYPS = {h.name: (h.label, list(h.motions), h.channel, h.planting) for h in hypotheses()}
 
 
 def _detector_rates(root):

@@ -32,6 +32,7 @@ from ..kinematics import global_transforms
 from ..rig import find_joints
 from ..rotations import quat_rotate
 from ..skeleton import Motion
+from .kinds import hypotheses
 from .params import AnnotateParams
 
 log = logging.getLogger(__name__)
@@ -215,13 +216,8 @@ def segment_windows(v: np.ndarray, windows: list[FrameWindow], theta_s: float, a
     return found
 
 
-HYPOTHESIS_SPEC = {  # hypothesis -> (audio channel, audio kind, motion kinds)
-    "PC-LH": ("own", "PC", ("LH",)),
-    "PC-RH": ("own", "PC", ("RH",)),
-    "PC-LH/RH": ("own", "PC", ("LH", "RH")),
-    "LR-Nod": ("own", "LR", ("Nod",)),
-    "PH-Nod": ("partner", "HP", ("Nod",)),
-}
+# hypothesis -> (audio channel, audio kind, motion kinds), from the registry (annotate/kinds.py)
+HYPOTHESIS_SPEC = {h.name: (h.channel, h.label, h.motions) for h in hypotheses()}
 
 
 def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner_segments: pd.DataFrame | None = None,
@@ -246,7 +242,8 @@ def segment_motion(speeds: dict, own_segments: pd.DataFrame, fps: float, partner
     extend = bool(params.extend_trim)
     rows = []
     n = len(next(iter(speeds.values())))
-    plan = [("LH", "own", "PC"), ("RH", "own", "PC"), ("Nod", "own", "LR"), ("Nod", "partner", "HP")]
+    # one pass per motion kind and audio segment kind of a single-motion hypothesis (registry order)
+    plan = [(h.motions[0], h.channel, h.label) for h in hypotheses() if len(h.motions) == 1]
     for kind, channel, akind in plan:
         segs = own_segments if channel == "own" else partner_segments
         if segs is None or len(segs) == 0:

@@ -1,7 +1,7 @@
 """Shared annotation vocabulary: audio segment kinds, motion event kinds, per-frame label arrays.
 
-Audio labels per frame (own channel and partner channel) use these integer codes everywhere
-(annotation, graph states, search constraints):
+Audio labels per frame (own channel and partner channel) use the integer codes of the registry
+(:mod:`convsynth_jax.annotate.kinds`) everywhere (annotation, graph states, search constraints):
     IDLE = 0, PC (phonemic clause) = 1, LR (listener response) = 2, HP (hesitation pause) = 3.
 "Partner hesitation" (PH) is the partner channel's HP.
 """
@@ -11,21 +11,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from ..errors import LabelError
-
-IDLE, PC, LR, HP = 0, 1, 2, 3
-AUDIO_LABELS = {"idle": IDLE, "PC": PC, "LR": LR, "HP": HP}
-AUDIO_LABEL_NAMES = {v: k for k, v in AUDIO_LABELS.items()}
-
-MOTION_KINDS = ("LH", "RH", "Nod")
-HYPOTHESES = ("PC-LH", "PC-RH", "PC-LH/RH", "LR-Nod", "PH-Nod")
-
-
-def audio_label_code(name: str) -> int:
-    try:
-        return AUDIO_LABELS[name]
-    except KeyError:
-        raise LabelError(f"unknown audio label {name!r}; expected one of {sorted(AUDIO_LABELS)}") from None
+# the label codes and the hypothesis table live in the registry (annotate/kinds.py)
+from .kinds import (AUDIO_LABEL_NAMES, AUDIO_LABELS, HP, HYPOTHESES, IDLE, LR, MOTION_KINDS, PC,  # noqa: F401
+                    audio_label_code)
 
 
 @dataclass(frozen=True)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from ..annotate.kinds import hypotheses
 from ..errors import ConfigError
 from ..seeding import derive_seed
 from ..systems.base import SynthesisSystem, WindowInput
@@ -34,7 +35,7 @@ from .windows import Window, sliding_windows, window_segments
 
 log = logging.getLogger(__name__)
 
-HAND_HYPOTHESES = ("PC-LH", "PC-RH", "PC-LH/RH")
+HAND_HYPOTHESES = tuple(h.name for h in hypotheses() if {"LH", "RH"} & set(h.motions))   # the registry's
 
 
 def training_clips(annotations: dict, held_out: str, character: str) -> list:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-HYPOTHESES = ("PC-LH", "PC-RH", "PC-LH/RH", "LR-Nod", "PH-Nod")
+from ..annotate.kinds import HYPOTHESES  # noqa: F401  (the registry's table, re-exported for the reports)
 CONDITION_ORDER = ("all", "no_lr", "no_hp", "none")
 
 

@@ -10,6 +10,10 @@ is whole when it starts at its segment's first frame (or at output frame 0) and 
 peak); each input segment must be matched, one to one, by a whole instance of its kind placed
 within the tolerance.
 
+The kinds checked (their channels, labels, peaks and switches) are the registry's
+(:mod:`convsynth_jax.annotate.kinds`); ``use_lr`` / ``use_hp`` (and ``switches``, for a registered
+kind's own switch) turn kinds off.
+
 Idle runs are the frames outside every own input segment widened by the tolerance on both sides,
 [s - tol, e + tol) with tol in whole frames, as the searches build them.
 
@@ -23,7 +27,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from ..annotate.types import HP, IDLE, LR, PC, FrameAudio
+from ..annotate.kinds import IDLE, kind_of_segment, segment_kinds
+from ..annotate.types import FrameAudio
 from ..errors import ConfigError
 
 
@@ -78,7 +83,7 @@ def _to_output(warp, T):
 
 
 def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_segments, fps, tolerance,
-                 use_lr, use_hp, warp=None) -> dict:
+                 switches, warp=None) -> dict:
     T = len(source_frame)
     tol = tolerance * fps + 1e-9
     details = []
@@ -111,20 +116,22 @@ def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_se
             details.append({"kind": kind, "start": s, "end": e, "peak": p, "met": ok})
 
     own_mask = np.zeros(T, bool)
-    pcs, lrs, hps = [], [], []
+    kinds = [k for k in segment_kinds() if k.enabled(switches)]
+    inputs = {k.name: [] for k in kinds}
     for r in own_segments.itertuples(index=False):
         s, e = fr(r.start), fr(r.end)
         lo, hi = _idle_range(s, e, tolerance, fps, T)
         own_mask[lo:hi] = True
-        if r.kind == "PC":
-            pcs.append((s, e, fr(r.peak) if np.isfinite(r.peak) else None))
-        elif r.kind == "LR" and use_lr:
-            lrs.append((s, e, None))
-    match("PC", PC, 0, pcs)
-    match("LR", LR, 0, lrs)
-    if use_hp and partner_segments is not None:
-        hps = [(fr(r.start), fr(r.end), None) for r in partner_segments.itertuples(index=False) if r.kind == "HP"]
-        match("PH", HP, 1, hps)
+        k = kind_of_segment("own", r.kind)
+        if k is not None and k.name in inputs:
+            inputs[k.name].append((s, e, fr(r.peak) if k.has_peak and np.isfinite(r.peak) else None))
+    for r in (partner_segments.itertuples(index=False) if partner_segments is not None else ()):
+        k = kind_of_segment("partner", r.kind)
+        if k is not None and k.name in inputs:
+            inputs[k.name].append((fr(r.start), fr(r.end), None))
+    for k in kinds:
+        if k.channel == "own" or partner_segments is not None:
+            match(k.name, k.code, 0 if k.channel == "own" else 1, inputs[k.name])
     own = np.array([clip_audio[c][0].label[f] for c, f in zip(source_clip, source_frame)], np.int32)
     if warp is not None:   # the label shown at each output frame: the nearest path frame's
         tau = np.interp(np.arange(T), *(np.asarray(k, np.float64) for k in warp))
@@ -138,18 +145,20 @@ def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_se
 
 def check_path(source_clip, source_frame, clip_audio: dict, own_segments: pd.DataFrame,
                partner_segments: pd.DataFrame, fps: float, tolerance: float = 0.1, use_lr: bool = True,
-               use_hp: bool = True, matching: str = "paper", warp=None) -> dict:
+               use_hp: bool = True, matching: str = "paper", warp=None, switches=None) -> dict:
     """source_clip: (T,) clip names; source_frame: (T,) frames; clip_audio: name -> (own FrameAudio,
     partner FrameAudio) of the database clips. Returns {"total", "met", "details": [...]}: for every
     input PC (and LR, partner HP when enabled) whether a run of that label in the path's associated
     audio starts and ends within ``tolerance`` of it (PC: and has its source F0-peak frame within
     tolerance of the input peak), and whether the own label is idle wherever the input is idle
     (``matching="labels"``); ``matching="paper"``: see the module docstring. ``warp``: the retiming
-    warp (``paper`` only; module docstring)."""
+    warp (``paper`` only; module docstring). ``switches``: switch name -> bool for registered kinds'
+    switches (``use_lr`` / ``use_hp`` win over it for theirs; a switch named nowhere is on)."""
     own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end", "peak"])
+    switches = {**(switches or {}), "use_lr": bool(use_lr), "use_hp": bool(use_hp)}
     if matching == "paper":
         return _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_segments, fps, tolerance,
-                            use_lr, use_hp, warp)
+                            switches, warp)
     if matching != "labels":
         raise ConfigError(f"matching must be 'paper' or 'labels', got {matching!r}")
     if warp is not None:
@@ -158,7 +167,8 @@ def check_path(source_clip, source_frame, clip_audio: dict, own_segments: pd.Dat
     tol = tolerance * fps + 1e-9
     own = np.array([clip_audio[c][0].label[f] for c, f in zip(source_clip, source_frame)], np.int32)
     par = np.array([clip_audio[c][1].label[f] for c, f in zip(source_clip, source_frame)], np.int32)
-    is_peak = np.array([clip_audio[c][0].seg_peak[f] == f and clip_audio[c][0].label[f] == PC
+    peaked = {k.code for k in segment_kinds("own") if k.has_peak}
+    is_peak = np.array([clip_audio[c][0].seg_peak[f] == f and int(clip_audio[c][0].label[f]) in peaked
                         for c, f in zip(source_clip, source_frame)])
     details = []
 
@@ -186,14 +196,14 @@ def check_path(source_clip, source_frame, clip_audio: dict, own_segments: pd.Dat
         s, e = fr(r.start), fr(r.end)
         lo, hi = _idle_range(s, e, tolerance, fps, T)
         own_mask[lo:hi] = True
-        if r.kind == "PC":
-            seg_check("PC", PC, own, s, e, fr(r.peak) if np.isfinite(r.peak) else None)
-        elif r.kind == "LR" and use_lr:
-            seg_check("LR", LR, own, s, e)
-    if use_hp and partner_segments is not None:
+        k = kind_of_segment("own", r.kind)
+        if k is not None and k.enabled(switches):
+            seg_check(k.name, k.code, own, s, e, fr(r.peak) if k.has_peak and np.isfinite(r.peak) else None)
+    if partner_segments is not None:
         for r in partner_segments.itertuples(index=False):
-            if r.kind == "HP" and fr(r.end) > 0 and fr(r.start) < T:
-                seg_check("PH", HP, par, fr(r.start), fr(r.end))
+            k = kind_of_segment("partner", r.kind)
+            if k is not None and k.enabled(switches) and fr(r.end) > 0 and fr(r.start) < T:
+                seg_check(k.name, k.code, par, fr(r.start), fr(r.end))
     idle = ~own_mask
     d = np.diff(np.concatenate([[0], idle.astype(np.int8), [0]]))
     for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):

@@ -12,8 +12,9 @@ window; segments crossing a window edge keep their true times) with tolerance to
   peak of its own segment (checked when the peak window closes).
 
 Listener responses (LR) constrain the own channel; partner hesitations (HP on the partner channel)
-constrain the partner label the same way. Own hesitations are unconstrained. Switches:
-``use_constraints=False`` (no audio constraint at all), ``use_lr``, ``use_hp``.
+constrain the partner label the same way. Own hesitations are unconstrained. The kinds, their
+channels, peaks, retiming and switches are the registry's (:mod:`convsynth_jax.annotate.kinds`);
+switches: ``use_constraints=False`` (no audio constraint at all), ``use_lr``, ``use_hp``.
 
 Two matching modes (``search.matching``):
 
@@ -71,7 +72,7 @@ from typing import NamedTuple
 import numpy as np
 import pandas as pd
 
-from ..annotate.types import HP, IDLE, LR, PC
+from ..annotate.kinds import HP, IDLE, kind_of_segment, segment_kinds
 from ..errors import ConfigError
 from .params import SearchParams
 
@@ -183,7 +184,7 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
                           "input clause from several source clauses, so there is no one source clause to warp")
     T = int(num_frames)
     tol = int(round(float(params.tolerance) * fps))
-    use_c, use_lr, use_hp = bool(params.use_constraints), bool(params.use_lr), bool(params.use_hp)
+    use_c = bool(params.use_constraints)
     own = np.full(T, IDLE if use_c else FREE, np.int32)
     par = np.full(T, FREE, np.int32)
     pw = np.zeros(T, bool)
@@ -208,30 +209,32 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
         if hi <= 0 or lo >= T:
             continue
         own[lo:hi] = FREE  # margins and unconstrained kinds
-        code = {"PC": PC, "LR": LR}.get(r.kind)
-        if code is None or (code == LR and not use_lr) or (r.kind, s, e) in relaxed:
+        kind = kind_of_segment("own", r.kind)
+        if kind is None or not kind.enabled(params) or (kind.name, s, e) in relaxed:
             continue
+        code = kind.code
         a, b = max(0, s + tol), min(T, e - tol)
         if b <= a:  # its core lies outside the window: nothing to constrain here
             continue
         own[a:b] = code
-        segs.append({"kind": r.kind, "channel": "own", "start": s, "end": e, "peak": p})
+        segs.append({"kind": kind.name, "channel": "own", "start": s, "end": e, "peak": p})
         forbid_outside(own_not, code, s, e)
-        if code == PC and p is not None and 0 <= p - tol and p + tol < T:
+        if kind.has_peak and p is not None and 0 <= p - tol and p + tol < T:
             pw[p - tol:p + tol + 1] = True
             reset[p - tol] = True
             check[p + tol] = True
-    if use_hp and partner_segments is not None:
+    if partner_segments is not None and any(k.enabled(params) for k in segment_kinds("partner")):
         for r in partner_segments.itertuples(index=False):
-            if r.kind != "HP":
+            kind = kind_of_segment("partner", r.kind)
+            if kind is None or not kind.enabled(params):
                 continue
             s, e, _ = _seg_frames(r, fps)
             a, b = max(0, s + tol), min(T, e - tol)
-            if b <= a or ("PH", s, e) in relaxed:
+            if b <= a or (kind.name, s, e) in relaxed:
                 continue
-            par[a:b] = HP
-            segs.append({"kind": "PH", "channel": "partner", "start": s, "end": e, "peak": None})
-            forbid_outside(par_not, HP, s, e)
+            par[a:b] = kind.code
+            segs.append({"kind": kind.name, "channel": "partner", "start": s, "end": e, "peak": None})
+            forbid_outside(par_not, kind.code, s, e)
     _split_touching(own_not, own, [x for x in segs if x["channel"] == "own"], tol)
     _split_touching(par_not, par, [x for x in segs if x["channel"] == "partner"], tol)
     idle_runs = _runs(own == IDLE)
@@ -254,7 +257,7 @@ def _split_touching(forbid: np.ndarray, req: np.ndarray, segs: list, tol: int) -
     within tol of s2 (ours: sound, not complete; a break elsewhere in the margins would do too).
     Segments whose cores overlap (m outside [e1 - tol, s2 + tol - 1]) cannot both be met by label
     runs; they are left as they are."""
-    code = {"PC": PC, "LR": LR, "PH": HP}
+    code = {k.name: k.code for k in segment_kinds()}
     items = sorted(segs, key=lambda x: (x["start"], x["end"]))
     T = forbid.shape[0]
     for x, y in zip(items[:-1], items[1:]):
@@ -284,7 +287,7 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
     """``search.matching=paper``: label masks plus entry windows (module docstring)."""
     T = int(num_frames)
     tol = int(round(float(params.tolerance) * fps))
-    use_c, use_lr, use_hp = bool(params.use_constraints), bool(params.use_lr), bool(params.use_hp)
+    use_c = bool(params.use_constraints)
     retime = float(params.retime_factor)
     own = np.full(T, IDLE if use_c else FREE, np.int32)
     par = np.full(T, FREE, np.int32)
@@ -304,8 +307,8 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
                          tol)
         return Constraints(T, fps, tol, own, par, zeros, zeros, zeros, segs, np.full(T, FREE, np.int32),
                            np.full(T, FREE, np.int32), pa)
-    own_codes = (1 << PC) | ((1 << LR) if use_lr else 0)
-    par_codes = (1 << HP) if use_hp else 0
+    own_codes = sum(1 << k.code for k in segment_kinds("own") if k.enabled(params))
+    par_codes = sum(1 << k.code for k in segment_kinds("partner") if k.enabled(params))
     own_plain = own.copy()    # the own requirement without the retiming slack (idle runs are named by it)
     end_zone = np.zeros(T, bool)       # retiming: frames around a constrained clause's end (+- tol + slack)
     unconstrained = np.zeros(T, bool)  # the ranges of input segments of unconstrained kinds (own HP, ...)
@@ -314,16 +317,17 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
     own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end"])
     for r in own_segments.itertuples(index=False):
         s, e, p = _seg_frames(r, fps)
-        code = {"PC": PC, "LR": LR}.get(r.kind)
+        kind = kind_of_segment("own", r.kind)
+        code = kind.code if kind is not None else None
         # retiming (ours): the end may lie up to ``slack`` frames further off, the core and idle rule shrink;
         # only as far as the warp can move it (inside the window)
-        slack = _slack(retime, s, e, tol, T) if code is not None else 0
+        slack = _slack(retime, s, e, tol, T) if kind is not None and kind.retimable else 0
         lo, hi = max(0, s - tol), min(T, e + tol + slack)
         if hi <= 0 or lo >= T:
             continue
         own[lo:hi] = FREE
         own_plain[lo:min(T, e + tol)] = FREE
-        if code is None or not (own_codes >> code) & 1 or (r.kind, s, e) in relaxed:
+        if code is None or not (own_codes >> code) & 1 or (kind.name, s, e) in relaxed:
             free_ranges["own"].append((lo, hi))
             if code is None or not (own_codes >> code) & 1:
                 unconstrained[lo:hi] = True
@@ -333,26 +337,27 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
         c = s + tol
         a, b = max(0, s + tol), min(T, e - tol - slack)
         if 0 <= c < T or (c < 0 and min(T, e - tol) > a):
-            pk = p if code == PC else None
-            pslack = _slack(retime, s, p, tol, T) if pk is not None else 0
-            counted["own"].append((code, s, e, pk, r.kind, slack, pslack))
+            pk = p if kind.has_peak else None
+            pslack = _slack(retime, s, p, tol, T) if pk is not None and kind.retimable else 0
+            counted["own"].append((code, s, e, pk, kind.name, slack, pslack))
         else:
             free_ranges["own"].append((lo, hi))
         if b > a:
             own[a:b] = code
-    if use_hp and partner_segments is not None:
+    if partner_segments is not None and par_codes:
         for r in partner_segments.itertuples(index=False):
-            if r.kind != "HP":
+            kind = kind_of_segment("partner", r.kind)
+            if kind is None or not (par_codes >> kind.code) & 1:
                 continue
             s, e, _ = _seg_frames(r, fps)
             c = s + tol
             a, b = max(0, s + tol), min(T, e - tol)
-            if ("PH", s, e) in relaxed:
+            if (kind.name, s, e) in relaxed:
                 pass    # no label core; the range stays free (below)
             elif 0 <= c < T or (c < 0 and b > a):
-                counted["partner"].append((HP, s, e, None, "PH", 0, 0))
+                counted["partner"].append((kind.code, s, e, None, kind.name, 0, 0))
                 if b > a:
-                    par[a:b] = HP
+                    par[a:b] = kind.code
                 continue
             if max(0, s - tol) < min(T, e + tol):
                 free_ranges["partner"].append((max(0, s - tol), min(T, e + tol)))
@@ -486,8 +491,9 @@ def median_synthetic_cost(graph) -> float:
 
 
 def is_peak_state(graph) -> np.ndarray:
-    """(S,) bool: the state's source frame is the F0 peak of its own PC segment."""
-    return (graph.own_label == PC) & (graph.own_peak == graph.frame)
+    """(S,) bool: the state's source frame is the F0 peak of its own segment, of a kind with a peak (PC)."""
+    peaked = [k.code for k in segment_kinds("own") if k.has_peak]
+    return np.isin(graph.own_label, peaked) & (graph.own_peak == graph.frame)
 
 
 def constrained(c: Constraints) -> bool:

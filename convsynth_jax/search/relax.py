@@ -2,7 +2,8 @@
 
 The paper's search fails a window when no path of the graph meets all of its constraints. Best effort
 returns instead a path that meets as many as it can, weighted by kind (``search.weight_pc``,
-``weight_lr``, ``weight_hp``, ``weight_idle``), found by *greedy relaxation* with the exact
+``weight_lr``, ``weight_hp``, ``weight_idle``: each kind's weight in the registry,
+:mod:`convsynth_jax.annotate.kinds`), found by *greedy relaxation* with the exact
 look-ahead (:mod:`convsynth_jax.search.feasible`) as the oracle:
 
 1. order the window's constraints (:func:`~convsynth_jax.search.constraints.constraint_key`) by
@@ -33,6 +34,7 @@ import time
 
 import numpy as np
 
+from ..annotate.kinds import constraint_kind, constraint_kinds
 from ..errors import ConfigError
 from .constraints import (Constraints, build_constraints, constraint_key, is_peak_state, label_ok,
                           requirement_arrays)
@@ -40,22 +42,22 @@ from .params import SearchParams
 from .result import SearchResult
 
 ON_FAILURE = ("fail", "best_effort")
-KIND_WEIGHT = {"PC": "weight_pc", "LR": "weight_lr", "PH": "weight_hp", "idle": "weight_idle"}
 
 
 def check_on_failure(params: SearchParams) -> str:
     mode = str(params.on_failure)
     if mode not in ON_FAILURE:
         raise ConfigError(f"search.on_failure must be one of {list(ON_FAILURE)}, got {mode!r}")
-    for k in KIND_WEIGHT.values():
-        if not float(getattr(params, k)) >= 0:
-            raise ConfigError(f"search.{k} must be >= 0, got {getattr(params, k)}")
+    for kind in constraint_kinds():
+        if not kind.weight_of(params) >= 0:
+            what = f"search.{kind.weight}" if isinstance(kind.weight, str) else f"the weight of kind {kind.name}"
+            raise ConfigError(f"{what} must be >= 0, got {kind.weight_of(params)}")
     return mode
 
 
 def constraint_order(keys, params: SearchParams) -> list:
     """The keys heaviest kind first, then by start frame, end frame and kind (a total order)."""
-    return sorted(keys, key=lambda k: (-float(getattr(params, KIND_WEIGHT[k[0]])), k[1], k[2], k[0]))
+    return sorted(keys, key=lambda k: (-constraint_kind(k[0]).weight_of(params), k[1], k[2], k[0]))
 
 
 def greedy_keep(order: list, completable) -> tuple[list, list]:

@@ -6,6 +6,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from ..annotate.kinds import constraint_kind, kind_of_segment
+from ..errors import ConfigError
+
 
 @dataclass
 class SearchResult:
@@ -66,10 +69,19 @@ def failure_reason(constraints, frame, method: str) -> str:
 
 # The last sentence of every failure under the paper's rule (``search.on_failure=fail``): what would
 # make motion for the window. Per kind of the constraint at which the search died: the condition of
-# ``conf/system/motion_graph.yaml`` that leaves that kind out (None: only ``none``, no audio constraint).
+# ``conf/system/motion_graph.yaml`` that leaves that kind out (the registry's ``condition_off``; a kind
+# without a switch: only ``none``, no audio constraint).
 NEXT_STEP = "To make motion for this window"
-DROPPED_BY = {"LR": ("listener responses", "no_lr"), "HP": ("partner hesitations", "no_hp"),
-              "PH": ("partner hesitations", "no_hp")}
+
+
+def _kind_named(name):
+    """The registered kind named ``name``, or constraining the partner label ``name`` (HP), or None."""
+    if name is None:
+        return None
+    try:
+        return constraint_kind(name)
+    except ConfigError:
+        return kind_of_segment("partner", name)
 
 
 def next_step(params, failed_segment: dict | None = None) -> str | None:
@@ -78,12 +90,12 @@ def next_step(params, failed_segment: dict | None = None) -> str | None:
     if str(getattr(params, "on_failure", "fail")) == "best_effort":
         return None
     kind = (failed_segment or {}).get("kind")
-    if kind in DROPPED_BY:
-        what, condition = DROPPED_BY[kind]
-        drop = f"leaving the {what} out (condition {condition}) may solve it under the paper's rule"
+    k = _kind_named(kind)
+    if k is not None and k.condition_off is not None:
+        drop = f"leaving the {k.description} out (condition {k.condition_off}) may solve it under the paper's rule"
     else:
         drop = ("under the paper's rule only the condition none (no audio constraint) leaves "
-                f"{'the ' + kind + ' constraints' if kind in ('PC', 'idle') else 'this constraint'} out")
+                f"{'the ' + kind + ' constraints' if k is not None else 'this constraint'} out")
     return (f"{NEXT_STEP}: preset=quality (ours: search.on_failure=best_effort keeps the path that meets the most "
             f"constraints, with retiming) makes motion for it; {drop}.")
 

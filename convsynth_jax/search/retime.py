@@ -4,7 +4,8 @@ segments of a path lie, and the warp that moves them onto the input's times.
 With retiming a source clause (or listener response) may match an input segment whose end and F0
 peak lie further off than the tolerance (``constraints``: the end within tol + floor(r (e - s)),
 the peak within tol + floor(r (p - s)), the start within tol). :func:`retime_knots` finds, for each
-own-channel constraint of the window, the whole source instance the path placed for it (its start
+own-channel constraint of the window of a retimable kind (the registry's,
+:mod:`convsynth_jax.annotate.kinds`: PC and LR), the whole source instance the path placed for it (its start
 st, peak pk and end en on the path's timeline) and returns a piecewise-linear warp with the knots
 (s <- st, p <- pk, e <- en) plus the window's first and last frames: output frame t shows the
 path at time ``np.interp(t, out_knots, path_knots)`` (``synth/retime.warp_motion``). Every matched
@@ -17,10 +18,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..annotate.types import IDLE, LR, PC
+from ..annotate.kinds import IDLE, segment_kinds
 from .constraints import Constraints, segment_info
-
-CODES = {"PC": PC, "LR": LR}
 
 
 def path_instances(graph, path) -> list[tuple]:
@@ -57,12 +56,14 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
     used: set = set()
     pairs, ident = [], []
     idle = _idle_runs(np.asarray(c.own_req) == IDLE)
+    retimed = {k.name: k for k in segment_kinds("own") if k.retimable}
     for seg in sorted(c.segments, key=lambda x: x["start"]):
-        code = CODES.get(seg["kind"])
-        if code is None or seg["channel"] != "own":
+        kind = retimed.get(seg["kind"])
+        if kind is None or seg["channel"] != "own":
             continue
+        code = kind.code
         s, e, p = int(seg["start"]), int(seg["end"]), seg["peak"]
-        p = None if p is None or code != PC else int(p)
+        p = None if p is None or not kind.has_peak else int(p)
         etol = tol + int(np.floor(retime_factor * (e - s)))
         ptol = tol + (int(np.floor(retime_factor * (p - s))) if p is not None else 0)
         best = None

@@ -50,13 +50,13 @@ from ..cdbn.synthesize import (
     state_posteriors,
     synthesize_head,
 )
+from ..annotate.kinds import AUDIO_LABEL_NAMES
 from ..errors import CDBNError
 from ..schema import build_params
 from .base import SynthesisSystem, WindowInput, WindowResult
 
 log = logging.getLogger(__name__)
 
-AUDIO_CONSTRAINTS = ("idle", "PC", "LR", "HP")   # codes 0..3 of annotate.types
 
 
 @dataclass
@@ -105,8 +105,9 @@ class CDBNSystem(SynthesisSystem):
         super().__init__(params, system)
         self.cdbn = _params(params, dict(system.options or {}))
         cmap = (system.options or {}).get("constraint_map") or {}
-        self.constraint_names = tuple(dict.fromkeys(cmap.get(n, n) for n in AUDIO_CONSTRAINTS))
-        self.constraint_map = tuple(self.constraint_names.index(cmap.get(n, n)) for n in AUDIO_CONSTRAINTS)
+        labels = tuple(AUDIO_LABEL_NAMES[c] for c in sorted(AUDIO_LABEL_NAMES))   # the registry's, by code
+        self.constraint_names = tuple(dict.fromkeys(cmap.get(n, n) for n in labels))
+        self.constraint_map = tuple(self.constraint_names.index(cmap.get(n, n)) for n in labels)
         self.stream = self.cdbn.stream
         self.produces_hands = self.stream == "hands"
 

@@ -6,7 +6,7 @@ clip and frame each output frame shows). They answer two hooks of the interface:
 - ``window_diagnostics``: every audio constraint of the window (whatever the condition) recomputed by the
   search's independent checker (``search/check.py``) from the source clips' per-frame audio labels:
   ``all_constraints_total`` / ``all_constraints_met``, ``checker_matching`` and per kind
-  ``checker_<kind>_met`` / ``_total``.
+  ``checker_<kind>_met`` / ``_total`` (the registry's kinds, :mod:`convsynth_jax.annotate.kinds`).
 - ``source_positions``: the joint positions of a whole source clip, from which the evaluation
   computes ``seam_content_ratio`` (what the source clips bring to the seams by themselves); forward
   kinematics runs once per clip and the system keeps the positions for the sweep.
@@ -20,9 +20,8 @@ from typing import Any, Mapping
 
 import numpy as np
 
+from ..annotate.kinds import constraint_kinds
 from .base import SynthesisSystem, WindowInput, WindowResult
-
-CHECKER_KINDS = ("PC", "LR", "PH", "idle")
 
 
 def clip_name(session: str, role: str) -> str:
@@ -54,9 +53,9 @@ class PlaybackSystem(SynthesisSystem):
                          window.own_segments, window.partner_segments, window.fps, float(sp.tolerance),
                          matching=sp.matching, warp=result.diagnostics.get("warp"))
         row = {"all_constraints_total": chk["total"], "all_constraints_met": chk["met"], "checker_matching": sp.matching}
-        for kind in CHECKER_KINDS:
-            d = [x["met"] for x in chk["details"] if x["kind"] == kind]
-            row[f"checker_{kind}_met"], row[f"checker_{kind}_total"] = int(sum(d)), len(d)
+        for kind in constraint_kinds():
+            d = [x["met"] for x in chk["details"] if x["kind"] == kind.name]
+            row[f"checker_{kind.name}_met"], row[f"checker_{kind.name}_total"] = int(sum(d)), len(d)
         return row
 
     def source_positions(self, model: Any, clip: str) -> np.ndarray | None:

@@ -37,12 +37,16 @@ from typing import Any, List, Optional
 import numpy as np
 import pandas as pd
 
+from ..annotate.kinds import constraint_kinds
 from ..errors import AudioFormatError, ConfigError, ConvSynthError, MissingFileError, SearchFailure, TranscriptFormatError
 from ..utils import atomic_path, write_json_atomic
 
 log = logging.getLogger(__name__)
 
-KINDS = ("PC", "LR", "PH", "idle")
+
+def kind_names() -> tuple:
+    """The constraint kinds' names in report order (the registry's, annotate/kinds.py)."""
+    return tuple(k.name for k in constraint_kinds())
 
 
 @dataclass(frozen=True)
@@ -187,7 +191,7 @@ def fit_models(p: ConverseParams, params, system, ann, chars) -> dict:
 
 # ----------------------------------------------------------------------------------------------- checks
 def kind_counts(details) -> dict:
-    out = {k: {"met": 0, "total": 0} for k in KINDS}
+    out = {k: {"met": 0, "total": 0} for k in kind_names()}
     for d in details:
         k = out.setdefault(d["kind"], {"met": 0, "total": 0})
         k["total"] += 1
@@ -251,7 +255,7 @@ def write_report_md(path: Path, report: dict) -> None:
         checks = {w["index"]: w for w in ch.get("checker", {}).get("windows", [])}
         for w in ch["windows"]:
             c = checks.get(w["index"])
-            kinds = ["" if c is None else f"{c['by_kind'][k]['met']}/{c['by_kind'][k]['total']}" for k in KINDS]
+            kinds = ["" if c is None else f"{c['by_kind'][k]['met']}/{c['by_kind'][k]['total']}" for k in kind_names()]
             met = "" if c is None else f"{c['met']}/{c['total']}"
             lines.append(f"| {who} ({ch['character']}) | {w['index']} | {w['start_s']:.2f}-{w['end_s']:.2f} | "
                          f"{w['status']} | {w['seconds']:.2f} | {met} | " + " | ".join(kinds) + " |")
@@ -265,7 +269,7 @@ def write_report_md(path: Path, report: dict) -> None:
         if tot is None:
             lines.append(f"| {who} | failed: {ch.get('failure', '')} | | | | | | | | |")
             continue
-        kinds = [f"{tot['by_kind'][k]['met']}/{tot['by_kind'][k]['total']}" for k in KINDS]
+        kinds = [f"{tot['by_kind'][k]['met']}/{tot['by_kind'][k]['total']}" for k in kind_names()]
         cont = ch["continuity"]
         cut = max(cont["at_cuts"].values()) if cont["at_cuts"] else float("nan")
         inner = cont["at_synthetic_transitions_max"]

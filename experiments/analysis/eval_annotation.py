@@ -40,15 +40,15 @@ from _bench import REPO, RESULTS, SHARED, write
 
 from convsynth_jax.config import default_params
 from convsynth_jax.annotate.cache import annotate_corpus_cached
+from convsynth_jax.annotate.kinds import hypotheses
 from convsynth_jax.evaluation.summaries import to_markdown
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
 from convsynth_jax.tasks.common import open_corpus
 
-SPEC = {"PC-LH": ("PC", ["LH"], "own"), "PC-RH": ("PC", ["RH"], "own"), "PC-LH/RH": ("PC", ["LH", "RH"], "own"),
-        "LR-Nod": ("LR", ["Nod"], "own"), "PH-Nod": ("HP", ["Nod"], "partner")}
+# the hypothesis table (audio kind, motion kinds, channel; the generator's planting key): the registry's
+SPEC = {h.name: (h.label, list(h.motions), h.channel) for h in hypotheses()}
 CLAUSE_TOL = 0.15  # s: clause boundary matching tolerance
-CONFIG_KEY = {"PC-LH": "p_pc_lh", "PC-RH": "p_pc_rh", "PC-LH/RH": "p_pc_either", "LR-Nod": "p_lr_nod",
-              "PH-Nod": "p_ph_nod"}
+CONFIG_KEY = {h.name: h.planting for h in hypotheses()}
 
 
 def overlap_counts(planted, detected):

@@ -8,14 +8,14 @@ import copy
 import numpy as np
 import pandas as pd
 
+from ...annotate.kinds import hypotheses
 from .config import ROLES, detector_settings
 from .conversation import Segment
 from .plan import _plan, _quota_offsets, _render_motion
 
 
-HYPOTHESIS_KEYS = {"PC-LH": ("PC", ("LH",), "own", "p_pc_lh"), "PC-RH": ("PC", ("RH",), "own", "p_pc_rh"),
-                   "PC-LH/RH": ("PC", ("LH", "RH"), "own", "p_pc_either"),
-                   "LR-Nod": ("LR", ("Nod",), "own", "p_lr_nod"), "PH-Nod": ("HP", ("Nod",), "partner", "p_ph_nod")}
+# hypothesis -> (audio kind, motion kinds, channel, planting probability key), from the registry
+HYPOTHESIS_KEYS = {h.name: (h.label, h.motions, h.channel, h.planting) for h in hypotheses()}
 CORE = 0.0  # a movement counts on [start + CORE * length, end - CORE * length] (window matching; 0: all of it,
 # which is what the annotation pipeline's nod detection reproduces on the default corpus)
 

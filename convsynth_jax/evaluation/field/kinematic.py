@@ -9,6 +9,11 @@ import numpy as np
 
 from .params import HistogramParams
 
+# A frame is still when the mean speed of the joints looked at is below this many units per second
+# (2 cm/s on the synthetic corpus, whose units are centimetres): the one still-frame definition of
+# the package (``still_frames``), used by the naturalness analysis and the realization's options.
+STILL_SPEED = 2.0
+
 
 def moving_distance(positions: np.ndarray, fps: float, order: int) -> np.ndarray:
     """(F - order, J) norm of the order-th difference of each joint's position times fps**order:
@@ -24,6 +29,20 @@ def average_derivative(positions: np.ndarray, fps: float, order: int) -> float:
     if m.size == 0:
         return float("nan")
     return float(m.mean(axis=0).mean())
+
+
+def still_frames(positions: np.ndarray, fps: float, threshold: float = STILL_SPEED) -> np.ndarray:
+    """(F,) bool: frames whose mean joint speed is below ``threshold`` units/s. positions (F, J, 3);
+    speed per joint by central differences (one-sided at the ends; ``beat.joint_speed``), mean over
+    joints. A window shorter than two frames has no speed and no still frame."""
+    from .beat import joint_speed
+
+    p = np.asarray(positions, np.float64)
+    if p.ndim != 3 or p.shape[-1] != 3:
+        raise ValueError(f"still_frames needs positions of shape (frames, joints, 3), got {p.shape}")
+    if len(p) < 2:
+        return np.zeros(len(p), bool)
+    return joint_speed(p, fps).mean(axis=1) < float(threshold)
 
 
 def average_jerk(positions: np.ndarray, fps: float) -> float:

@@ -195,3 +195,37 @@ def test_retimed_kernel_equals_the_reference():
     res = beam_search(g, cons, cfg, seed=1)
     assert res.success and ref.success
     np.testing.assert_array_equal(res.path, ref.path)
+
+
+def test_spread_slow_stretches_drops_only_identity_knots_next_to_slow_pieces():
+    from convsynth_jax.synth.retime import spread_slow_stretches
+
+    out_k, path_k = [0, 20, 30, 49], [0, 24, 30, 49]      # (30 <- 30) returns to the identity: speed 0.6 before it
+    o, q = spread_slow_stretches(out_k, path_k, 0.8)
+    assert o.tolist() == [0, 20, 49] and q.tolist() == [0, 24, 49]          # the matched knot stays
+    assert (np.diff(q) / np.diff(o)).min() >= 0.8
+    o, q = spread_slow_stretches(out_k, path_k, 0.0)                          # off: unchanged
+    assert o.tolist() == out_k and q.tolist() == path_k
+    o, q = spread_slow_stretches([0, 20, 30, 49], [0, 16, 26, 49], 0.9)       # no identity knot: nothing to drop
+    assert o.tolist() == [0, 20, 30, 49] and q.tolist() == [0, 16, 26, 49]
+
+
+def test_retime_min_speed_spreads_the_slow_idle_stretch_and_keeps_the_clause():
+    """An input clause of 17 frames answered by a 20-frame source clause: the warp returns to the
+    identity a few idle frames after the clause, playing them at 0.71x; with synth.retime_min_speed
+    0.9 that return is dropped, no piece of the warp is slower than 0.9 and the checker still confirms
+    the clause through the warp."""
+    g, audio, motions = clause_graph()
+    s, e = 12, 29
+    own = pd.DataFrame([("PC", s / FPS, (s + 8) / FPS, e / FPS)], columns=["kind", "start", "peak", "end"])
+    cfg = SearchParams(tolerance=0.1, beam_size=64, max_degree=24, retime_factor=0.2)
+    speeds = {}
+    for ms in (0.0, 0.9):
+        res = synthesize_character(g, motions, own, None, 50, cfg, SynthParams(blend_frames=0, retime_min_speed=ms),
+                                   seed=0)
+        assert res.success and res.constraints_met == res.constraints_total == 3
+        chk = check_path(res.source_clip, res.source_frame, audio, own, None, FPS, 0.1, warp=res.warp)
+        assert all(d["met"] for d in chk["details"])
+        o, q = res.warp
+        speeds[ms] = (np.diff(q) / np.diff(o)).min()
+    assert speeds[0.0] < 0.75 and speeds[0.9] >= 0.9

@@ -21,3 +21,8 @@ class SynthParams:
     # with 16-180 degrees; preset=quality sets 15. 0 (default, the paper): off (the continuation plays
     # whatever its clip has)
     continuation_max_step_deg: float = 0.0
+    # retiming (search.retime_factor > 0): drop the warp's returns to the identity next to a retimed segment
+    # where they would play the path slower than this many path frames per output frame, so the shift
+    # spreads over the whole idle run (ours, synth/retime.spread_slow_stretches; 0, the default: off,
+    # the warp as search/retime.py gives it)
+    retime_min_speed: float = 0.0

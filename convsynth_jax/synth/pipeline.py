@@ -23,7 +23,7 @@ from ..search.retime import retime_knots
 from .blinks import blink_curve, blink_times
 from .params import SynthParams
 from .realize import realize
-from .retime import warp_motion
+from .retime import spread_slow_stretches, warp_motion
 
 log = logging.getLogger(__name__)
 
@@ -94,6 +94,8 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
                      blend_frames=int(synth.blend_frames), blend_method=str(synth.blend_method),
                      max_step_deg=float(synth.continuation_max_step_deg))
     warp = retime_knots(graph, cons, path, float(search.retime_factor)) if float(search.retime_factor) > 0 else None
+    if warp is not None and float(synth.retime_min_speed) > 0:
+        warp = spread_slow_stretches(*warp, float(synth.retime_min_speed))
     if warp is not None:
         motion = warp_motion(motion, *warp)
     met, unmet = [], []

@@ -8,6 +8,13 @@ time tau(t) = np.interp(t, out_knots, path_knots), between frames floor(tau) and
 joint rotations by slerp (``rotations.quat_slerp_np``) and translations (the root's position
 included) linearly. The warp is applied after the blends and the root's integration, so a
 stretched stretch of motion moves more slowly and a compressed one faster, along the same track.
+
+``synth.retime_min_speed`` (ours, 0 = off): the warp returns to the identity a short way past a
+retimed segment (``search/retime.py``: a knot a <- a in the idle run), which concentrates the
+segment's shift into a few idle frames; where that plays the path slower than this speed,
+:func:`spread_slow_stretches` drops the identity knot, so the shift spreads over the idle run up to the
+next knot and the idle motion keeps more of its speed (a slowed calm stretch is where still frames
+come from). The matched segments' knots stay, so every matched start, peak and end lands where it did.
 """
 from __future__ import annotations
 
@@ -28,6 +35,28 @@ def warp_times(num_frames: int, out_knots, path_knots) -> np.ndarray:
         raise ConfigError(f"a retiming warp needs increasing knots from 0 to {T - 1} on both timelines, got "
                           f"output {out_k.tolist()} and path {path_k.tolist()}")
     return np.interp(np.arange(T, dtype=np.float64), out_k, path_k)
+
+
+def spread_slow_stretches(out_knots, path_knots, min_speed: float):
+    """(out_knots, path_knots) with every interior identity knot (a <- a, the warp's return to the
+    identity) dropped where a piece next to it plays the path slower than ``min_speed`` (path frames
+    per output frame), one at a time, the slowest piece first, while any such knot is left; the other
+    knots (the matched segments') stay. ``min_speed`` <= 0: the knots unchanged."""
+    out_k, path_k = np.asarray(out_knots, np.float64).copy(), np.asarray(path_knots, np.float64).copy()
+    if float(min_speed) <= 0 or out_k.size < 3:
+        return out_k, path_k
+    while True:
+        speed = np.diff(path_k) / np.diff(out_k)                 # piece i: knots i -> i + 1
+        ident = np.zeros(out_k.size, bool)
+        ident[1:-1] = out_k[1:-1] == path_k[1:-1]
+        best, slowest = None, float(min_speed)
+        for i in np.flatnonzero(ident):
+            s = min(speed[i - 1], speed[i])
+            if s < slowest:
+                best, slowest = i, s
+        if best is None:
+            return out_k, path_k
+        out_k, path_k = np.delete(out_k, best), np.delete(path_k, best)
 
 
 def warp_motion(motion: Motion, out_knots, path_knots) -> Motion:

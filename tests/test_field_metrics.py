@@ -127,7 +127,10 @@ def test_still_frames_match_reference_and_threshold():
     pos[20:35] = pos[20]                         # a held pose: still inside, moving at its edges
     got = kinematic.still_frames(pos, FPS, 2.0)
     assert got.tolist() == ref.still_frames_loop(pos.tolist(), FPS, 2.0)
-    assert got[21:34].all()
+    assert got[20:34].all() and not got[19] and not got[35]
+    # frame-to-frame tremor around a held pose is motion, not stillness
+    tremor = np.repeat(pos[:1], 30, axis=0) + 0.1 * (-1.0) ** np.arange(30)[:, None, None]
+    assert not kinematic.still_frames(tremor, FPS).any()
     # a joint moving at 3 units/s along x: still at threshold 4, not at 2
     line = np.zeros((30, 1, 3))
     line[:, 0, 0] = np.arange(30) * 3.0 / FPS

@@ -229,3 +229,40 @@ def test_retime_min_speed_spreads_the_slow_idle_stretch_and_keeps_the_clause():
         o, q = res.warp
         speeds[ms] = (np.diff(q) / np.diff(o)).min()
     assert speeds[0.0] < 0.75 and speeds[0.9] >= 0.9
+
+
+def test_penalized_graph_adds_the_penalties_and_keeps_the_temperature_unit():
+    from convsynth_jax.systems.motion_graph import penalized_graph
+
+    g, _, _ = clause_graph()
+    src = np.repeat(np.arange(g.num_states), np.diff(g.indptr))
+    back = g.synthetic & (g.clip[src] == g.clip[g.indices]) & (g.frame[g.indices] < g.frame[src])
+    assert back.any() and (g.synthetic & ~back).any()
+    same, k = penalized_graph(g)
+    assert same is g and k == 1.0
+    gp, k = penalized_graph(g, transition_penalty=1.0, loop_penalty=2.0)   # median synthetic cost 1
+    assert np.allclose(gp.cost[~g.synthetic], 0.0)
+    assert np.allclose(gp.cost[g.synthetic & ~back], 2.0) and np.allclose(gp.cost[back], 4.0)
+    assert k == pytest.approx(1.0 / np.median(gp.cost[g.synthetic]))
+    assert np.array_equal(g.cost[g.synthetic], np.ones(int(g.synthetic.sum())))   # the graph itself unchanged
+
+
+def test_loop_penalty_keeps_paths_from_replaying_their_clip():
+    """A 100-frame window without constraints over 60-frame clips needs a synthetic transition; all of
+    them cost the same, so without the penalty some paths jump back into the clip they are playing
+    (a replay); with synth.loop_penalty 2 none does."""
+    from convsynth_jax.search.beam import beam_search
+    from convsynth_jax.systems.motion_graph import penalized_graph
+
+    g, _, _ = clause_graph()
+    loops = {}
+    for lp in (0.0, 2.0):
+        gp, k = penalized_graph(g, loop_penalty=lp)
+        sp = SearchParams(use_constraints=False, beam_size=64, max_degree=24, temperature=0.5 * k)
+        c = build_constraints(None, None, 100, FPS, sp)
+        n = 0
+        for seed in range(8):
+            p = beam_search(gp, c, sp, seed=seed).path
+            n += sum(int(g.clip[a] == g.clip[b] and g.frame[b] < g.frame[a]) for a, b in zip(p[:-1], p[1:]))
+        loops[lp] = n
+    assert loops[0.0] > 0 and loops[2.0] == 0

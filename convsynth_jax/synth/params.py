@@ -26,3 +26,11 @@ class SynthParams:
     # spreads over the whole idle run (ours, synth/retime.spread_slow_stretches; 0, the default: off,
     # the warp as search/retime.py gives it)
     retime_min_speed: float = 0.0
+    # penalties on synthetic edges, in multiples of the graph's median synthetic edge cost, that the
+    # motion-graph system adds when it loads a graph (ours, systems/motion_graph.penalized_graph; the
+    # cached graph is unchanged, the search temperature keeps its unit): transition_penalty on every
+    # synthetic edge (paths with fewer transitions), loop_penalty on every synthetic edge back to an
+    # earlier frame of the same clip (paths that do not replay what they have just shown). 0 (default,
+    # the paper): off
+    transition_penalty: float = 0.0
+    loop_penalty: float = 0.0

@@ -45,8 +45,6 @@ def label_rows(segments) -> list:
 def _given_graphs(given, ann, system):
     """Motion-graph models from graph files (``task.graphs.<character>=FILE``)."""
     from ..graph import load_graph
-    from ..systems.motion_graph import GraphModel
-
     out = {}
     for char, path in given.items():
         g = load_graph(path)
@@ -57,7 +55,7 @@ def _given_graphs(given, ann, system):
                 raise ConfigError(f"graph {path}: clip {cn!r} is not a recording of the configured corpus")
             a = ann[s_name][role]
             motions[cn], labels[cn] = a.motion, (a.own, a.partner)
-        out[char] = GraphModel(g, motions, 0.0, labels)
+        out[char] = system.graph_model(g, motions, 0.0, labels)   # with the configured penalties
     system.prepare(out)
     return out
 

@@ -138,18 +138,18 @@ def dice_loop(cells_a, cells_b):
 
 
 def still_frames_loop(positions, fps, threshold):
-    """Still frames by loops: each joint's speed by a central difference (one-sided at both ends),
-    mean over joints, below the threshold."""
+    """Still frames by loops: each joint's step to the next frame (the last frame: the step into it),
+    its length times fps, mean over joints, below the threshold."""
     F, J = len(positions), len(positions[0])
     out = []
     for t in range(F):
+        if F < 2:
+            out.append(False)
+            continue
+        a, b = (t, t + 1) if t + 1 < F else (t - 1, t)
         total = 0.0
         for j in range(J):
-            if F < 2:
-                break
-            a, b = (t - 1, t + 1) if 0 < t < F - 1 else ((t, t + 1) if t == 0 else (t - 1, t))
-            step = (b - a)
-            d = [(positions[b][j][k] - positions[a][j][k]) / step for k in range(3)]
+            d = [positions[b][j][k] - positions[a][j][k] for k in range(3)]
             total += math.sqrt(sum(x * x for x in d)) * fps
-        out.append(F >= 2 and total / J < threshold)
+        out.append(total / J < threshold)
     return out

@@ -47,7 +47,7 @@ from _bench import write, write_markdown  # noqa: E402
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.field import beat  # noqa: E402
 from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa: E402
-from convsynth_jax.evaluation.field.kinematic import STILL_SPEED, still_frames  # noqa: E402
+from convsynth_jax.evaluation.field.kinematic import STILL_SPEED, mean_joint_speed, still_frames  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
 from convsynth_jax.evaluation.loo import (fit_fold, fold_thresholds, recording_threshold_table,  # noqa: E402
@@ -66,6 +66,7 @@ VARIANTS = {   # name -> (system, condition, overrides)
     "paper": ("motion_graph", "all", ["preset=paper"]),
     "quality_inertialize": ("motion_graph", "all", ["preset=quality", "synth.blend_method=inertialize"]),
     "quality_no_retime": ("motion_graph", "all", ["preset=quality", "search.retime_factor=0"]),
+    "quality_min_speed": ("motion_graph", "all", ["preset=quality", "synth.retime_min_speed=0.9"]),
     "random_playback": ("random_playback", "none", ["preset=quality"]),
     "random_playback_matched": ("random_playback", "none", ["preset=quality"]),
 }
@@ -116,7 +117,7 @@ def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None) -> d
         for char, model in fitted.items():   # the training recordings' body speed: rest poses
             for c, m in model.motions.items():
                 if (char, c) not in src_speed:
-                    src_speed[(char, c)] = beat.joint_speed(body_view(m, params.annotate).relative, m.fps).mean(1)
+                    src_speed[(char, c)] = mean_joint_speed(body_view(m, params.annotate).relative, m.fps)
             mean_speed[char] = float(np.mean(np.concatenate([src_speed[(char, c)] for c in model.motions])))
         for w in session_windows(held, fps, params.loo.window, params.loo.hop, params.loo.max_windows):
             for k, (role, a) in enumerate(held.items()):
@@ -163,18 +164,23 @@ def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None) -> d
                                                    syn_thr[a.character], params, "synth"),
                        **visits(clips, frames, fps, sp < STILL_SPEED, sp / mean_speed[a.character])}
                 d = res.diagnostics
-                if system_name == "motion_graph":
+                if system_name == "motion_graph":   # masks of where still frames may come from
                     warp = d.get("warp")
-                    slow = np.gradient(warp_times(n, *warp)) < SLOW if warp is not None else np.zeros(n, bool)
-                    held_src = np.r_[False, frames[1:] == frames[:-1]]
-                    rec.update({"best_effort": bool(d.get("best_effort")), "retime_slow_share": float(slow.mean()),
-                                "still_in_retime_stretch": float((still & slow).mean()),
-                                "still_in_best_effort": float(still.mean()) if d.get("best_effort") else 0.0,
-                                "still_on_held_source": float((still & held_src).mean()),
-                                "still_on_still_source": float((still & (sp < STILL_SPEED)).mean())})
+                    rec.update({"best_effort": bool(d.get("best_effort")),
+                                "slow": np.gradient(warp_times(n, *warp)) < SLOW if warp is not None else np.zeros(n, bool),
+                                "held_src": np.r_[False, frames[1:] == frames[:-1]], "src_still": sp < STILL_SPEED,
+                                "blend": in_blend(n, res.synthetic_at or [], int(res.blend_frames or 0))})
                 out[key] = rec
         print(f"{name}: fold {fold} done", flush=True)
     return out
+
+
+def in_blend(n, synthetic_at, blend_frames) -> np.ndarray:
+    """(n,) bool: output frames within ``blend_frames`` after a synthetic transition."""
+    m = np.zeros(n, bool)
+    for t in synthetic_at:
+        m[int(t):int(t) + blend_frames] = True
+    return m
 
 
 def raw_features(rels) -> np.ndarray:
@@ -222,12 +228,23 @@ def summarize(name, recs, gt_store, rp) -> dict:
         kc = [k for k in ok if gt_store[k]["character"] == c]
         out[f"pose_std_ratio_{c}"] = pose_std_ratio([recs[k]["rel"] for k in kc], [gt_store[k]["rel"] for k in kc])
     out["still"] = float(np.mean(np.concatenate([recs[k]["still"] for k in ok])))
+    mg = [k for k in ok if "slow" in recs[k]]
+    if mg:
+        def share(mask):
+            return float(np.mean(np.concatenate([recs[k]["still"] & mask(recs[k]) for k in mg])))
+        out["best_effort"] = float(np.mean([recs[k]["best_effort"] for k in mg]))
+        out["retime_slow_share"] = float(np.mean(np.concatenate([recs[k]["slow"] for k in mg])))
+        out["still_in_retime_stretch"] = share(lambda r: r["slow"])
+        out["still_in_best_effort"] = share(lambda r: np.full(len(r["still"]), r["best_effort"]))
+        out["still_on_held_source"] = share(lambda r: r["held_src"])
+        out["still_on_still_source"] = share(lambda r: r["src_still"])
+        out["still_in_blend"] = share(lambda r: r["blend"])
+        out["still_other"] = share(lambda r: ~(r["slow"] | r["held_src"] | r["src_still"] | r["blend"] | r["best_effort"]))
     out["still_gt_same_windows"] = float(np.mean(np.concatenate([gt_store[k]["still"] for k in ok])))
     out["beat_consistency"] = float(np.nanmean([recs[k]["bc"] for k in ok]))
     out["beat_consistency_gt"] = float(np.nanmean([gt_store[k]["bc"] for k in ok]))
     for m in ("transitions", "entropy_bits", "source_still_share", "top_clip_share", "revisited_seconds",
-              "source_speed_ratio", "best_effort", "retime_slow_share", "still_in_retime_stretch",
-              "still_in_best_effort", "still_on_held_source", "still_on_still_source"):
+              "source_speed_ratio"):
         vals = [float(recs[k][m]) for k in ok if m in recs[k]]
         if vals:
             out[m] = float(np.mean(vals))
@@ -322,7 +339,8 @@ def markdown(summary, floor, folds) -> list:
     keys += ["still", "still_gt_same_windows", "beat_consistency", "bc_random_playback_same_windows",
              "beat_consistency_gt", "pc_lr_within_gt_interval", "transitions", "entropy_bits", "top_clip_share",
              "revisited_seconds", "source_speed_ratio", "source_still_share", "best_effort", "retime_slow_share",
-             "still_in_retime_stretch", "still_in_best_effort", "still_on_held_source", "still_on_still_source"]
+             "still_in_retime_stretch", "still_in_best_effort", "still_on_held_source", "still_on_still_source",
+             "still_in_blend", "still_other"]
     seen = []
     for k in keys:
         if k not in seen:

@@ -266,3 +266,35 @@ def test_loop_penalty_keeps_paths_from_replaying_their_clip():
             n += sum(int(g.clip[a] == g.clip[b] and g.frame[b] < g.frame[a]) for a, b in zip(p[:-1], p[1:]))
         loops[lp] = n
     assert loops[0.0] > 0 and loops[2.0] == 0
+
+
+def _tremor_motion(frames=60):
+    """Joint 1 turns slowly about x (0.004 rad per frame) with a tremor of +-0.01 rad each frame."""
+    skel = seated_skeleton()
+    J = skel.num_joints
+    ang = 0.004 * np.arange(frames) + 0.01 * (-1.0) ** np.arange(frames)
+    rot = np.zeros((frames, J, 4)); rot[..., 0] = 1
+    rot[:, 1, 0], rot[:, 1, 1] = np.cos(ang / 2), np.sin(ang / 2)
+    tr = np.broadcast_to(skel.offsets, (frames, J, 3)).copy()
+    return Motion(skel, rot, tr, FPS, "tremor")
+
+
+def _step_angles(m):
+    ang = 2 * np.arctan2(m.rotations[:, 1, 1], m.rotations[:, 1, 0])
+    return np.abs(np.diff(ang))
+
+
+def test_retime_detail_keeps_the_frame_to_frame_motion_of_a_slowed_stretch():
+    """Output frames 10-40 show path frames 10-25 (0.5x): interpolated, the tremor's steps shrink to
+    a fraction of the source's; with synth.retime_detail_frames 3 they keep the source's size. Where
+    the warp is the identity (frames 0-10) the motion is the source's, with or without the option."""
+    m = _tremor_motion()
+    out_k, path_k = [0, 10, 40, 59], [0, 10, 25, 59]
+    src = _step_angles(m)[12:38].mean()
+    plain = _step_angles(warp_motion(m, out_k, path_k))[12:38].mean()
+    kept_m = warp_motion(m, out_k, path_k, detail_frames=3)
+    kept = _step_angles(kept_m)[12:38].mean()
+    assert plain < 0.6 * src and kept > 0.8 * src
+    assert np.allclose(kept_m.rotations[:9], m.rotations[:9], atol=1e-9)
+    ident = warp_motion(m, [0, 59], [0, 59], detail_frames=3)
+    assert np.allclose(ident.rotations, m.rotations, atol=1e-9)

@@ -26,6 +26,10 @@ class SynthParams:
     # spreads over the whole idle run (ours, synth/retime.spread_slow_stretches; 0, the default: off,
     # the warp as search/retime.py gives it)
     retime_min_speed: float = 0.0
+    # retiming: warp only the motion's moving average over this many frames and put each frame's detail
+    # back at the output rate, so a slowed stretch keeps the recording's frame-to-frame motion (ours,
+    # synth/retime.warp_motion; 0, the default: off, the whole motion interpolated through the warp)
+    retime_detail_frames: int = 0
     # penalties on synthetic edges, in multiples of the graph's median synthetic edge cost, that the
     # motion-graph system adds when it loads a graph (ours, systems/motion_graph.penalized_graph; the
     # cached graph is unchanged, the search temperature keeps its unit): transition_penalty on every

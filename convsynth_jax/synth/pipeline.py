@@ -97,7 +97,7 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     if warp is not None and float(synth.retime_min_speed) > 0:
         warp = spread_slow_stretches(*warp, float(synth.retime_min_speed))
     if warp is not None:
-        motion = warp_motion(motion, *warp)
+        motion = warp_motion(motion, *warp, detail_frames=int(synth.retime_detail_frames))
     met, unmet = [], []
     total, n_met = res.constraints_total, res.constraints_met
     if res.best_effort or warp is not None:   # what the independent checker confirms

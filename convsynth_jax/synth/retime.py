@@ -15,13 +15,19 @@ segment's shift into a few idle frames; where that plays the path slower than th
 :func:`spread_slow_stretches` drops the identity knot, so the shift spreads over the idle run up to the
 next knot and the idle motion keeps more of its speed (a slowed calm stretch is where still frames
 come from). The matched segments' knots stay, so every matched start, peak and end lands where it did.
+
+``synth.retime_detail_frames`` (ours, 0 = off): a slowed stretch interpolates between neighbouring
+frames, which also slows (and so flattens) the recording's frame-to-frame detail: a stretch at 0.7x
+of calm motion reads as still. With it, :func:`warp_motion` warps only the motion's moving average
+over this many frames and puts the detail (each frame's offset from that average) back at the output
+rate, frame t's own detail at output frame t; where the warp is the identity the motion is unchanged.
 """
 from __future__ import annotations
 
 import numpy as np
 
 from ..errors import ConfigError
-from ..rotations import quat_slerp_np
+from ..rotations import quat_conjugate_np, quat_multiply_np, quat_slerp_np
 from ..skeleton import Motion
 
 
@@ -59,17 +65,47 @@ def spread_slow_stretches(out_knots, path_knots, min_speed: float):
         out_k, path_k = np.delete(out_k, best), np.delete(path_k, best)
 
 
-def warp_motion(motion: Motion, out_knots, path_knots) -> Motion:
-    """``motion`` resampled through the warp (module docstring); the same number of frames."""
-    T = motion.num_frames
-    tau = warp_times(T, out_knots, path_knots)
+def _moving_average(x: np.ndarray, frames: int, rotations: bool) -> np.ndarray:
+    """(T, ...) centred moving average of ``frames`` frames (ends: the frames there are); quaternions
+    sign-aligned to the frame's own and renormalized."""
+    T, h = x.shape[0], int(frames) // 2
+    out = np.empty_like(x)
+    for t in range(T):
+        w = x[max(0, t - h):min(T, t + h + 1)]
+        if rotations:
+            w = np.where(np.sum(w * x[t], axis=-1, keepdims=True) < 0, -w, w)
+            m = w.mean(axis=0)
+            out[t] = m / np.linalg.norm(m, axis=-1, keepdims=True)
+        else:
+            out[t] = w.mean(axis=0)
+    return out
+
+
+def _resample(rot, trans, tau):
+    T = rot.shape[0]
     i0 = np.clip(np.floor(tau).astype(np.int64), 0, T - 1)
     i1 = np.minimum(i0 + 1, T - 1)
     a = tau - i0
+    r = quat_slerp_np(rot[i0], rot[i1], np.broadcast_to(a[:, None], rot.shape[:2]))
+    tr = (1.0 - a)[:, None, None] * trans[i0] + a[:, None, None] * trans[i1]
+    return r, tr
+
+
+def warp_motion(motion: Motion, out_knots, path_knots, detail_frames: int = 0) -> Motion:
+    """``motion`` resampled through the warp (module docstring); the same number of frames.
+    ``detail_frames`` > 1: only the moving average over that many frames is warped, each frame's
+    detail (its offset from the average: a left rotation per joint, a difference of translations)
+    goes back at its own output frame."""
+    T = motion.num_frames
+    tau = warp_times(T, out_knots, path_knots)
     rot = np.asarray(motion.rotations, np.float64)
     trans = np.asarray(motion.translations, np.float64)
-    J = rot.shape[1]
-    r = quat_slerp_np(rot[i0], rot[i1], np.broadcast_to(a[:, None], (T, J)))
-    tr = (1.0 - a)[:, None, None] * trans[i0] + a[:, None, None] * trans[i1]
+    if int(detail_frames) > 1:
+        rot_avg, trans_avg = _moving_average(rot, detail_frames, True), _moving_average(trans, detail_frames, False)
+        r, tr = _resample(rot_avg, trans_avg, tau)
+        r = quat_multiply_np(quat_multiply_np(rot, quat_conjugate_np(rot_avg)), r)
+        tr = tr + (trans - trans_avg)
+    else:
+        r, tr = _resample(rot, trans, tau)
     return Motion(motion.skeleton, r.astype(motion.rotations.dtype), tr.astype(motion.translations.dtype),
                   motion.fps, motion.name)

@@ -243,7 +243,8 @@ def realize_chain(graph, motions: dict, path: np.ndarray, cuts, synth, chair, ch
         parts.append(realize(clips[a:b], frames[a:b], motions, [t - a for t in at], chair=chair,
                              chair_yaw_deg=chair_yaw_deg, blend_frames=int(synth.blend_frames),
                              blend_method=str(synth.blend_method),
-                             max_step_deg=float(synth.continuation_max_step_deg)))
+                             max_step_deg=float(synth.continuation_max_step_deg),
+                             detail_frames=int(synth.blend_detail_frames)))
     motion = parts[0]
     if len(parts) > 1:
         from ..skeleton import Motion

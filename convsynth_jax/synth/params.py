@@ -30,6 +30,10 @@ class SynthParams:
     # back at the output rate, so a slowed stretch keeps the recording's frame-to-frame motion (ours,
     # synth/retime.warp_motion; 0, the default: off, the whole motion interpolated through the warp)
     retime_detail_frames: int = 0
+    # a cosine blend keeps the new source's frame-to-frame detail: its joint rotations are the blend's
+    # moving average over this many frames times the source's own offset from its moving average (ours,
+    # synth/realize.keep_source_detail; 0, the default: off, the paper's plain cross-fade)
+    blend_detail_frames: int = 0
     # penalties on synthetic edges, in multiples of the graph's median synthetic edge cost, that the
     # motion-graph system adds when it loads a graph (ours, systems/motion_graph.penalized_graph; the
     # cached graph is unchanged, the search temperature keeps its unit): transition_penalty on every

@@ -92,7 +92,8 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     chair, yaw = CHAIRS.get(chair_index, CHAIRS[0])
     motion = realize(clips, frames, clip_motions, syn_at, chair=chair, chair_yaw_deg=yaw,
                      blend_frames=int(synth.blend_frames), blend_method=str(synth.blend_method),
-                     max_step_deg=float(synth.continuation_max_step_deg))
+                     max_step_deg=float(synth.continuation_max_step_deg),
+                     detail_frames=int(synth.blend_detail_frames))
     warp = retime_knots(graph, cons, path, float(search.retime_factor)) if float(search.retime_factor) > 0 else None
     if warp is not None and float(synth.retime_min_speed) > 0:
         warp = spread_slow_stretches(*warp, float(synth.retime_min_speed))

@@ -65,7 +65,7 @@ def spread_slow_stretches(out_knots, path_knots, min_speed: float):
         out_k, path_k = np.delete(out_k, best), np.delete(path_k, best)
 
 
-def _moving_average(x: np.ndarray, frames: int, rotations: bool) -> np.ndarray:
+def frame_moving_average(x: np.ndarray, frames: int, rotations: bool) -> np.ndarray:
     """(T, ...) centred moving average of ``frames`` frames (ends: the frames there are); quaternions
     sign-aligned to the frame's own and renormalized."""
     T, h = x.shape[0], int(frames) // 2
@@ -101,7 +101,7 @@ def warp_motion(motion: Motion, out_knots, path_knots, detail_frames: int = 0) -
     rot = np.asarray(motion.rotations, np.float64)
     trans = np.asarray(motion.translations, np.float64)
     if int(detail_frames) > 1:
-        rot_avg, trans_avg = _moving_average(rot, detail_frames, True), _moving_average(trans, detail_frames, False)
+        rot_avg, trans_avg = frame_moving_average(rot, detail_frames, True), frame_moving_average(trans, detail_frames, False)
         r, tr = _resample(rot_avg, trans_avg, tau)
         r = quat_multiply_np(quat_multiply_np(rot, quat_conjugate_np(rot_avg)), r)
         tr = tr + (trans - trans_avg)

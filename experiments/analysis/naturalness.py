@@ -67,6 +67,13 @@ VARIANTS = {   # name -> (system, condition, overrides)
     "quality_inertialize": ("motion_graph", "all", ["preset=quality", "synth.blend_method=inertialize"]),
     "quality_no_retime": ("motion_graph", "all", ["preset=quality", "search.retime_factor=0"]),
     "quality_min_speed": ("motion_graph", "all", ["preset=quality", "synth.retime_min_speed=0.9"]),
+    "quality_detail": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3"]),
+    "quality_loop": ("motion_graph", "all", ["preset=quality", "synth.loop_penalty=1"]),
+    "quality_transition": ("motion_graph", "all", ["preset=quality", "synth.transition_penalty=1"]),
+    "quality_detail_inertialize": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
+                                                           "synth.blend_method=inertialize"]),
+    "quality_fixes": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
+                                              "synth.blend_method=inertialize", "synth.loop_penalty=1"]),
     "random_playback": ("random_playback", "none", ["preset=quality"]),
     "random_playback_matched": ("random_playback", "none", ["preset=quality"]),
 }

@@ -74,6 +74,11 @@ VARIANTS = {   # name -> (system, condition, overrides)
                                                            "synth.blend_method=inertialize"]),
     "quality_fixes": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
                                               "synth.blend_method=inertialize", "synth.loop_penalty=1"]),
+    "quality_blend_detail": ("motion_graph", "all", ["preset=quality", "synth.blend_detail_frames=3"]),
+    "quality_detail_both": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
+                                                    "synth.blend_detail_frames=3"]),
+    "quality_detail_inertialize_12": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
+                                                              "synth.blend_method=inertialize", "synth.blend_frames=12"]),
     "random_playback": ("random_playback", "none", ["preset=quality"]),
     "random_playback_matched": ("random_playback", "none", ["preset=quality"]),
 }

@@ -6,10 +6,13 @@ Every variant runs on the leave-one-out windows of ``--folds`` of the configured
 adds one):
 
 * ``quality``: the motion graph, ``preset=quality``, all constraints; ``paper``: ``preset=paper``;
-* the controls: ``quality_inertialize`` (blending: inertialization instead of the cross-fade),
-  ``quality_no_retime`` (holds: no retiming stretches), ``random_playback`` (condition ``none``) and
-  ``random_playback_matched`` (transition frequency: excerpts as long as ``quality``'s runs between
-  synthetic transitions in the same window).
+  ``quality_before``: ``preset=quality`` without its detail options (where the diagnosis started);
+  ``quality_no_*``: one option of the preset off;
+* the controls: ``before_inertialize`` (blending: inertialization instead of the cross-fade),
+  ``before_no_retime`` (holds: no retiming stretches), ``random_playback`` (condition ``none``) and
+  ``random_playback_matched`` (transition frequency: excerpts as long as ``--matched-to``'s runs
+  between synthetic transitions in the same window);
+* candidate fixes, each alone on ``quality_before``: ``before_*`` (``VARIANTS``).
 
 Per window and character: still frames (``evaluation/field/kinematic.still_frames``: mean speed of
 the body joints, root-relative, heading-free, fingers out, below 2 units/s) and, for the motion
@@ -61,24 +64,26 @@ from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
 FP = FieldMetricParams()
 RP_SPEC = SystemParams(name="random_playback", factory="convsynth_jax.systems.random_playback:RandomPlaybackSystem",
                        conditions={"none": {}}, options={})
+# preset=quality before the detail options (the diagnosis and the sweep of fixes ran on it)
+BEFORE = ["preset=quality", "synth.retime_detail_frames=0", "synth.blend_detail_frames=0"]
 VARIANTS = {   # name -> (system, condition, overrides)
     "quality": ("motion_graph", "all", ["preset=quality"]),
     "paper": ("motion_graph", "all", ["preset=paper"]),
-    "quality_inertialize": ("motion_graph", "all", ["preset=quality", "synth.blend_method=inertialize"]),
-    "quality_no_retime": ("motion_graph", "all", ["preset=quality", "search.retime_factor=0"]),
-    "quality_min_speed": ("motion_graph", "all", ["preset=quality", "synth.retime_min_speed=0.9"]),
-    "quality_detail": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3"]),
-    "quality_loop": ("motion_graph", "all", ["preset=quality", "synth.loop_penalty=1"]),
-    "quality_transition": ("motion_graph", "all", ["preset=quality", "synth.transition_penalty=1"]),
-    "quality_detail_inertialize": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
-                                                           "synth.blend_method=inertialize"]),
-    "quality_fixes": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
-                                              "synth.blend_method=inertialize", "synth.loop_penalty=1"]),
-    "quality_blend_detail": ("motion_graph", "all", ["preset=quality", "synth.blend_detail_frames=3"]),
-    "quality_detail_both": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
-                                                    "synth.blend_detail_frames=3"]),
-    "quality_detail_inertialize_12": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=3",
-                                                              "synth.blend_method=inertialize", "synth.blend_frames=12"]),
+    "quality_before": ("motion_graph", "all", BEFORE),
+    # each option of the preset off alone
+    "quality_no_retime_detail": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=0"]),
+    "quality_no_blend_detail": ("motion_graph", "all", ["preset=quality", "synth.blend_detail_frames=0"]),
+    # controls, on the preset before the detail options
+    "before_inertialize": ("motion_graph", "all", [*BEFORE, "synth.blend_method=inertialize"]),
+    "before_no_retime": ("motion_graph", "all", [*BEFORE, "search.retime_factor=0"]),
+    # candidate fixes, one at a time on the preset before the detail options
+    "before_min_speed": ("motion_graph", "all", [*BEFORE, "synth.retime_min_speed=0.9"]),
+    "before_retime_detail": ("motion_graph", "all", [*BEFORE, "synth.retime_detail_frames=3"]),
+    "before_blend_detail": ("motion_graph", "all", [*BEFORE, "synth.blend_detail_frames=3"]),
+    "before_loop_penalty": ("motion_graph", "all", [*BEFORE, "synth.loop_penalty=1"]),
+    "before_transition_penalty": ("motion_graph", "all", [*BEFORE, "synth.transition_penalty=1"]),
+    "before_retime_detail_inertialize": ("motion_graph", "all", [*BEFORE, "synth.retime_detail_frames=3",
+                                                                 "synth.blend_method=inertialize"]),
     "random_playback": ("random_playback", "none", ["preset=quality"]),
     "random_playback_matched": ("random_playback", "none", ["preset=quality"]),
 }
@@ -304,6 +309,8 @@ def main():
     ap.add_argument("--variants", nargs="+", default=list(VARIANTS))
     ap.add_argument("--define", nargs="*", default=[], help="name=system:condition:override,override")
     ap.add_argument("--name", default="naturalness")
+    ap.add_argument("--matched-to", default="quality_before",
+                    help="the variant whose runs between synthetic transitions random_playback_matched copies")
     ap.add_argument("--work", default="/tmp/naturalness_work")
     args = ap.parse_args()
     t0 = time.perf_counter()
@@ -319,17 +326,18 @@ def main():
     table = recording_threshold_table(ann, params.annotate)
     results = {}
     order = list(args.variants)
-    if "random_playback_matched" in order and "quality" in order:   # its excerpts follow quality's runs
+    ref = args.matched_to
+    if "random_playback_matched" in order and ref in order:   # its excerpts follow that variant's runs
         order.remove("random_playback_matched")
-        order.insert(order.index("quality") + 1, "random_playback_matched")
+        order.insert(order.index(ref) + 1, "random_playback_matched")
     for name in order:
         path = work / f"{name}_{tag}.pkl"
         if path.is_file():
             results[name] = pickle.loads(path.read_bytes())
             continue
-        matched = results.get("quality") if name == "random_playback_matched" else None
+        matched = results.get(ref) if name == "random_playback_matched" else None
         if name == "random_playback_matched" and matched is None:
-            raise SystemExit("random_playback_matched needs the quality variant")
+            raise SystemExit(f"random_playback_matched needs the {ref} variant (--matched-to)")
         results[name] = run_variant(name, specs[name], args.folds, ann, table, gt_store, matched)
         path.write_bytes(pickle.dumps(results[name]))
         gt_path.write_bytes(pickle.dumps(gt_store))

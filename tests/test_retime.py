@@ -298,3 +298,14 @@ def test_retime_detail_keeps_the_frame_to_frame_motion_of_a_slowed_stretch():
     assert np.allclose(kept_m.rotations[:9], m.rotations[:9], atol=1e-9)
     ident = warp_motion(m, [0, 59], [0, 59], detail_frames=3)
     assert np.allclose(ident.rotations, m.rotations, atol=1e-9)
+
+
+def test_detail_options_are_off_in_the_paper_preset_and_on_in_quality():
+    from convsynth_jax.config import default_params
+
+    paper, quality = default_params([]), default_params(["preset=quality"])
+    s = paper.synth
+    assert (s.retime_detail_frames, s.blend_detail_frames, s.retime_min_speed, s.loop_penalty,
+            s.transition_penalty) == (0, 0, 0.0, 0.0, 0.0)
+    assert quality.synth.retime_detail_frames == 3 and quality.synth.blend_detail_frames == 3
+    assert (quality.synth.retime_min_speed, quality.synth.loop_penalty, quality.synth.transition_penalty) == (0, 0, 0)

@@ -32,7 +32,9 @@ odd and even windows.
     python experiments/analysis/naturalness.py --folds 0 1 2 [--variants quality paper ...] [--name naturalness]
 
 Writes experiments/results/<name>.json and .md (with manifests); finished variants are kept in
-``--work`` (default /tmp/naturalness_work) and reused by a later run with the same folds.
+``--work`` (default /tmp/naturalness_work) and reused by a later run with the same folds, or with
+the union of the folds of earlier runs (e.g. ``--folds 0 1 2`` and ``--folds 3 4 5``, then
+``--folds 0 1 2 3 4 5``).
 """
 import argparse
 import dataclasses
@@ -297,6 +299,26 @@ def noise_floor(gt_store) -> dict:
     return out
 
 
+def load_cached(work: Path, prefix: str, folds) -> dict | None:
+    """The records of ``prefix`` (a variant, or ``gt``) for ``folds`` from ``work``: the file of exactly
+    these folds, else the union of files of other runs whose folds all lie in ``folds`` when together
+    they cover every one of them; None when they do not."""
+    tag = "_".join(map(str, folds))
+    exact = work / f"{prefix}_{tag}.pkl"
+    if exact.is_file():
+        return pickle.loads(exact.read_bytes())
+    merged, covered = {}, set()
+    for path in sorted(work.glob(f"{prefix}_*.pkl")):
+        rest = path.stem[len(prefix) + 1:]
+        if not all(x.isdigit() for x in rest.split("_")):
+            continue      # another variant whose name starts with this one's
+        fs = {int(x) for x in rest.split("_")}
+        if fs <= set(folds) and not fs & covered:
+            merged.update(pickle.loads(path.read_bytes()))
+            covered |= fs
+    return merged if covered == set(folds) else None
+
+
 def parse_variant(text):
     name, rest = text.split("=", 1)
     system, condition, over = (rest.split(":", 2) + [""])[:3]
@@ -322,7 +344,7 @@ def main():
     work.mkdir(parents=True, exist_ok=True)
     tag = "_".join(map(str, args.folds))
     gt_path = work / f"gt_{tag}.pkl"
-    gt_store = pickle.loads(gt_path.read_bytes()) if gt_path.is_file() else {}
+    gt_store = load_cached(work, "gt", args.folds) or {}
     table = recording_threshold_table(ann, params.annotate)
     results = {}
     order = list(args.variants)
@@ -332,8 +354,9 @@ def main():
         order.insert(order.index(ref) + 1, "random_playback_matched")
     for name in order:
         path = work / f"{name}_{tag}.pkl"
-        if path.is_file():
-            results[name] = pickle.loads(path.read_bytes())
+        cached = load_cached(work, name, args.folds)
+        if cached is not None:
+            results[name] = cached
             continue
         matched = results.get(ref) if name == "random_playback_matched" else None
         if name == "random_playback_matched" and matched is None:

@@ -88,6 +88,10 @@ VARIANTS = {   # name -> (system, condition, overrides)
                                                                  "synth.blend_method=inertialize"]),
     "random_playback": ("random_playback", "none", ["preset=quality"]),
     "random_playback_matched": ("random_playback", "none", ["preset=quality"]),
+    # the same excerpts joined by inertialization instead of the cross-fade: the blend's share
+    "random_playback_matched_inertialize": ("random_playback", "none", ["preset=quality",
+                                                                        "synth.blend_method=inertialize"]),
+    "before_blend12": ("motion_graph", "all", [*BEFORE, "synth.blend_frames=12"]),
 }
 SLOW = 0.75          # a retiming stretch: path time shown slower than this
 PC_LR = ("PC-LH/RH", "LR-Nod")   # the rates the acceptance checks
@@ -349,17 +353,19 @@ def main():
     results = {}
     order = list(args.variants)
     ref = args.matched_to
-    if "random_playback_matched" in order and ref in order:   # its excerpts follow that variant's runs
-        order.remove("random_playback_matched")
-        order.insert(order.index(ref) + 1, "random_playback_matched")
+    for m in [v for v in order if v.startswith("random_playback_matched")]:
+        if ref in order:   # its excerpts follow that variant's runs
+            order.remove(m)
+            order.insert(order.index(ref) + 1, m)
     for name in order:
         path = work / f"{name}_{tag}.pkl"
         cached = load_cached(work, name, args.folds)
         if cached is not None:
             results[name] = cached
             continue
-        matched = results.get(ref) if name == "random_playback_matched" else None
-        if name == "random_playback_matched" and matched is None:
+        is_matched = name.startswith("random_playback_matched")
+        matched = results.get(ref) if is_matched else None
+        if is_matched and matched is None:
             raise SystemExit(f"random_playback_matched needs the {ref} variant (--matched-to)")
         results[name] = run_variant(name, specs[name], args.folds, ann, table, gt_store, matched)
         path.write_bytes(pickle.dumps(results[name]))

@@ -119,3 +119,22 @@ def test_l1_diversity_and_gesture_area_coverage_match_reference():
     assert {tuple(c) for c in ca.tolist()} == ra
     assert coverage.dice(ca, cb) == pytest.approx(ref.dice_loop(ra, rb), rel=1e-12)
     assert coverage.dice(ca, ca) == 1.0
+
+
+def test_still_frames_match_reference_and_threshold():
+    rng = np.random.default_rng(3)
+    pos = _walk(rng, frames=60, joints=4, scale=0.05)
+    pos[20:35] = pos[20]                         # a held pose: still inside, moving at its edges
+    got = kinematic.still_frames(pos, FPS, 2.0)
+    assert got.tolist() == ref.still_frames_loop(pos.tolist(), FPS, 2.0)
+    assert got[20:34].all() and not got[19] and not got[35]
+    # frame-to-frame tremor around a held pose is motion, not stillness
+    tremor = np.repeat(pos[:1], 30, axis=0) + 0.1 * (-1.0) ** np.arange(30)[:, None, None]
+    assert not kinematic.still_frames(tremor, FPS).any()
+    # a joint moving at 3 units/s along x: still at threshold 4, not at 2
+    line = np.zeros((30, 1, 3))
+    line[:, 0, 0] = np.arange(30) * 3.0 / FPS
+    assert kinematic.still_frames(line, FPS, 4.0).all() and not kinematic.still_frames(line, FPS, 2.0).any()
+    assert kinematic.still_frames(np.zeros((1, 2, 3)), FPS).tolist() == [False]
+    with pytest.raises(ValueError, match="frames, joints, 3"):
+        kinematic.still_frames(np.zeros((5, 3)), FPS)

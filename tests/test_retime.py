@@ -195,3 +195,117 @@ def test_retimed_kernel_equals_the_reference():
     res = beam_search(g, cons, cfg, seed=1)
     assert res.success and ref.success
     np.testing.assert_array_equal(res.path, ref.path)
+
+
+def test_spread_slow_stretches_drops_only_identity_knots_next_to_slow_pieces():
+    from convsynth_jax.synth.retime import spread_slow_stretches
+
+    out_k, path_k = [0, 20, 30, 49], [0, 24, 30, 49]      # (30 <- 30) returns to the identity: speed 0.6 before it
+    o, q = spread_slow_stretches(out_k, path_k, 0.8)
+    assert o.tolist() == [0, 20, 49] and q.tolist() == [0, 24, 49]          # the matched knot stays
+    assert (np.diff(q) / np.diff(o)).min() >= 0.8
+    o, q = spread_slow_stretches(out_k, path_k, 0.0)                          # off: unchanged
+    assert o.tolist() == out_k and q.tolist() == path_k
+    o, q = spread_slow_stretches([0, 20, 30, 49], [0, 16, 26, 49], 0.9)       # no identity knot: nothing to drop
+    assert o.tolist() == [0, 20, 30, 49] and q.tolist() == [0, 16, 26, 49]
+
+
+def test_retime_min_speed_spreads_the_slow_idle_stretch_and_keeps_the_clause():
+    """An input clause of 17 frames answered by a 20-frame source clause: the warp returns to the
+    identity a few idle frames after the clause, playing them at 0.71x; with synth.retime_min_speed
+    0.9 that return is dropped, no piece of the warp is slower than 0.9 and the checker still confirms
+    the clause through the warp."""
+    g, audio, motions = clause_graph()
+    s, e = 12, 29
+    own = pd.DataFrame([("PC", s / FPS, (s + 8) / FPS, e / FPS)], columns=["kind", "start", "peak", "end"])
+    cfg = SearchParams(tolerance=0.1, beam_size=64, max_degree=24, retime_factor=0.2)
+    speeds = {}
+    for ms in (0.0, 0.9):
+        res = synthesize_character(g, motions, own, None, 50, cfg, SynthParams(blend_frames=0, retime_min_speed=ms),
+                                   seed=0)
+        assert res.success and res.constraints_met == res.constraints_total == 3
+        chk = check_path(res.source_clip, res.source_frame, audio, own, None, FPS, 0.1, warp=res.warp)
+        assert all(d["met"] for d in chk["details"])
+        o, q = res.warp
+        speeds[ms] = (np.diff(q) / np.diff(o)).min()
+    assert speeds[0.0] < 0.75 and speeds[0.9] >= 0.9
+
+
+def test_penalized_graph_adds_the_penalties_and_keeps_the_temperature_unit():
+    from convsynth_jax.systems.motion_graph import penalized_graph
+
+    g, _, _ = clause_graph()
+    src = np.repeat(np.arange(g.num_states), np.diff(g.indptr))
+    back = g.synthetic & (g.clip[src] == g.clip[g.indices]) & (g.frame[g.indices] < g.frame[src])
+    assert back.any() and (g.synthetic & ~back).any()
+    same, k = penalized_graph(g)
+    assert same is g and k == 1.0
+    gp, k = penalized_graph(g, transition_penalty=1.0, loop_penalty=2.0)   # median synthetic cost 1
+    assert np.allclose(gp.cost[~g.synthetic], 0.0)
+    assert np.allclose(gp.cost[g.synthetic & ~back], 2.0) and np.allclose(gp.cost[back], 4.0)
+    assert k == pytest.approx(1.0 / np.median(gp.cost[g.synthetic]))
+    assert np.array_equal(g.cost[g.synthetic], np.ones(int(g.synthetic.sum())))   # the graph itself unchanged
+
+
+def test_loop_penalty_keeps_paths_from_replaying_their_clip():
+    """A 100-frame window without constraints over 60-frame clips needs a synthetic transition; all of
+    them cost the same, so without the penalty some paths jump back into the clip they are playing
+    (a replay); with synth.loop_penalty 2 none does."""
+    from convsynth_jax.search.beam import beam_search
+    from convsynth_jax.systems.motion_graph import penalized_graph
+
+    g, _, _ = clause_graph()
+    loops = {}
+    for lp in (0.0, 2.0):
+        gp, k = penalized_graph(g, loop_penalty=lp)
+        sp = SearchParams(use_constraints=False, beam_size=64, max_degree=24, temperature=0.5 * k)
+        c = build_constraints(None, None, 100, FPS, sp)
+        n = 0
+        for seed in range(8):
+            p = beam_search(gp, c, sp, seed=seed).path
+            n += sum(int(g.clip[a] == g.clip[b] and g.frame[b] < g.frame[a]) for a, b in zip(p[:-1], p[1:]))
+        loops[lp] = n
+    assert loops[0.0] > 0 and loops[2.0] == 0
+
+
+def _tremor_motion(frames=60):
+    """Joint 1 turns slowly about x (0.004 rad per frame) with a tremor of +-0.01 rad each frame."""
+    skel = seated_skeleton()
+    J = skel.num_joints
+    ang = 0.004 * np.arange(frames) + 0.01 * (-1.0) ** np.arange(frames)
+    rot = np.zeros((frames, J, 4)); rot[..., 0] = 1
+    rot[:, 1, 0], rot[:, 1, 1] = np.cos(ang / 2), np.sin(ang / 2)
+    tr = np.broadcast_to(skel.offsets, (frames, J, 3)).copy()
+    return Motion(skel, rot, tr, FPS, "tremor")
+
+
+def _step_angles(m):
+    ang = 2 * np.arctan2(m.rotations[:, 1, 1], m.rotations[:, 1, 0])
+    return np.abs(np.diff(ang))
+
+
+def test_retime_detail_keeps_the_frame_to_frame_motion_of_a_slowed_stretch():
+    """Output frames 10-40 show path frames 10-25 (0.5x): interpolated, the tremor's steps shrink to
+    a fraction of the source's; with synth.retime_detail_frames 3 they keep the source's size. Where
+    the warp is the identity (frames 0-10) the motion is the source's, with or without the option."""
+    m = _tremor_motion()
+    out_k, path_k = [0, 10, 40, 59], [0, 10, 25, 59]
+    src = _step_angles(m)[12:38].mean()
+    plain = _step_angles(warp_motion(m, out_k, path_k))[12:38].mean()
+    kept_m = warp_motion(m, out_k, path_k, detail_frames=3)
+    kept = _step_angles(kept_m)[12:38].mean()
+    assert plain < 0.6 * src and kept > 0.8 * src
+    assert np.allclose(kept_m.rotations[:9], m.rotations[:9], atol=1e-9)
+    ident = warp_motion(m, [0, 59], [0, 59], detail_frames=3)
+    assert np.allclose(ident.rotations, m.rotations, atol=1e-9)
+
+
+def test_detail_options_are_off_in_the_paper_preset_and_on_in_quality():
+    from convsynth_jax.config import default_params
+
+    paper, quality = default_params([]), default_params(["preset=quality"])
+    s = paper.synth
+    assert (s.retime_detail_frames, s.blend_detail_frames, s.retime_min_speed, s.loop_penalty,
+            s.transition_penalty) == (0, 0, 0.0, 0.0, 0.0)
+    assert quality.synth.retime_detail_frames == 3 and quality.synth.blend_detail_frames == 3
+    assert (quality.synth.retime_min_speed, quality.synth.loop_penalty, quality.synth.transition_penalty) == (0, 0, 0)

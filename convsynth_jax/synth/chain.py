@@ -243,7 +243,8 @@ def realize_chain(graph, motions: dict, path: np.ndarray, cuts, synth, chair, ch
         parts.append(realize(clips[a:b], frames[a:b], motions, [t - a for t in at], chair=chair,
                              chair_yaw_deg=chair_yaw_deg, blend_frames=int(synth.blend_frames),
                              blend_method=str(synth.blend_method),
-                             max_step_deg=float(synth.continuation_max_step_deg)))
+                             max_step_deg=float(synth.continuation_max_step_deg),
+                             detail_frames=int(synth.blend_detail_frames)))
     motion = parts[0]
     if len(parts) > 1:
         from ..skeleton import Motion
@@ -276,12 +277,14 @@ def synthesize_conversation(graph, motions: dict, own_segments, partner_segments
         # the retiming warp of the whole path against the whole conversation's constraints: each matched
         # source segment moved onto the input's times, as the single-window pipeline does
         from ..search.retime import retime_knots
-        from .retime import warp_motion
+        from .retime import spread_slow_stretches, warp_motion
 
         whole = build_constraints(own_segments, partner_segments, num_frames, fps, search)
         warp = retime_knots(graph, whole, path, factor)
+        if warp is not None and float(synth.retime_min_speed) > 0:
+            warp = spread_slow_stretches(*warp, float(synth.retime_min_speed))
         if warp is not None:
-            motion = warp_motion(motion, *warp)
+            motion = warp_motion(motion, *warp, detail_frames=int(synth.retime_detail_frames))
     rng = np.random.default_rng(seed_of(0))
     peaks = [] if own_segments is None or len(own_segments) == 0 else \
         own_segments.loc[own_segments["kind"] == "PC", "peak"].to_numpy(float)

@@ -21,3 +21,24 @@ class SynthParams:
     # with 16-180 degrees; preset=quality sets 15. 0 (default, the paper): off (the continuation plays
     # whatever its clip has)
     continuation_max_step_deg: float = 0.0
+    # retiming (search.retime_factor > 0): drop the warp's returns to the identity next to a retimed segment
+    # where they would play the path slower than this many path frames per output frame, so the shift
+    # spreads over the whole idle run (ours, synth/retime.spread_slow_stretches; 0, the default: off,
+    # the warp as search/retime.py gives it)
+    retime_min_speed: float = 0.0
+    # retiming: warp only the motion's moving average over this many frames and put each frame's detail
+    # back at the output rate, so a slowed stretch keeps the recording's frame-to-frame motion (ours,
+    # synth/retime.warp_motion; 0, the default: off, the whole motion interpolated through the warp)
+    retime_detail_frames: int = 0
+    # a cosine blend keeps the new source's frame-to-frame detail: its joint rotations are the blend's
+    # moving average over this many frames times the source's own offset from its moving average (ours,
+    # synth/realize.keep_source_detail; 0, the default: off, the paper's plain cross-fade)
+    blend_detail_frames: int = 0
+    # penalties on synthetic edges, in multiples of the graph's median synthetic edge cost, that the
+    # motion-graph system adds when it loads a graph (ours, systems/motion_graph.penalized_graph; the
+    # cached graph is unchanged, the search temperature keeps its unit): transition_penalty on every
+    # synthetic edge (paths with fewer transitions), loop_penalty on every synthetic edge back to an
+    # earlier frame of the same clip (paths that do not replay what they have just shown). 0 (default,
+    # the paper): off
+    transition_penalty: float = 0.0
+    loop_penalty: float = 0.0

@@ -23,7 +23,7 @@ from ..search.retime import retime_knots
 from .blinks import blink_curve, blink_times
 from .params import SynthParams
 from .realize import realize
-from .retime import warp_motion
+from .retime import spread_slow_stretches, warp_motion
 
 log = logging.getLogger(__name__)
 
@@ -92,10 +92,13 @@ def synthesize_character(graph, clip_motions: dict, own_segments, partner_segmen
     chair, yaw = CHAIRS.get(chair_index, CHAIRS[0])
     motion = realize(clips, frames, clip_motions, syn_at, chair=chair, chair_yaw_deg=yaw,
                      blend_frames=int(synth.blend_frames), blend_method=str(synth.blend_method),
-                     max_step_deg=float(synth.continuation_max_step_deg))
+                     max_step_deg=float(synth.continuation_max_step_deg),
+                     detail_frames=int(synth.blend_detail_frames))
     warp = retime_knots(graph, cons, path, float(search.retime_factor)) if float(search.retime_factor) > 0 else None
+    if warp is not None and float(synth.retime_min_speed) > 0:
+        warp = spread_slow_stretches(*warp, float(synth.retime_min_speed))
     if warp is not None:
-        motion = warp_motion(motion, *warp)
+        motion = warp_motion(motion, *warp, detail_frames=int(synth.retime_detail_frames))
     met, unmet = [], []
     total, n_met = res.constraints_total, res.constraints_met
     if res.best_effort or warp is not None:   # what the independent checker confirms

@@ -11,6 +11,11 @@
 * A continuation holds at the last frame before a step of its clip in which some joint turns more
   than ``max_step_deg`` degrees (ours: a marker-swap glitch of the source is never faded in through
   a blend; :func:`continuation_end`).
+* ``detail_frames`` (ours, ``synth.blend_detail_frames``, 0 = off): a cross-fade averages two streams,
+  and so flattens the frame-to-frame detail both carry (a blend of calm motion reads as still); with
+  it, each blended frame's joint rotations are the blend's moving average over this many frames with
+  the new source's own detail (its offset from its moving average within its run) put back
+  (:func:`keep_source_detail`).
 * The root's ground-plane velocity and yaw rate are taken from each source frame in its own heading
   frame and integrated from a chair placement (position and heading); its height and its tilt
   (rotation without heading) come from the source frame and are blended across synthetic
@@ -194,12 +199,39 @@ def inertialized_blend(source: np.ndarray, next_of, synthetic_at, blend_frames: 
     return out
 
 
+def keep_source_detail(blended: np.ndarray, raw: np.ndarray, synthetic_at, blend_frames: int, detail_frames: int
+                       ) -> np.ndarray:
+    """Rotations (T, J, 4) where every frame within ``blend_frames`` after a synthetic transition is the
+    moving average of ``blended`` over ``detail_frames`` frames times the detail of ``raw`` (the source
+    played at that frame: its left offset from its own moving average, taken within the run between
+    two synthetic transitions so no cut enters it); other frames are ``blended``'s."""
+    from .retime import frame_moving_average
+
+    out = np.array(blended, dtype=np.float64, copy=True)
+    T = out.shape[0]
+    syn = sorted({int(x) for x in synthetic_at if 0 < int(x) < T})
+    if detail_frames <= 1 or blend_frames <= 0 or not syn:
+        return out
+    avg = frame_moving_average(np.asarray(blended, np.float64), detail_frames, True)
+    bounds = [0, *syn, T]
+    for a, b in zip(bounds[:-1], bounds[1:]):
+        if a not in syn:
+            continue
+        stop = min(b, a + blend_frames)
+        run = np.asarray(raw[a:b], np.float64)
+        detail = quat_multiply_np(run, quat_conjugate_np(frame_moving_average(run, detail_frames, True)))
+        out[a:stop] = quat_multiply_np(detail[:stop - a], avg[a:stop])
+    return out
+
+
 def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0, 0.0, 0.0), chair_yaw_deg=0.0,
-            blend_frames: int = 6, blend_method: str = "cosine", max_step_deg: float = 0.0) -> Motion:
+            blend_frames: int = 6, blend_method: str = "cosine", max_step_deg: float = 0.0,
+            detail_frames: int = 0) -> Motion:
     """source_clips/source_frames: (T,) clip name and frame per output frame; motions: clip name ->
     Motion; synthetic_at: output frames t whose transition (t-1 -> t) is synthetic; blend_method:
     ``cosine`` (the paper's cross-fade, composed) or ``inertialize`` (ours); ``max_step_deg``: a
-    cosine blend's continuations hold before a larger joint step (:func:`continuation_end`; 0: off)."""
+    cosine blend's continuations hold before a larger joint step (:func:`continuation_end`; 0: off);
+    ``detail_frames``: a cosine blend keeps the new source's frame-to-frame detail (module docstring)."""
     T = len(source_frames)
     m0 = motions[source_clips[0]]
     skel, fps = m0.skeleton, m0.fps
@@ -228,7 +260,9 @@ def realize(source_clips, source_frames, motions: dict, synthetic_at, chair=(0.0
 
     if blend_method == "cosine":
         # joints below the root, the root's tilt and its height: cross-faded after synthetic transitions
-        rot[:, 1:] = composed_blend(rot[:, 1:], get_rot, prev_of, synthetic_at, blend_frames, rotations=True)
+        raw = rot[:, 1:].copy()
+        rot[:, 1:] = composed_blend(raw, get_rot, prev_of, synthetic_at, blend_frames, rotations=True)
+        rot[:, 1:] = keep_source_detail(rot[:, 1:], raw, synthetic_at, blend_frames, int(detail_frames))
         tilt = composed_blend(_tilt(rot[:, 0]), get_tilt, prev_of, synthetic_at, blend_frames, rotations=True)
         height = composed_blend(trans[:, 0, 1], get_h, prev_of, synthetic_at, blend_frames, rotations=False)
     elif blend_method == "inertialize":

@@ -36,6 +36,9 @@ class GraphModel:
     motions: dict
     seconds: float
     labels: dict = dataclasses.field(default_factory=dict)
+    # the search temperatures' factor that keeps their unit (the median synthetic edge cost of the
+    # graph as built) when ``penalized_graph`` changed the costs
+    temperature_scale: float = 1.0
 
 
 def _read_cached_graph(path: Path):
@@ -47,6 +50,27 @@ def _read_cached_graph(path: Path):
     except GraphError as e:
         log.warning("ignoring unreadable cached motion graph (%s); building it again", e)
         return None
+
+
+def penalized_graph(graph: MotionGraph, transition_penalty: float = 0.0, loop_penalty: float = 0.0
+                    ) -> tuple[MotionGraph, float]:
+    """(``graph`` with penalties on its synthetic edges, temperature factor) (ours; the cached graph is
+    unchanged). Each penalty is a multiple of the graph's median synthetic edge cost m:
+    ``transition_penalty`` is added to every synthetic edge (a path pays for each synthetic transition,
+    so it stays longer in a clip where fewer transitions meet the constraints too); ``loop_penalty``
+    to every synthetic edge back to an earlier frame of the same clip (a path that loops replays the
+    seconds it has just shown). The searches' temperature is relative to the median synthetic cost;
+    the factor (m / the new median) keeps it at the built graph's. No penalty: (graph, 1.0)."""
+    syn = np.asarray(graph.synthetic, bool)
+    if (float(transition_penalty) <= 0 and float(loop_penalty) <= 0) or not syn.any():
+        return graph, 1.0
+    m = float(np.median(graph.cost[syn]))
+    src = np.repeat(np.arange(graph.num_states), np.diff(graph.indptr))
+    back = syn & (graph.clip[src] == graph.clip[graph.indices]) & (graph.frame[graph.indices] < graph.frame[src])
+    extra = float(transition_penalty) * m * syn + float(loop_penalty) * m * back
+    cost = (np.asarray(graph.cost, np.float64) + extra).astype(graph.cost.dtype)
+    new_m = float(np.median(cost[syn]))
+    return dataclasses.replace(graph, cost=cost), (m / new_m if new_m > 0 else 1.0)
 
 
 class MotionGraphSystem(PlaybackSystem):
@@ -69,7 +93,13 @@ class MotionGraphSystem(PlaybackSystem):
                 g = _read_cached_graph(cached)
                 if g is None:
                     return self._build(items, motions, labels, cached)
-        return GraphModel(g, motions, float(g.meta.get("seconds", np.nan)), labels)
+        return self.graph_model(g, motions, float(g.meta.get("seconds", np.nan)), labels)
+
+    def graph_model(self, g, motions, seconds, labels) -> GraphModel:
+        """The model of a built or loaded graph, with the configured penalties (``penalized_graph``)."""
+        sp = self.params.synth
+        g, scale = penalized_graph(g, sp.transition_penalty, sp.loop_penalty)
+        return GraphModel(g, motions, seconds, labels, scale)
 
     def _build(self, items, motions, labels, cached) -> GraphModel:
         t0 = time.perf_counter()
@@ -78,7 +108,7 @@ class MotionGraphSystem(PlaybackSystem):
         g.meta["seconds"] = seconds
         if cached is not None:
             g.save(cached)
-        return GraphModel(g, motions, seconds, labels)
+        return self.graph_model(g, motions, seconds, labels)
 
     def prepare(self, models) -> None:
         """The beam search's arrays of the characters' graphs padded to one shape: one compiled search
@@ -92,8 +122,13 @@ class MotionGraphSystem(PlaybackSystem):
         return dataclasses.replace(self.params.search, **self.condition_options(condition))
 
     def synthesize(self, model: GraphModel, window: WindowInput, condition: str) -> WindowResult:
+        sp = self.search_params(condition)
+        k = float(getattr(model, "temperature_scale", 1.0))
+        if k != 1.0:
+            sp = dataclasses.replace(sp, temperature=sp.temperature * k,
+                                     retry_temperatures=[t * k for t in sp.retry_temperatures])
         res = synthesize_character(model.graph, model.motions, window.own_segments, window.partner_segments,
-                                   window.num_frames, self.search_params(condition), self.params.synth,
+                                   window.num_frames, sp, self.params.synth,
                                    seed=window.seed, chair_index=window.chair_index)
         diag = {"search_method": res.method, "cost": res.cost, "num_synthetic_transitions": res.num_synthetic_transitions,
                 "best_effort": bool(res.best_effort), "warp": res.warp, "unmet_constraints": res.unmet}

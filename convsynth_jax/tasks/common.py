@@ -87,7 +87,6 @@ def graph_file_models(given, ann, system):
     """Motion-graph models from graph files (``task.graphs.<character>=FILE``: task=synthesize and
     task=converse), each clip checked against the configured corpus's recordings."""
     from ..graph import load_graph
-    from ..systems.motion_graph import GraphModel
 
     out = {}
     for char, path in given.items():
@@ -99,6 +98,6 @@ def graph_file_models(given, ann, system):
                 raise ConfigError(f"graph {path}: clip {cn!r} is not a recording of the configured corpus")
             a = ann[s_name][role]
             motions[cn], labels[cn] = a.motion, (a.own, a.partner)
-        out[char] = GraphModel(g, motions, 0.0, labels)
+        out[char] = system.graph_model(g, motions, 0.0, labels)   # with the configured penalties
     system.prepare(out)
     return out

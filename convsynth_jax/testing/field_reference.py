@@ -135,3 +135,21 @@ def dice_loop(cells_a, cells_b):
     if not cells_a and not cells_b:
         return float("nan")
     return 2 * len(cells_a & cells_b) / (len(cells_a) + len(cells_b))
+
+
+def still_frames_loop(positions, fps, threshold):
+    """Still frames by loops: each joint's step to the next frame (the last frame: the step into it),
+    its length times fps, mean over joints, below the threshold."""
+    F, J = len(positions), len(positions[0])
+    out = []
+    for t in range(F):
+        if F < 2:
+            out.append(False)
+            continue
+        a, b = (t, t + 1) if t + 1 < F else (t - 1, t)
+        total = 0.0
+        for j in range(J):
+            d = [positions[b][j][k] - positions[a][j][k] for k in range(3)]
+            total += math.sqrt(sum(x * x for x in d)) * fps
+        out.append(total / J < threshold)
+    return out

@@ -1,28 +1,44 @@
-"""Where the motion graph's naturalness is lost, with a control for each cause (``preset=quality``).
+"""Where the motion graph's naturalness is lost, with a control for each cause, scored against the
+ground truth of the same windows.
 
-On a few leave-one-out folds of the configured corpus, per window and character, for the motion
-graph (condition ``all``), random playback (condition ``none``) and random playback whose excerpts
-are as long as the motion graph's runs between synthetic transitions (the transition-frequency
-control, ``--matched``), and the recordings of the same windows:
+Every variant runs on the leave-one-out windows of ``--folds`` of the configured corpus (seeds as
+``task=loo`` derives them). Variants (``--variants``; ``name=system:condition:override,override``
+adds one):
 
-* still frames: mean speed of the body joints (fingers out, root-relative) below ``--still`` units/s
-  (2 cm/s), and where each comes from: inside a retiming stretch (``synth/retime.py``: the warp
-  shows path time more slowly than 0.75x), a window solved best-effort (a relaxed path), a source
-  frame shown twice or more in a row (a continuation hold), or a still source frame (the recording
-  itself is still there);
-* source-frame visits: entropy of the visited (clip, second) cells, share of output frames whose
-  source frame is still (the rest poses), share of frames from the window's most used clip, and how
-  many times the same source second is revisited;
-* transitions per window (synthetic transitions of the path, excerpt jumps of random playback);
-* pose std per joint (root-relative, heading-free body positions) over the windows against the
-  recordings' (median ratio per character).
+* ``quality``: the motion graph, ``preset=quality``, all constraints; ``paper``: ``preset=paper``;
+  ``quality_before``: ``preset=quality`` without its detail options (where the diagnosis started);
+  ``quality_no_*``: one option of the preset off;
+* the controls: ``before_inertialize`` (blending: inertialization instead of the cross-fade),
+  ``before_no_retime`` (holds: no retiming stretches), ``random_playback`` (condition ``none``) and
+  ``random_playback_matched`` (transition frequency: excerpts as long as ``--matched-to``'s runs
+  between synthetic transitions in the same window);
+* candidate fixes, each alone on ``quality_before``: ``before_*`` (``VARIANTS``).
 
-    python experiments/analysis/naturalness.py [--folds 0 1] [--override ...]
+Per window and character: still frames (``evaluation/field/kinematic.still_frames``: mean speed of
+the body joints, root-relative, heading-free, fingers out, below 2 units/s) and, for the motion
+graph, where each comes from (a retiming stretch: the warp shows path time slower than 0.75x; a
+best-effort window; a held source frame; a source frame that is still in its recording); the source
+frames visited (entropy of (clip, second) cells, share of the window's most used clip, source seconds
+revisited, mean source speed over the training recordings' mean: rest poses); synthetic transitions;
+beat consistency with the window's own audio; Table 1's co-occurrence counts (``loo.window_cooccurrence``).
 
-Writes experiments/results/naturalness.json and .md (with manifests).
+Per variant, over the windows it solved, against the ground truth of THOSE windows: raw FGD
+(``field/fgd``), random playback's raw FGD on the same windows, median per-joint pose std over the
+recordings' per character, still share, beat consistency (and random playback's on the same
+windows), co-occurrence rates with the ground truth's Wilson 95% interval
+(``summaries.cooccurrence_by_condition``). Noise floors: the same measures between the ground truth's
+odd and even windows.
+
+    python experiments/analysis/naturalness.py --folds 0 1 2 [--variants quality paper ...] [--name naturalness]
+
+Writes experiments/results/<name>.json and .md (with manifests); finished variants are kept in
+``--work`` (default /tmp/naturalness_work) and reused by a later run with the same folds, or with
+the union of the folds of earlier runs (e.g. ``--folds 0 1 2`` and ``--folds 3 4 5``, then
+``--folds 0 1 2 3 4 5``).
 """
 import argparse
 import dataclasses
+import pickle
 import sys
 import time
 from pathlib import Path
@@ -30,143 +46,377 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
 from _bench import write, write_markdown  # noqa: E402
 
 from convsynth_jax.config import default_params  # noqa: E402
+from convsynth_jax.evaluation.field import beat  # noqa: E402
+from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa: E402
+from convsynth_jax.evaluation.field.kinematic import STILL_SPEED, mean_joint_speed, still_frames  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
-from convsynth_jax.evaluation.loo import fit_fold, session_windows, window_input  # noqa: E402
+from convsynth_jax.evaluation.loo import (fit_fold, fold_thresholds, recording_threshold_table,  # noqa: E402
+                                          session_windows, window_cooccurrence, window_input)
+from convsynth_jax.evaluation.summaries import cooccurrence_by_condition  # noqa: E402
+from convsynth_jax.seeding import derive_seed  # noqa: E402
 from convsynth_jax.synth.retime import warp_times  # noqa: E402
 from convsynth_jax.systems.base import SystemParams, make_system  # noqa: E402
 from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
 
 FP = FieldMetricParams()
+RP_SPEC = SystemParams(name="random_playback", factory="convsynth_jax.systems.random_playback:RandomPlaybackSystem",
+                       conditions={"none": {}}, options={})
+# preset=quality before the detail options (the diagnosis and the sweep of fixes ran on it)
+BEFORE = ["preset=quality", "synth.retime_detail_frames=0", "synth.blend_detail_frames=0"]
+VARIANTS = {   # name -> (system, condition, overrides)
+    "quality": ("motion_graph", "all", ["preset=quality"]),
+    "paper": ("motion_graph", "all", ["preset=paper"]),
+    "quality_before": ("motion_graph", "all", BEFORE),
+    # each option of the preset off alone
+    "quality_no_retime_detail": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=0"]),
+    "quality_no_blend_detail": ("motion_graph", "all", ["preset=quality", "synth.blend_detail_frames=0"]),
+    # controls, on the preset before the detail options
+    "before_inertialize": ("motion_graph", "all", [*BEFORE, "synth.blend_method=inertialize"]),
+    "before_no_retime": ("motion_graph", "all", [*BEFORE, "search.retime_factor=0"]),
+    # candidate fixes, one at a time on the preset before the detail options
+    "before_min_speed": ("motion_graph", "all", [*BEFORE, "synth.retime_min_speed=0.9"]),
+    "before_retime_detail": ("motion_graph", "all", [*BEFORE, "synth.retime_detail_frames=3"]),
+    "before_blend_detail": ("motion_graph", "all", [*BEFORE, "synth.blend_detail_frames=3"]),
+    "before_loop_penalty": ("motion_graph", "all", [*BEFORE, "synth.loop_penalty=1"]),
+    "before_transition_penalty": ("motion_graph", "all", [*BEFORE, "synth.transition_penalty=1"]),
+    "before_retime_detail_inertialize": ("motion_graph", "all", [*BEFORE, "synth.retime_detail_frames=3",
+                                                                 "synth.blend_method=inertialize"]),
+    "random_playback": ("random_playback", "none", ["preset=quality"]),
+    "random_playback_matched": ("random_playback", "none", ["preset=quality"]),
+    # the same excerpts joined by inertialization instead of the cross-fade: the blend's share
+    "random_playback_matched_inertialize": ("random_playback", "none", ["preset=quality",
+                                                                        "synth.blend_method=inertialize"]),
+    "before_blend12": ("motion_graph", "all", [*BEFORE, "synth.blend_frames=12"]),
+}
+SLOW = 0.75          # a retiming stretch: path time shown slower than this
+PC_LR = ("PC-LH/RH", "LR-Nod")   # the rates the acceptance checks
 
 
-def body_speed(motion, annotate) -> np.ndarray:
-    """(F,) mean speed of the body joints (root-relative, heading-free), units/s."""
-    rel = motion_view(motion, "body", FP.joints, annotate).relative
-    v = np.linalg.norm(np.gradient(rel, axis=0), axis=-1) * motion.fps
-    return v.mean(1)
+def body_view(motion, annotate):
+    return motion_view(motion, "body", FP.joints, annotate)
 
 
-def visits(clips, frames, fps, source_still) -> dict:
-    cells = [(c, int(f // fps)) for c, f in zip(clips, frames)]
-    _, counts = np.unique(np.array([f"{c}:{s}" for c, s in cells]), return_counts=True)
+def visits(clips, frames, fps, source_still, source_speed) -> dict:
+    cells = np.array([f"{c}:{int(f // fps)}" for c, f in zip(clips, frames)])
+    _, counts = np.unique(cells, return_counts=True)
     p = counts / counts.sum()
     _, per_clip = np.unique(np.asarray(clips), return_counts=True)
-    runs = np.flatnonzero(np.diff(np.asarray(frames)) != 1) + 1
-    segs = np.split(np.arange(len(frames)), runs)
-    seconds = [frozenset(int(frames[i] // fps) for i in s) for s in segs]
-    seen, revisits = {}, 0
-    for s, seg in zip(seconds, segs):
-        key = (clips[seg[0]], s)
-        for sec in s:
-            revisits += int(seen.get((key[0], sec), False))
-            seen[(key[0], sec)] = True
+    frames = np.asarray(frames)
+    cuts = np.flatnonzero((np.diff(frames) != 1) | (np.asarray(clips[1:]) != np.asarray(clips[:-1]))) + 1
+    seen, revisits = set(), 0
+    for seg in np.split(np.arange(len(frames)), cuts):
+        secs = {(clips[seg[0]], int(frames[i] // fps)) for i in seg}
+        revisits += len(secs & seen)
+        seen |= secs
     return {"entropy_bits": float(-(p * np.log2(p)).sum()), "source_still_share": float(np.mean(source_still)),
-            "top_clip_share": float(per_clip.max() / len(clips)), "revisited_seconds": revisits}
+            "top_clip_share": float(per_clip.max() / len(clips)), "revisited_seconds": revisits,
+            "source_speed_ratio": float(np.mean(source_speed))}
+
+
+def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None) -> dict:
+    """key (fold, window, role) -> record of one variant."""
+    system_name, condition, over = spec
+    params = default_params(list(over))
+    names = list(ann)
+    fps = params.fps
+    if system_name == "random_playback":
+        sysm = make_system(params, RP_SPEC)
+    else:
+        sysm = make_system(params, params.system)
+    cd = cache_dir(params)
+    src_speed: dict = {}
+    mean_speed: dict = {}
+    out = {}
+    for fold in folds:
+        held_out = names[fold]
+        fitted = fit_fold(sysm, ann, held_out, condition, cd)
+        gt_thr, syn_thr = fold_thresholds(ann, held_out, params.annotate, table)
+        held = ann[held_out]
+        for char, model in fitted.items():   # the training recordings' body speed: rest poses
+            for c, m in model.motions.items():
+                if (char, c) not in src_speed:
+                    src_speed[(char, c)] = mean_joint_speed(body_view(m, params.annotate).relative, m.fps)
+            mean_speed[char] = float(np.mean(np.concatenate([src_speed[(char, c)] for c in model.motions])))
+        for w in session_windows(held, fps, params.loo.window, params.loo.hop, params.loo.max_windows):
+            for k, (role, a) in enumerate(held.items()):
+                key = (fold, w.index, role)
+                f0 = int(round(w.start * fps))
+                seed = derive_seed(params.seed, fold=fold, condition=condition, session=held_out, window_frame=f0,
+                                   role_index=k)
+                win = window_input(held, role, w, fps, seed, with_audio=True)
+                n = win.num_frames
+                if key not in gt_store:
+                    gt = a.motion.slice(f0, f0 + n)
+                    v = body_view(gt, params.annotate)
+                    ab = beat.audio_beats(win.own_audio, FP.beat)
+                    gt_store[key] = {
+                        "character": a.character, "session": held_out, "rel": v.relative.astype(np.float32),
+                        "still": still_frames(v.relative, fps), "audio_beats": ab,
+                        "bc": beat.beat_consistency(beat.motion_beats(v.relative[:, list(v.upper)], fps, FP.beat),
+                                                    ab, n / fps, FP.beat),
+                        "cooc": window_cooccurrence(gt, win.own_segments, win.partner_segments, gt_thr[role],
+                                                    params, "gt"),
+                        "upper": list(v.upper)}
+                g = gt_store[key]
+                if matched_from is not None:
+                    ref = matched_from.get(key)
+                    if ref is None or not ref["ok"]:
+                        out[key] = {"ok": False}
+                        continue
+                    run = n / fps / (ref["transitions"] + 1)
+                    sysm.system = dataclasses.replace(RP_SPEC, options={"min_excerpt_seconds": run,
+                                                                        "max_excerpt_seconds": run})
+                res = sysm.synthesize(fitted[a.character], win, condition)
+                if not res.success:
+                    out[key] = {"ok": False}
+                    continue
+                v = body_view(res.motion, params.annotate)
+                still = still_frames(v.relative, fps)
+                clips, frames = list(res.source_clip), np.asarray(res.source_frame)
+                sp = np.array([src_speed[(a.character, c)][f] for c, f in zip(clips, frames)])
+                rec = {"ok": True, "rel": v.relative.astype(np.float32), "still": still,
+                       "transitions": len(res.synthetic_at or []),
+                       "bc": beat.beat_consistency(beat.motion_beats(v.relative[:, g["upper"]], fps, FP.beat),
+                                                   g["audio_beats"], n / fps, FP.beat),
+                       "cooc": window_cooccurrence(res.motion, win.own_segments, win.partner_segments,
+                                                   syn_thr[a.character], params, "synth"),
+                       **visits(clips, frames, fps, sp < STILL_SPEED, sp / mean_speed[a.character])}
+                d = res.diagnostics
+                if system_name == "motion_graph":   # masks of where still frames may come from
+                    warp = d.get("warp")
+                    rec.update({"best_effort": bool(d.get("best_effort")),
+                                "slow": np.gradient(warp_times(n, *warp)) < SLOW if warp is not None else np.zeros(n, bool),
+                                "held_src": np.r_[False, frames[1:] == frames[:-1]], "src_still": sp < STILL_SPEED,
+                                "blend": in_blend(n, res.synthetic_at or [], int(res.blend_frames or 0))})
+                out[key] = rec
+        print(f"{name}: fold {fold} done", flush=True)
+    return out
+
+
+def in_blend(n, synthetic_at, blend_frames) -> np.ndarray:
+    """(n,) bool: output frames within ``blend_frames`` after a synthetic transition."""
+    m = np.zeros(n, bool)
+    for t in synthetic_at:
+        m[int(t):int(t) + blend_frames] = True
+    return m
+
+
+def raw_features(rels) -> np.ndarray:
+    fp = FP.fgd
+    return np.concatenate([raw_window_features(r, fp.raw_window_frames, fp.raw_frame_step) for r in rels])
+
+
+def joint_std(rels) -> np.ndarray:
+    x = np.concatenate(rels).astype(np.float64)          # (F, P, 3)
+    return np.sqrt(x.var(axis=0).sum(axis=-1))           # per joint
+
+
+def pose_std_ratio(rels_sys, rels_gt) -> float:
+    return float(np.median(joint_std(rels_sys) / np.maximum(joint_std(rels_gt), 1e-9)))
+
+
+def cooc_rates(keys, recs, gt_store, label) -> pd.DataFrame:
+    rows = []
+    for key in keys:
+        g = gt_store[key]
+        r = recs.get(key, {"ok": False})
+        row = {"condition": label, "character": g["character"], "success": bool(r["ok"]), **g["cooc"]}
+        if r["ok"]:
+            row.update(r["cooc"])
+        rows.append(row)
+    return cooccurrence_by_condition(pd.DataFrame(rows))
+
+
+def summarize(name, recs, gt_store, rp) -> dict:
+    keys = sorted(k for k in gt_store if k in recs)
+    ok = [k for k in keys if recs[k]["ok"]]
+    chars = sorted({gt_store[k]["character"] for k in ok})
+    out = {"windows": len(keys), "solved": len(ok)}
+    if not ok:
+        return out
+    gt_feat = raw_features([gt_store[k]["rel"] for k in ok])
+    out["fgd_raw"] = fgd(raw_features([recs[k]["rel"] for k in ok]), gt_feat)
+    rp_ok = [k for k in ok if rp.get(k, {}).get("ok")]
+    if rp_ok:
+        out["fgd_raw_random_playback_same_windows"] = fgd(raw_features([rp[k]["rel"] for k in rp_ok]),
+                                                          raw_features([gt_store[k]["rel"] for k in rp_ok]))
+        out["bc_random_playback_same_windows"] = float(np.nanmean([rp[k]["bc"] for k in rp_ok]))
+    out["fgd_raw_gt_same_windows_vs_all"] = fgd(gt_feat, raw_features([gt_store[k]["rel"] for k in keys]))
+    for c in chars:
+        kc = [k for k in ok if gt_store[k]["character"] == c]
+        out[f"pose_std_ratio_{c}"] = pose_std_ratio([recs[k]["rel"] for k in kc], [gt_store[k]["rel"] for k in kc])
+    out["still"] = float(np.mean(np.concatenate([recs[k]["still"] for k in ok])))
+    mg = [k for k in ok if "slow" in recs[k]]
+    if mg:
+        def share(mask):
+            return float(np.mean(np.concatenate([recs[k]["still"] & mask(recs[k]) for k in mg])))
+        out["best_effort"] = float(np.mean([recs[k]["best_effort"] for k in mg]))
+        out["retime_slow_share"] = float(np.mean(np.concatenate([recs[k]["slow"] for k in mg])))
+        out["still_in_retime_stretch"] = share(lambda r: r["slow"])
+        out["still_in_best_effort"] = share(lambda r: np.full(len(r["still"]), r["best_effort"]))
+        out["still_on_held_source"] = share(lambda r: r["held_src"])
+        out["still_on_still_source"] = share(lambda r: r["src_still"])
+        out["still_in_blend"] = share(lambda r: r["blend"])
+        out["still_other"] = share(lambda r: ~(r["slow"] | r["held_src"] | r["src_still"] | r["blend"] | r["best_effort"]))
+    out["still_gt_same_windows"] = float(np.mean(np.concatenate([gt_store[k]["still"] for k in ok])))
+    out["beat_consistency"] = float(np.nanmean([recs[k]["bc"] for k in ok]))
+    out["beat_consistency_gt"] = float(np.nanmean([gt_store[k]["bc"] for k in ok]))
+    for m in ("transitions", "entropy_bits", "source_still_share", "top_clip_share", "revisited_seconds",
+              "source_speed_ratio"):
+        vals = [float(recs[k][m]) for k in ok if m in recs[k]]
+        if vals:
+            out[m] = float(np.mean(vals))
+    co = cooc_rates(keys, recs, gt_store, name)
+    rates = {}
+    for _, r in co.iterrows():
+        within = bool(r["gt_ci_low"] <= r["synth_rate"] <= r["gt_ci_high"])
+        rates[f"{r['character']}:{r['hypothesis']}"] = {
+            "synth_rate": float(r["synth_rate"]), "synth_total": int(r["synth_total"]), "gt_rate": float(r["gt_rate"]),
+            "gt_ci": [float(r["gt_ci_low"]), float(r["gt_ci_high"])], "within_gt_interval": within}
+    out["cooccurrence"] = rates
+    out["pc_lr_within_gt_interval"] = all(v["within_gt_interval"] for k, v in rates.items()
+                                          if k.split(":", 1)[1] in PC_LR)
+    return out
+
+
+def noise_floor(gt_store) -> dict:
+    """The same measures between the ground truth's odd and even windows (a metric's noise floor)."""
+    keys = sorted(gt_store)
+    odd = [k for k in keys if k[1] % 2]
+    even = [k for k in keys if not k[1] % 2]
+    out = {"fgd_raw_odd_vs_even": fgd(raw_features([gt_store[k]["rel"] for k in odd]),
+                                      raw_features([gt_store[k]["rel"] for k in even]))}
+    for c in sorted({gt_store[k]["character"] for k in keys}):
+        ro = [gt_store[k]["rel"] for k in odd if gt_store[k]["character"] == c]
+        re_ = [gt_store[k]["rel"] for k in even if gt_store[k]["character"] == c]
+        out[f"pose_std_ratio_{c}_odd_over_even"] = pose_std_ratio(ro, re_)
+    st = [float(np.mean(np.concatenate([gt_store[k]["still"] for k in ks]))) for ks in (odd, even)]
+    bc = [float(np.nanmean([gt_store[k]["bc"] for k in ks])) for ks in (odd, even)]
+    out.update({"still_odd": st[0], "still_even": st[1], "beat_consistency_odd": bc[0], "beat_consistency_even": bc[1],
+                "still_all": float(np.mean(np.concatenate([gt_store[k]["still"] for k in keys]))),
+                "beat_consistency_all": float(np.nanmean([gt_store[k]["bc"] for k in keys]))})
+    return out
+
+
+def load_cached(work: Path, prefix: str, folds) -> dict | None:
+    """The records of ``prefix`` (a variant, or ``gt``) for ``folds`` from ``work``: the file of exactly
+    these folds, else the union of files of other runs whose folds all lie in ``folds`` when together
+    they cover every one of them; None when they do not."""
+    tag = "_".join(map(str, folds))
+    exact = work / f"{prefix}_{tag}.pkl"
+    if exact.is_file():
+        return pickle.loads(exact.read_bytes())
+    merged, covered = {}, set()
+    for path in sorted(work.glob(f"{prefix}_*.pkl")):
+        rest = path.stem[len(prefix) + 1:]
+        if not all(x.isdigit() for x in rest.split("_")):
+            continue      # another variant whose name starts with this one's
+        fs = {int(x) for x in rest.split("_")}
+        if fs <= set(folds) and not fs & covered:
+            merged.update(pickle.loads(path.read_bytes()))
+            covered |= fs
+    return merged if covered == set(folds) else None
+
+
+def parse_variant(text):
+    name, rest = text.split("=", 1)
+    system, condition, over = (rest.split(":", 2) + [""])[:3]
+    return name, (system, condition, [o for o in over.split(",") if o])
 
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--folds", type=int, nargs="+", default=[0, 1])
-    ap.add_argument("--still", type=float, default=2.0)
-    ap.add_argument("--override", nargs="*", default=[])
+    ap.add_argument("--folds", type=int, nargs="+", default=[0, 1, 2])
+    ap.add_argument("--variants", nargs="+", default=list(VARIANTS))
+    ap.add_argument("--define", nargs="*", default=[], help="name=system:condition:override,override")
+    ap.add_argument("--name", default="naturalness")
+    ap.add_argument("--matched-to", default="quality_before",
+                    help="the variant whose runs between synthetic transitions random_playback_matched copies")
+    ap.add_argument("--work", default="/tmp/naturalness_work")
     args = ap.parse_args()
     t0 = time.perf_counter()
-    over = ["preset=quality", *args.override]
-    params = default_params(over)
+    specs = dict(VARIANTS)
+    specs.update(dict(parse_variant(d) for d in args.define))
+    params = default_params(["preset=quality"])
     _, ann = annotated_corpus(params)
-    names = list(ann)
-    mg = make_system(params, params.system)
-    rp_spec = SystemParams(name="random_playback", factory="convsynth_jax.systems.random_playback:RandomPlaybackSystem",
-                           conditions={"none": {}}, options={})
-    rp = make_system(params, rp_spec)
-    speeds = {}                 # label -> character -> list of (F,) speeds
-    poses = {}                  # label -> character -> list of (F, P*3) relative positions
-    rows = {"motion_graph": [], "random_playback": [], "random_playback_matched": []}
-    still_src = {}
-    cd = cache_dir(params)
-
-    def record(label, char, motion):
-        speeds.setdefault(label, {}).setdefault(char, []).append(body_speed(motion, params.annotate))
-        rel = motion_view(motion, "body", FP.joints, params.annotate).relative
-        poses.setdefault(label, {}).setdefault(char, []).append(rel.reshape(len(rel), -1))
-
-    for fold in args.folds:
-        fm = fit_fold(mg, ann, names[fold], "all", cd)
-        fr = fit_fold(rp, ann, names[fold], "none", cd)
-        held = ann[names[fold]]
-        for w in session_windows(held, params.fps, params.loo.window, params.loo.hop, params.loo.max_windows):
-            for k, (role, a) in enumerate(held.items()):
-                win = window_input(held, role, w, params.fps, 1000 * fold + 10 * w.index + k)
-                n, fps = win.num_frames, win.fps
-                char = a.character
-                record("recordings", char, a.motion.slice(win.start_frame, win.start_frame + n))
-                res = mg.synthesize(fm[char], win, "all")
-                if not res.success:
-                    rows["motion_graph"].append({"failed": True})
-                    continue
-                motions = fm[char].motions
-                for c in set(res.source_clip):
-                    if (char, c) not in still_src:
-                        still_src[(char, c)] = body_speed(motions[c], params.annotate) < args.still
-                src_still = np.array([still_src[(char, c)][f] for c, f in zip(res.source_clip, res.source_frame)])
-                sp = body_speed(res.motion, params.annotate)
-                still = sp < args.still
-                d = res.diagnostics
-                warp = d.get("warp")
-                slow = np.zeros(n, bool)
-                if warp is not None:
-                    tau = warp_times(n, *warp)
-                    slow = np.gradient(tau) < 0.75
-                fr_ = np.asarray(res.source_frame)
-                held_frame = np.r_[False, (fr_[1:] == fr_[:-1])]
-                transitions = int(d.get("num_synthetic_transitions") or 0)
-                rows["motion_graph"].append({
-                    "failed": False, "still": float(still.mean()), "transitions": transitions,
-                    "best_effort": bool(d.get("best_effort")),
-                    "still_in_retime_stretch": float((still & slow).mean()),
-                    "still_in_best_effort": float(still.mean()) if d.get("best_effort") else 0.0,
-                    "still_on_held_source": float((still & held_frame).mean()),
-                    "still_on_still_source": float((still & src_still).mean()),
-                    "retime_slow_share": float(slow.mean()), **visits(res.source_clip, fr_, fps, src_still)})
-                record("motion_graph", char, res.motion)
-                for label, opts in (("random_playback", {}),
-                                    ("random_playback_matched", {"min_excerpt_seconds": n / fps / (transitions + 1),
-                                                                 "max_excerpt_seconds": n / fps / (transitions + 1)})):
-                    rp.system = dataclasses.replace(rp_spec, options=opts)
-                    r = rp.synthesize(fr[char], win, "none")
-                    ss = np.array([still_src.setdefault((char, c), body_speed(fr[char].motions[c], params.annotate)
-                                                        < args.still)[f] for c, f in zip(r.source_clip, r.source_frame)])
-                    sp = body_speed(r.motion, params.annotate)
-                    rows[label].append({"failed": False, "still": float((sp < args.still).mean()),
-                                        "transitions": len(r.synthetic_at or []),
-                                        **visits(r.source_clip, np.asarray(r.source_frame), fps, ss)})
-                    record(label, char, r.motion)
-        print(f"fold {fold}: {time.perf_counter() - t0:.0f} s", flush=True)
-    summary = {}
-    for label, rs in rows.items():
-        ok = [r for r in rs if not r["failed"]]
-        keys = [k for k in ok[0] if k != "failed"] if ok else []
-        summary[label] = {"windows": len(rs), "failed": len(rs) - len(ok),
-                          **{k: float(np.mean([r[k] for r in ok])) for k in keys}}
-    ref = {c: np.concatenate(v).std(0) for c, v in poses["recordings"].items()}
-    pose_std = {label: {c: float(np.median(np.concatenate(v).std(0) / np.maximum(ref[c], 1e-9))) for c, v in d.items()}
-                for label, d in poses.items()}
-    still_rec = float(np.mean(np.concatenate([np.concatenate(v) for v in speeds["recordings"].values()]) < args.still))
-    result = {"folds": args.folds, "overrides": over, "still_threshold": args.still, "systems": summary,
-              "pose_std_over_recordings_median": pose_std, "recordings_still": still_rec,
+    work = Path(args.work)
+    work.mkdir(parents=True, exist_ok=True)
+    tag = "_".join(map(str, args.folds))
+    gt_path = work / f"gt_{tag}.pkl"
+    gt_store = load_cached(work, "gt", args.folds) or {}
+    table = recording_threshold_table(ann, params.annotate)
+    results = {}
+    order = list(args.variants)
+    ref = args.matched_to
+    for m in [v for v in order if v.startswith("random_playback_matched")]:
+        if ref in order:   # its excerpts follow that variant's runs
+            order.remove(m)
+            order.insert(order.index(ref) + 1, m)
+    for name in order:
+        path = work / f"{name}_{tag}.pkl"
+        cached = load_cached(work, name, args.folds)
+        if cached is not None:
+            results[name] = cached
+            continue
+        is_matched = name.startswith("random_playback_matched")
+        matched = results.get(ref) if is_matched else None
+        if is_matched and matched is None:
+            raise SystemExit(f"random_playback_matched needs the {ref} variant (--matched-to)")
+        results[name] = run_variant(name, specs[name], args.folds, ann, table, gt_store, matched)
+        path.write_bytes(pickle.dumps(results[name]))
+        gt_path.write_bytes(pickle.dumps(gt_store))
+    rp = results.get("random_playback", {})
+    summary = {name: summarize(name, recs, gt_store, rp) for name, recs in results.items()}
+    floor = noise_floor(gt_store)
+    result = {"folds": args.folds, "variants": {n: {"system": specs[n][0], "condition": specs[n][1],
+                                                    "overrides": specs[n][2]} for n in results},
+              "still_speed": STILL_SPEED, "summary": summary, "noise_floor": floor,
               "seconds": time.perf_counter() - t0}
-    write("naturalness", result, overrides=over)
-    keys = sorted({k for s in summary.values() for k in s})
-    lines = ["| measure | " + " | ".join(summary) + " |", "|---|" + "---|" * len(summary)]
-    lines += [f"| {k} | " + " | ".join(f"{s.get(k, float('nan')):.3g}" for s in summary.values()) + " |" for k in keys]
-    lines += ["", f"recordings: still share {still_rec:.3g}", "", "| pose std / recordings (median over joints) | "
-              + " | ".join(sorted(ref)) + " |", "|---|" + "---|" * len(ref)]
-    lines += [f"| {lab} | " + " | ".join(f"{d[c]:.3f}" for c in sorted(ref)) + " |" for lab, d in pose_std.items()]
-    write_markdown("naturalness", lines, overrides=over)
+    write(args.name, result, overrides=[f"folds={args.folds}"])
+    write_markdown(args.name, markdown(summary, floor, args.folds), overrides=[f"folds={args.folds}"])
+
+
+def markdown(summary, floor, folds) -> list:
+    names = list(summary)
+    keys = ["windows", "solved", "fgd_raw", "fgd_raw_random_playback_same_windows", "fgd_raw_gt_same_windows_vs_all"]
+    keys += sorted(k for s in summary.values() for k in s if k.startswith("pose_std_ratio"))
+    keys += ["still", "still_gt_same_windows", "beat_consistency", "bc_random_playback_same_windows",
+             "beat_consistency_gt", "pc_lr_within_gt_interval", "transitions", "entropy_bits", "top_clip_share",
+             "revisited_seconds", "source_speed_ratio", "source_still_share", "best_effort", "retime_slow_share",
+             "still_in_retime_stretch", "still_in_best_effort", "still_on_held_source", "still_on_still_source",
+             "still_in_blend", "still_other"]
+    seen = []
+    for k in keys:
+        if k not in seen:
+            seen.append(k)
+
+    def fmt(x):
+        if x is None:
+            return "-"
+        if isinstance(x, bool):
+            return "yes" if x else "no"
+        return f"{x:.3g}"
+
+    lines = [f"folds {folds}", "", "| measure | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    lines += [f"| {k} | " + " | ".join(fmt(summary[n].get(k)) for n in names) + " |" for k in seen]
+    lines += ["", "Co-occurrence rates (synthesized, ground truth [95% interval]):", "",
+              "| rate | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    rates = sorted({r for s in summary.values() for r in s.get("cooccurrence", {})})
+    for r in rates:
+        cells = []
+        for n in names:
+            v = summary[n].get("cooccurrence", {}).get(r)
+            cells.append("-" if v is None else f"{v['synth_rate']:.2f} ({v['gt_rate']:.2f} [{v['gt_ci'][0]:.2f}, "
+                         f"{v['gt_ci'][1]:.2f}]){'' if v['within_gt_interval'] else ' out'}")
+        lines.append(f"| {r} | " + " | ".join(cells) + " |")
+    lines += ["", "Noise floor (ground truth, odd vs even windows):", "", "| measure | value |", "|---|---|"]
+    lines += [f"| {k} | {v:.3g} |" for k, v in floor.items()]
+    return lines
 
 
 if __name__ == "__main__":

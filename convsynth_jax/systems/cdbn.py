@@ -36,11 +36,22 @@ from ..cdbn.features import (
     FEATURE_LAYOUT,
     SPEECH_NAMES,
     Normalization,
+    head_euler_to_quat,
     head_rotation,
+    head_rotation_from_quat,
     speech_features,
 )
-from ..cdbn.hands import HAND_NAMES, arm_angles, arm_quaternions, arm_rig, arms_into_motion, keypoint_smooth_joints
+from ..cdbn.hands import (
+    HAND_NAMES,
+    arm_angles,
+    arm_quaternions,
+    arm_rig,
+    arms_into_motion,
+    keypoint_smooth_joints,
+    smooth_arm_angles,
+)
 from ..cdbn.params import CDBNParams
+from ..cdbn.residual import draw_residual, fit_residual_spectrum
 from ..cdbn.synthesize import (
     body_excerpt,
     expected_motion,
@@ -48,6 +59,7 @@ from ..cdbn.synthesize import (
     head_onto_body,
     keypoint_smooth,
     state_posteriors,
+    state_posteriors_batch,
     synthesize_head,
 )
 from ..errors import CDBNError
@@ -71,6 +83,7 @@ class CDBNFit:
     stream: str = "head"        # head | hands
     rig: object = None          # hands: the ArmRig of the template's skeleton
     bodies: tuple = ()          # cdbn.synth.body=recording: the character's training motions
+    residual: object = None     # cdbn.synth.residual=spectral: the ResidualSpectrum of the training clips
 
 
 def _params(params, options: dict) -> CDBNParams:
@@ -154,8 +167,21 @@ class CDBNSystem(SynthesisSystem):
         else:
             tm = train_jdbn(seqs, self.cdbn.jdbn_states, sd, md, tp, layout)
         bodies = tuple(c.motion for c in mine) if self.cdbn.synth.body == "recording" and not hands else ()
+        residual = None
+        if self.cdbn.synth.residual == "spectral":   # ours: what this model's output leaves out of the clips
+            gammas = state_posteriors_batch(tm.model, [sn.apply(s) for s in speech], codes if constrained else None,
+                                            self.cdbn.synth.posterior)
+            fps = float(mine[0].motion.fps)
+            resid = [m - self._smoothed(mn.invert(expected_motion(tm.model, g)), fps, rig) for m, g in zip(motion, gammas)]
+            residual = fit_residual_spectrum(resid, fps)
         return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0,
-                       self.stream, rig, bodies)
+                       self.stream, rig, bodies, residual)
+
+    def _smoothed(self, angles: np.ndarray, fps: float, rig) -> np.ndarray:
+        """The features after the paper's key-point smoothing (Sec. VI-B), back in feature space."""
+        if rig is not None:
+            return smooth_arm_angles(angles, rig, fps, self.cdbn.synth.hand_keypoints_per_second)
+        return head_rotation_from_quat(keypoint_smooth(angles, fps, self.cdbn.synth.keypoints_per_second))
 
     def synthesize(self, model: CDBNFit, window: WindowInput, condition: str) -> WindowResult:
         t0 = time.perf_counter()
@@ -177,13 +203,19 @@ class CDBNSystem(SynthesisSystem):
         if model.stream == "hands":
             gamma = state_posteriors(model.trained.model, model.speech_norm.apply(raw), cons, self.cdbn.synth.posterior)
             angles = model.motion_norm.invert(expected_motion(model.trained.model, gamma))
-            q = keypoint_smooth_joints(arm_quaternions(angles, model.rig), window.fps,
-                                       self.cdbn.synth.hand_keypoints_per_second)
+            if model.residual is not None:   # ours: the smoothed means plus the spectral residual
+                angles = self._smoothed(angles, window.fps, model.rig) + self._residual(model, n, window.seed)
+                q = arm_quaternions(angles, model.rig)
+            else:
+                q = keypoint_smooth_joints(arm_quaternions(angles, model.rig), window.fps,
+                                           self.cdbn.synth.hand_keypoints_per_second)
             motion = arms_into_motion(model.template, q, model.rig, name)
         else:
             angles, gamma = synthesize_head(model.trained.model, model.speech_norm.apply(raw), cons,
                                             self.cdbn.synth.posterior, model.motion_norm.mean, model.motion_norm.sd)
             q = keypoint_smooth(angles, window.fps, self.cdbn.synth.keypoints_per_second)
+            if model.residual is not None:   # ours: the smoothed means plus the spectral residual
+                q = head_euler_to_quat(head_rotation_from_quat(q) + self._residual(model, n, window.seed))
             if model.bodies:   # ours (cdbn.synth.body=recording): the head on a training recording's body
                 body = body_excerpt(list(model.bodies), n, np.random.default_rng(window.seed))
                 motion = head_onto_body(body, q, self.cdbn.features.head_joints, name)
@@ -193,3 +225,9 @@ class CDBNSystem(SynthesisSystem):
         return WindowResult(True, motion=motion, seconds=time.perf_counter() - t0,
                             diagnostics={"states": model.trained.model.num_states,
                                          "posterior_entropy": float(ent.mean())})
+
+    @staticmethod
+    def _residual(model: CDBNFit, n: int, seed) -> np.ndarray:
+        """(n, d) degrees: a draw of the spectral residual, from the window's seed (its own stream, apart
+        from the body excerpt's)."""
+        return draw_residual(model.residual, n, np.random.default_rng([int(seed or 0), 1]))

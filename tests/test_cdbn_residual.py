@@ -1,0 +1,55 @@
+"""The spectral residual (cdbn/residual.py, ours): a draw has the fitted clips' SD, correlation,
+power spectrum and hence jerk."""
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from scipy.signal import lfilter
+
+from convsynth_jax.cdbn.residual import draw_residual, fit_residual_spectrum
+from convsynth_jax.errors import CDBNError
+
+
+def _jerk(x, fps):
+    return float(np.linalg.norm(np.diff(x, n=3, axis=0), axis=1).mean() * fps ** 3)
+
+
+def _clips(rng, n_clips=12, T=600):
+    """Smooth, correlated 2-D clips: second-order low-pass noise (a head-like spectrum), the second
+    feature half the first plus its own noise."""
+    out = []
+    for _ in range(n_clips):
+        w = rng.standard_normal((T + 200, 2))
+        x = lfilter([1.0], [1.0, -1.6, 0.68], w, axis=0)[200:]
+        x[:, 1] = 0.5 * x[:, 0] + 0.3 * x[:, 1]
+        out.append(x * [3.0, 1.0])
+    return out
+
+
+def test_a_draw_has_the_clips_sd_correlation_and_jerk():
+    rng = np.random.default_rng(0)
+    clips = _clips(rng)
+    spec = fit_residual_spectrum(clips, 30.0)
+    x = np.concatenate([c - c.mean(0) for c in clips])
+    draws = [draw_residual(spec, 600, rng) for _ in range(12)]
+    y = np.concatenate(draws)
+    np.testing.assert_allclose(y.std(0), x.std(0), rtol=0.1)
+    assert abs(np.corrcoef(y.T)[0, 1] - np.corrcoef(x.T)[0, 1]) < 0.1
+    for k in range(2):
+        ratio = np.mean([_jerk(d[:, [k]], 30.0) for d in draws]) / np.mean([_jerk(c[:, [k]], 30.0) for c in clips])
+        assert 0.85 < ratio < 1.15, (k, ratio)
+    # white noise with the same SD (a per-frame draw from the Gaussian) has several times the jerk
+    white = rng.standard_normal((600, 2)) * x.std(0)
+    assert _jerk(white, 30.0) > 4 * np.mean([_jerk(c, 30.0) for c in clips])
+    # deterministic given the generator; zero mean per window
+    a = draw_residual(spec, 301, np.random.default_rng(5))
+    np.testing.assert_array_equal(a, draw_residual(spec, 301, np.random.default_rng(5)))
+    assert a.shape == (301, 2) and np.allclose(a.mean(0), 0, atol=1e-9)
+    assert draw_residual(spec, 0, rng).shape == (0, 2) and draw_residual(spec, 2, rng).shape == (2, 2)
+
+
+def test_bad_residuals_are_refused():
+    with pytest.raises(CDBNError, match="no training clip"):
+        fit_residual_spectrum([np.zeros((5, 3))], 30.0)
+    with pytest.raises(CDBNError, match="finite"):
+        fit_residual_spectrum([np.full((40, 3), np.nan)], 30.0)

@@ -29,7 +29,7 @@ def _clips(rng, n_clips=12, T=600):
 def test_a_draw_has_the_clips_sd_correlation_and_jerk():
     rng = np.random.default_rng(0)
     clips = _clips(rng)
-    spec = fit_residual_spectrum(clips, 30.0)
+    spec = fit_residual_spectrum(clips, [np.zeros_like(c) for c in clips], 30.0)
     x = np.concatenate([c - c.mean(0) for c in clips])
     draws = [draw_residual(spec, 600, rng) for _ in range(12)]
     y = np.concatenate(draws)
@@ -48,8 +48,26 @@ def test_a_draw_has_the_clips_sd_correlation_and_jerk():
     assert draw_residual(spec, 0, rng).shape == (0, 2) and draw_residual(spec, 2, rng).shape == (2, 2)
 
 
+def test_only_the_missing_power_is_added():
+    """Where the output already has the recordings' spectrum nothing is added; where it has more (a
+    jumpy output), nothing is added at those frequencies either; where it has less, the difference."""
+    rng = np.random.default_rng(1)
+    clips = _clips(rng)
+    same = fit_residual_spectrum(clips, _clips(np.random.default_rng(2)), 30.0)
+    full = fit_residual_spectrum(clips, [np.zeros_like(c) for c in clips], 30.0)
+    assert np.all(draw_residual(same, 600, rng).std(0) < 0.35 * draw_residual(full, 600, rng).std(0))
+    jumpy = [rng.standard_normal(c.shape) * 10 for c in clips]   # white: more power than the clips above 5 Hz
+    spec = fit_residual_spectrum(clips, jumpy, 30.0)
+    high = spec.freqs > 5.0
+    assert np.all(spec.psd[high] == 0) and spec.psd[~high].max() > 0
+    half = fit_residual_spectrum(clips, [0.5 * c for c in clips], 30.0)
+    np.testing.assert_allclose(half.psd[1:], 0.75 * full.psd[1:], rtol=1e-9)
+
+
 def test_bad_residuals_are_refused():
     with pytest.raises(CDBNError, match="no training clip"):
-        fit_residual_spectrum([np.zeros((5, 3))], 30.0)
+        fit_residual_spectrum([np.zeros((5, 3))], [np.zeros((5, 3))], 30.0)
     with pytest.raises(CDBNError, match="finite"):
-        fit_residual_spectrum([np.full((40, 3), np.nan)], 30.0)
+        fit_residual_spectrum([np.full((40, 3), np.nan)], [np.zeros((40, 3))], 30.0)
+    with pytest.raises(CDBNError, match="outputs"):
+        fit_residual_spectrum([np.zeros((40, 3))], [], 30.0)

@@ -172,8 +172,8 @@ class CDBNSystem(SynthesisSystem):
             gammas = state_posteriors_batch(tm.model, [sn.apply(s) for s in speech], codes if constrained else None,
                                             self.cdbn.synth.posterior)
             fps = float(mine[0].motion.fps)
-            resid = [m - self._smoothed(mn.invert(expected_motion(tm.model, g)), fps, rig) for m, g in zip(motion, gammas)]
-            residual = fit_residual_spectrum(resid, fps)
+            outputs = [self._smoothed(mn.invert(expected_motion(tm.model, g)), fps, rig) for g in gammas]
+            residual = fit_residual_spectrum(motion, outputs, fps)
         return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0,
                        self.stream, rig, bodies, residual)
 

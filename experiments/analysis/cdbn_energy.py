@@ -14,12 +14,15 @@ model is trained on) of the recording and of the CDBN (smoother means and Viterb
   the key points (15/s = every 8th frame at 120 fps; does the frame rate matter?);
 * ``draws_kp15``: a state path drawn from the posterior with a draw from each state's motion
   Gaussian per frame, then key points (drawing from the emission instead of the means);
+* ``random_playback``: the head angles of an excerpt of one of the character's training recordings;
 * ``spectral``: the smoother means after the key points plus the spectral residual
   (``cdbn.synth.residual=spectral``, ours; fitted on the training clips of the fold).
 
 For each: the mean angular jerk (norm over the three angles, deg/s^3, GENEA's average jerk), its ratio
 to the recording's raw jerk, the angles' SD, and the share of the jerk power (PSD x (2 pi f)^6) and of
-the variance in the bands 0-1, 1-3, 3-7.5 and 7.5-15 Hz.
+the variance in the bands 0-1, 1-3, 3-7.5 and 7.5-15 Hz, and the raw FGD of the head angles (30-frame
+windows every 10th frame, against the recording's same windows; the head-rotation view, which the
+head point on a moving body hardly shows) and its ratio to random playback's.
 
     python experiments/analysis/cdbn_energy.py [--folds 0] [--conditions cdbn jdbn] [--override ...]
 
@@ -39,10 +42,12 @@ from scipy.signal import welch  # noqa: E402
 
 from convsynth_jax.cdbn.features import head_rotation, head_rotation_from_quat, speech_features  # noqa: E402
 from convsynth_jax.cdbn.residual import draw_residual  # noqa: E402
-from convsynth_jax.cdbn.synthesize import expected_motion, keypoint_smooth, state_posteriors  # noqa: E402
+from convsynth_jax.cdbn.synthesize import body_excerpt, expected_motion, keypoint_smooth, state_posteriors  # noqa: E402
 from convsynth_jax.config import default_params  # noqa: E402
+from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa: E402
 from convsynth_jax.evaluation.field.kinematic import average_jerk  # noqa: E402
-from convsynth_jax.evaluation.loo import fit_fold, session_windows, window_input  # noqa: E402
+from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
+from convsynth_jax.evaluation.loo import fit_fold, session_windows, training_clips, window_input  # noqa: E402
 from convsynth_jax.systems.base import make_system  # noqa: E402
 from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
 
@@ -95,10 +100,14 @@ def main():
     rate = system.cdbn.synth.keypoints_per_second
     names = list(ann)
     rng = np.random.default_rng(params.seed)
-    jerks, sds, psd = {}, {}, {}
+    jerks, sds, psd, feats = {}, {}, {}, {}
+    fp = FieldMetricParams()
 
     def add(key, angles, fps):
         a = np.asarray(angles, np.float64)
+        if fps == params.fps:   # raw FGD of the head angles (the head-rotation view), 30-frame windows
+            feats.setdefault(key, []).append(raw_window_features(a[:, None, :], fp.fgd.raw_window_frames,
+                                                                 fp.fgd.raw_frame_step))
         jerks.setdefault(key, []).append(jerk(a, fps))
         sds.setdefault(key, []).append(a.std(0))
         if fps == 30.0 or fps == params.fps:
@@ -138,6 +147,8 @@ def main():
                         cons = np.zeros(n, np.int32)
                     if cond == args.conditions[0]:
                         stages("gt", gt, fps)
+                        body = body_excerpt([c.motion for c in training_clips(ann, names[fold], a.character)], n, rng)
+                        add("random_playback", head_rotation(body, system.cdbn.features), fps)
                     for post in ("smoother", "viterbi"):
                         m = inv(expected_motion(tm, state_posteriors(tm, sz, cons, post)))
                         stages(f"{cond}_{post}", m, fps)
@@ -160,6 +171,8 @@ def main():
         ref = g120 if "x120" in k else g
         row = {"jerk_deg_s3": j, "jerk_over_gt_raw": j / ref, "sd_pitch_yaw_roll": np.mean(sds[k], 0).round(3).tolist(),
                "windows": len(v)}
+        if k in feats:
+            row["fgd_raw_head_angles"] = fgd(np.concatenate(feats[k]), np.concatenate(feats["gt_raw"]))
         if k in psd:
             f = psd[k][0][0]
             p = np.mean([pp for ff, pp in psd[k] if len(ff) == len(f)], axis=0)
@@ -167,16 +180,21 @@ def main():
             row["variance_share_by_band"] = [float(p[(f >= lo) & (f < hi)].sum() / p.sum()) for lo, hi in BANDS]
             row["jerk_power_share_by_band"] = [float(jp[(f >= lo) & (f < hi)].sum() / jp.sum()) for lo, hi in BANDS]
         rows[k] = row
+    rp = rows["random_playback"]["fgd_raw_head_angles"]
+    for r in rows.values():
+        if "fgd_raw_head_angles" in r:
+            r["fgd_over_random_playback"] = r["fgd_raw_head_angles"] / rp
     result = {"folds": args.folds, "conditions": args.conditions, "overrides": over, "keypoints_per_second": rate,
               "bands_hz": BANDS, "head_angles": rows, "note": "x120 rows are relative to gt_x120_raw",
               "seconds": time.perf_counter() - t0}
     write(args.name, result, overrides=over)
-    lines = ["| variant | angular jerk (deg/s^3) | / recording | SD pitch, yaw, roll | jerk power 0-1 / 1-3 / 3-7.5 / 7.5-15 Hz |",
-             "|---|---|---|---|---|"]
+    lines = ["| variant | angular jerk (deg/s^3) | / recording | SD pitch, yaw, roll | jerk power 0-1 / 1-3 / 3-7.5 / 7.5-15 Hz "
+             "| raw FGD (head angles) | / random playback |", "|---|---|---|---|---|---|---|"]
     for k, r in rows.items():
         bands = " / ".join(f"{x:.2f}" for x in r.get("jerk_power_share_by_band", []))
         lines.append(f"| {k} | {r['jerk_deg_s3']:.0f} | {r['jerk_over_gt_raw']:.2f} | "
-                     f"{', '.join(f'{x:.2f}' for x in r['sd_pitch_yaw_roll'])} | {bands} |")
+                     f"{', '.join(f'{x:.2f}' for x in r['sd_pitch_yaw_roll'])} | {bands} | "
+                     f"{r.get('fgd_raw_head_angles', float('nan')):.2f} | {r.get('fgd_over_random_playback', float('nan')):.2f} |")
     write_markdown(args.name, lines, overrides=over)
 
 

@@ -71,3 +71,28 @@ def test_bad_residuals_are_refused():
         fit_residual_spectrum([np.full((40, 3), np.nan)], [np.zeros((40, 3))], 30.0)
     with pytest.raises(CDBNError, match="outputs"):
         fit_residual_spectrum([np.zeros((40, 3))], [], 30.0)
+
+
+def test_match_keypoint_rate_lowers_the_rate_only_for_an_output_jerkier_than_the_recordings():
+    """cdbn.synth.match_jerk (ours): a smooth recording and an output that jumps between two state
+    means every few frames (jerkier than the recording at the paper's 15/s) get a lower rate, at which
+    the smoothed output is not jerkier; an output smoother than the recordings keeps the paper's 15/s."""
+    from convsynth_jax.cdbn.features import head_rotation_from_quat
+    from convsynth_jax.cdbn.synthesize import keypoint_smooth
+    from convsynth_jax.systems.cdbn import _angular_jerk, match_keypoint_rate
+
+    def smooth(a, r):
+        return head_rotation_from_quat(keypoint_smooth(a, 30.0, r))
+
+    rng = np.random.default_rng(3)
+    t = np.arange(600) / 30.0
+    rec = [np.stack([3 * np.sin(2 * np.pi * 0.5 * t + p), 2 * np.sin(2 * np.pi * 0.3 * t + p), np.sin(t + p)], 1)
+           + 0.05 * rng.standard_normal((600, 3)) for p in rng.uniform(0, 6, 4)]
+    jumpy = [np.repeat(rng.choice([-1.0, 1.0], size=(150, 3)), 4, axis=0) for _ in rec]
+    assert _angular_jerk(smooth(jumpy[0], 15.0), 30.0) > _angular_jerk(rec[0], 30.0)
+    r = match_keypoint_rate(rec, jumpy, 30.0, 15.0, smooth)
+    assert 3.0 < r < 15.0
+    target = np.mean([_angular_jerk(x, 30.0) for x in rec])
+    assert np.mean([_angular_jerk(smooth(m, r), 30.0) for m in jumpy]) <= target
+    calm = [0.5 * x for x in rec]
+    assert match_keypoint_rate(rec, calm, 30.0, 15.0, smooth) == 15.0

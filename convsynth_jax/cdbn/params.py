@@ -109,6 +109,10 @@ class CDBNSynthParams:
     # spectral (ours: the residual the means leave out, with the training clips' power spectrum;
     # cdbn/residual.py)
     residual: str = "none"
+    # ours: lower the key-point rate below the paper's, down to 3/s, until the smoothed output's jerk on
+    # the training clips is at most the recordings' (where the means jump between states faster than
+    # the recordings move; systems/cdbn.py: match_keypoint_rate)
+    match_jerk: bool = False
 
 
 @dataclass(frozen=True)

@@ -9,10 +9,12 @@ framework's annotation; a coarser mapping can be set in ``options.constraint_map
 data: at most frames / (4 * min_frames_per_state)), condition ``jdbn`` the baseline.
 synthesize: prosody of ``window.own_audio`` normalized with the character's training statistics,
 state posteriors under the window's own labels, motion = sum_i gamma_i mu_i (Eq. 4/6), key-point
-slerp smoothing; the rest of the body holds the training mean pose (``cdbn.synth.body=mean``) or,
-ours (``cdbn.synth.body=recording``, ``preset=quality``), plays an excerpt of one of the character's
-training recordings (drawn with the window's seed) whose head is replaced by the synthesized one.
-Head only: produces_hands False.
+slerp smoothing; ours (``cdbn.synth.residual=spectral``, ``preset=quality``): plus a draw of the
+residual the smoothed means lack against the training recordings' spectrum (``cdbn/residual.py``,
+fitted on the training clips). The rest of the body (the paper leaves it to its renderer) plays an
+excerpt of one of the character's training recordings (drawn with the window's seed) whose head is
+replaced by the synthesized one (``cdbn.synth.body=recording``, default), or holds the training mean
+pose (``cdbn.synth.body=mean``). Head only: produces_hands False.
 
 ``cdbn.stream`` (ours; ``system.options.stream=hands``) selects the model: ``head`` (default, 3 DOF
 head rotation, 15 key points/s) or ``hands`` (the paper's separate hand model: arm 3 DOF x 2 and
@@ -84,6 +86,7 @@ class CDBNFit:
     rig: object = None          # hands: the ArmRig of the template's skeleton
     bodies: tuple = ()          # cdbn.synth.body=recording: the character's training motions
     residual: object = None     # cdbn.synth.residual=spectral: the ResidualSpectrum of the training clips
+    keypoints_per_second: float | None = None  # the rate synthesis smooths with (None: the configured one)
 
 
 def _params(params, options: dict) -> CDBNParams:
@@ -95,6 +98,30 @@ def _params(params, options: dict) -> CDBNParams:
         raise CDBNError(f"system cdbn needs Params with a cdbn group or CDBNParams, got {type(params).__name__}")
     opts = {k: v for k, v in (options or {}).items() if k != "constraint_map"}
     return build_params(CDBNParams, opts, "system.options", base=base)
+
+
+RATE_LADDER = (15.0, 12.0, 10.0, 7.5, 6.0, 5.0, 4.0, 3.0)
+
+
+def _angular_jerk(x: np.ndarray, fps: float) -> float:
+    d = np.diff(np.asarray(x, np.float64), n=3, axis=0)
+    return float(np.linalg.norm(d, axis=1).mean() * fps ** 3) if len(d) else 0.0
+
+
+def match_keypoint_rate(recordings: list, means: list, fps: float, rate: float, smooth) -> float:
+    """Ours (``cdbn.synth.match_jerk``): the highest key-point rate, from ``rate`` (the paper's) down
+    the ladder 15, 12, 10, 7.5, 6, 5, 4, 3 per second, at which the smoothed output (``smooth(means_i,
+    rate)``) has at most the recordings' mean jerk over the training clips (frame-weighted); the
+    lowest rate where none has. The paper's rate stays where its output is not jerkier than the
+    recordings."""
+    frames = np.array([len(r) for r in recordings], float)
+    target = float(np.dot(frames, [_angular_jerk(r, fps) for r in recordings]) / frames.sum())
+    ladder = [rate] + [r for r in RATE_LADDER if r < rate]
+    for r in ladder:
+        out = float(np.dot(frames, [_angular_jerk(smooth(m, r), fps) for m in means]) / frames.sum())
+        if out <= target:
+            return float(r)
+    return float(ladder[-1])
 
 
 def _audio_of(clip):
@@ -167,21 +194,32 @@ class CDBNSystem(SynthesisSystem):
         else:
             tm = train_jdbn(seqs, self.cdbn.jdbn_states, sd, md, tp, layout)
         bodies = tuple(c.motion for c in mine) if self.cdbn.synth.body == "recording" and not hands else ()
-        residual = None
-        if self.cdbn.synth.residual == "spectral":   # ours: what this model's output leaves out of the clips
+        residual, rate = None, self._rate(rig)
+        sp = self.cdbn.synth
+        if sp.residual == "spectral" or sp.match_jerk:   # ours: this model's own output on the training speech
             gammas = state_posteriors_batch(tm.model, [sn.apply(s) for s in speech], codes if constrained else None,
-                                            self.cdbn.synth.posterior)
+                                            sp.posterior)
             fps = float(mine[0].motion.fps)
-            outputs = [self._smoothed(mn.invert(expected_motion(tm.model, g)), fps, rig) for g in gammas]
-            residual = fit_residual_spectrum(motion, outputs, fps)
+            means = [mn.invert(expected_motion(tm.model, g)) for g in gammas]
+            if sp.match_jerk:
+                rate = match_keypoint_rate(motion, means, fps, rate, lambda a, r: self._smoothed(a, fps, rig, r))
+                log.info("cdbn %s/%s: %g key points per second (the recordings' jerk on the training clips)",
+                         character, condition, rate)
+            if sp.residual == "spectral":
+                residual = fit_residual_spectrum(motion, [self._smoothed(m, fps, rig, rate) for m in means], fps)
         return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0,
-                       self.stream, rig, bodies, residual)
+                       self.stream, rig, bodies, residual, rate)
 
-    def _smoothed(self, angles: np.ndarray, fps: float, rig) -> np.ndarray:
-        """The features after the paper's key-point smoothing (Sec. VI-B), back in feature space."""
+    def _rate(self, rig) -> float:
+        """The configured key-point rate of the stream (Sec. VI-B: 15/s head, 12/s hands)."""
+        sp = self.cdbn.synth
+        return sp.hand_keypoints_per_second if rig is not None else sp.keypoints_per_second
+
+    def _smoothed(self, angles: np.ndarray, fps: float, rig, rate: float) -> np.ndarray:
+        """The features after the paper's key-point smoothing (Sec. VI-B) at ``rate``, in feature space."""
         if rig is not None:
-            return smooth_arm_angles(angles, rig, fps, self.cdbn.synth.hand_keypoints_per_second)
-        return head_rotation_from_quat(keypoint_smooth(angles, fps, self.cdbn.synth.keypoints_per_second))
+            return smooth_arm_angles(angles, rig, fps, rate)
+        return head_rotation_from_quat(keypoint_smooth(angles, fps, rate))
 
     def synthesize(self, model: CDBNFit, window: WindowInput, condition: str) -> WindowResult:
         t0 = time.perf_counter()
@@ -200,20 +238,20 @@ class CDBNSystem(SynthesisSystem):
                 lab = np.zeros(n, np.int64)
             cons = np.asarray(model.constraint_map, np.int32)[lab]
         name = f"cdbn:{window.session}:{window.role}"
+        rate = model.keypoints_per_second or self._rate(model.rig)
         if model.stream == "hands":
             gamma = state_posteriors(model.trained.model, model.speech_norm.apply(raw), cons, self.cdbn.synth.posterior)
             angles = model.motion_norm.invert(expected_motion(model.trained.model, gamma))
             if model.residual is not None:   # ours: the smoothed means plus the spectral residual
-                angles = self._smoothed(angles, window.fps, model.rig) + self._residual(model, n, window.seed)
+                angles = self._smoothed(angles, window.fps, model.rig, rate) + self._residual(model, n, window.seed)
                 q = arm_quaternions(angles, model.rig)
             else:
-                q = keypoint_smooth_joints(arm_quaternions(angles, model.rig), window.fps,
-                                           self.cdbn.synth.hand_keypoints_per_second)
+                q = keypoint_smooth_joints(arm_quaternions(angles, model.rig), window.fps, rate)
             motion = arms_into_motion(model.template, q, model.rig, name)
         else:
             angles, gamma = synthesize_head(model.trained.model, model.speech_norm.apply(raw), cons,
                                             self.cdbn.synth.posterior, model.motion_norm.mean, model.motion_norm.sd)
-            q = keypoint_smooth(angles, window.fps, self.cdbn.synth.keypoints_per_second)
+            q = keypoint_smooth(angles, window.fps, rate)
             if model.residual is not None:   # ours: the smoothed means plus the spectral residual
                 q = head_euler_to_quat(head_rotation_from_quat(q) + self._residual(model, n, window.seed))
             if model.bodies:   # ours (cdbn.synth.body=recording): the head on a training recording's body

@@ -17,7 +17,9 @@ LR and HP, are mapped onto idle). The held-out half is cut into 10 s windows (5 
 
 for the recording, random playback (an excerpt of the training half, drawn per window), and each
 system variant: ``paper_still_body`` (cdbn.synth.body=mean, the former default), ``default`` (the
-body from the training half) and ``quality`` (plus cdbn.synth.residual=spectral).
+body from the training half), ``residual_only`` (plus cdbn.synth.residual=spectral), ``kp5`` (5 key
+points per second instead of the paper's 15), ``match_jerk_only`` (cdbn.synth.match_jerk=true: the
+rate chosen on the training half) and ``quality`` (both of preset=quality's CDBN options).
 
     python experiments/analysis/cdbn_beat2.py [--root ../shared/data/beat2]
 
@@ -47,7 +49,10 @@ from convsynth_jax.systems.base import SystemParams, make_system  # noqa: E402
 from convsynth_jax.tasks.common import annotated_corpus  # noqa: E402
 
 VARIANTS = {"paper_still_body": {"synth": {"body": "mean"}}, "default": {},
-            "quality": {"synth": {"residual": "spectral"}}}
+            "residual_only": {"synth": {"residual": "spectral"}},
+            "kp5": {"synth": {"keypoints_per_second": 5.0}},
+            "match_jerk_only": {"synth": {"match_jerk": True}},
+            "quality": {"synth": {"residual": "spectral", "match_jerk": True}}}
 CMAP = {"LR": "idle", "HP": "idle"}
 
 
@@ -99,7 +104,7 @@ def main():
         s["ang_sd"].append(float(ang.std(0).mean()))
         s["feats"].append(raw_window_features(v.relative, fp.fgd.raw_window_frames, fp.fgd.raw_frame_step))
 
-    fit_seconds = {}
+    fit_seconds, rates = {}, {}
     for (tr0, tr1), (te0, te1) in folds:
         train = clip(tr0, tr1)
         systems = {}
@@ -108,6 +113,7 @@ def main():
                 sysm = make_system(params, SystemParams(**{**spec, "options": {**opts, "constraint_map": CMAP}}))
                 t1 = time.perf_counter()
                 systems[f"{cond}_{var}"] = (sysm, sysm.fit([train], a.character, cond), cond)
+                rates.setdefault(f"{cond}_{var}", []).append(systems[f"{cond}_{var}"][1].keypoints_per_second)
                 fit_seconds.setdefault(f"{cond}_{var}", []).append(time.perf_counter() - t1)
         n = int(round(args.window * fps))
         for k, f0 in enumerate(range(te0, te1 - n + 1, int(round(args.hop * fps)))):
@@ -143,6 +149,7 @@ def main():
     result = {"take": session, "frames": F, "fps": fps, "window_s": args.window, "hop_s": args.hop,
               "protocol": "two halves in time, each held out once", "constraint_map": CMAP, "variants": VARIANTS,
               "rows": rows, "fit_seconds_mean": {k: float(np.mean(v)) for k, v in fit_seconds.items()},
+              "keypoints_per_second_per_fold": rates,
               "seconds": time.perf_counter() - t0}
     write("cdbn_beat2", result, overrides=over)
     lines = ["| system | windows | head-point jerk / GT | head-angle jerk / GT | head-angle SD / GT | raw FGD (head point) "

@@ -64,7 +64,7 @@ def test_fit_and_synthesize_a_window(annotated):
 
     cfg, ann = annotated
     condition = "cdbn"
-    sysm = system(cfg)
+    sysm = system(cfg, synth={"body": "mean"})
     assert sysm.fit_key("cdbn") != sysm.fit_key("jdbn") and not sysm.produces_hands
     sessions = sorted(ann)
     train = [ann[s]["main-agent"] for s in sessions[:1]]
@@ -80,7 +80,7 @@ def test_fit_and_synthesize_a_window(annotated):
     mo = res.motion
     assert mo.num_frames == n and mo.skeleton.names == held.motion.skeleton.names
     assert np.all(np.isfinite(mo.rotations))
-    # the head moves with speech; the body holds one pose
+    # the head moves with speech; under body=mean the body holds one pose
     from convsynth_jax.cdbn.features import head_rotation
     from convsynth_jax.cdbn.params import CDBNFeatureParams
 
@@ -196,3 +196,66 @@ def test_body_excerpt_plays_a_short_clip_forward_and_back():
     assert np.all(np.diff(long.translations[:, 0, 0]) == 1)
     with pytest.raises(CDBNError, match="no recordings"):
         body_excerpt([], 3, np.random.default_rng(0))
+
+
+def _angular_jerk(angles, fps):
+    return float(np.linalg.norm(np.diff(angles, n=3, axis=0), axis=1).mean() * fps ** 3)
+
+
+def test_default_head_point_has_the_recordings_jerk(annotated):
+    """The default system (the paper's synthesis; the body under the head, which the paper leaves to
+    its renderer, from a training recording) moves the benchmark's head point with the recordings'
+    jerk (0.5-2x the held-out recording's over the same window). With a still mean-pose body, the
+    former default, the head point had a tenth of it."""
+    from convsynth_jax.annotate.motion import head_point
+    from convsynth_jax.evaluation.field.kinematic import average_jerk
+
+    cfg, ann = annotated
+    sessions = sorted(ann)
+    train = [ann[s]["main-agent"] for s in sessions[:-1]]
+    held = ann[sessions[-1]]["main-agent"]
+    start, window = _talking_window(held, 300)
+    sysm = system(cfg)
+    res = sysm.synthesize(sysm.fit(train, train[0].character, "cdbn"), window, "cdbn")
+    assert res.success, res.failure
+    gt = held.motion.slice(start, start + 300)
+    ratio = average_jerk(head_point(res.motion, cfg.annotate), 30.0) / average_jerk(head_point(gt, cfg.annotate), 30.0)
+    assert 0.5 < ratio < 2.0, ratio
+
+
+def test_spectral_residual_gives_the_head_the_recordings_jerk(annotated):
+    """cdbn.synth.residual=spectral (ours): the synthesized head rotation has the training recordings'
+    jerk (0.5-2x, mean over windows of 10 s), where the paper's smoothed expected value has less than
+    half of it, and more than twice the expected value's SD."""
+    from convsynth_jax.cdbn.features import head_rotation
+    from convsynth_jax.cdbn.params import CDBNFeatureParams
+
+    cfg, ann = annotated
+    fp = CDBNFeatureParams()
+    stream = "head"
+    feats = lambda m: head_rotation(m, fp)  # noqa: E731
+    sessions = sorted(ann)
+    train = [ann[s]["main-agent"] for s in sessions[:-1]]
+    held = ann[sessions[-1]]["main-agent"]
+    n = 300
+    rec = [feats(c.motion) for c in train]
+    rec_jerk = np.mean([_angular_jerk(a[s:s + n], 30.0) for a in rec for s in range(0, len(a) - n, n)])
+    rec_sd = np.mean([a[s:s + n].std(0).mean() for a in rec for s in range(0, len(a) - n, n)])
+    _, window = _talking_window(held, n)
+    out = {}
+    for residual in ("none", "spectral"):
+        sysm = system(cfg, stream=stream, synth={"residual": residual})
+        model = sysm.fit(train, train[0].character, "cdbn")
+        assert (model.residual is None) == (residual == "none")
+        js, sds = [], []
+        for seed in range(4):
+            import dataclasses
+
+            res = sysm.synthesize(model, dataclasses.replace(window, seed=seed), "cdbn")
+            assert res.success, res.failure
+            a = feats(res.motion)
+            js.append(_angular_jerk(a, 30.0))
+            sds.append(a.std(0).mean())
+        out[residual] = (np.mean(js) / rec_jerk, np.mean(sds) / rec_sd)
+    assert out["none"][0] < 0.5, out
+    assert 0.5 < out["spectral"][0] < 2.0 and out["spectral"][1] > 2 * out["none"][1], out

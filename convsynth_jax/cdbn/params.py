@@ -100,10 +100,19 @@ class CDBNSynthParams:
     keypoints_per_second: float = 15.0       # head (Sec. VI-B)
     hand_keypoints_per_second: float = 12.0  # hands (Sec. VI-B)
     # what the rest of the body does under the synthesized head (system=cdbn, head stream; the paper
-    # leaves it to the renderer): mean (the character's mean pose, still) | recording (ours: an
-    # excerpt of one of the character's training recordings, the head replaced; docs/cdbn.md);
-    # the hand stream keeps the mean pose
-    body: str = "mean"
+    # leaves it to the renderer, Smartbody, which animates it): recording (an excerpt of one of the
+    # character's training recordings, the head replaced; docs/cdbn.md) | mean (the character's mean
+    # pose, still: the head point then lacks the body's share of the recordings' motion); the hand
+    # stream keeps the mean pose
+    body: str = "recording"
+    # what is added to the key-point-smoothed expected value (Eq. 4 / 6): none (the paper) |
+    # spectral (ours: the residual the means leave out, with the training clips' power spectrum;
+    # cdbn/residual.py)
+    residual: str = "none"
+    # ours: lower the key-point rate below the paper's, down to 3/s, until the smoothed output's jerk on
+    # the training clips is at most the recordings' (where the means jump between states faster than
+    # the recordings move; systems/cdbn.py: match_keypoint_rate)
+    match_jerk: bool = False
 
 
 @dataclass(frozen=True)
@@ -178,6 +187,7 @@ POSTERIORS = ("smoother", "viterbi", "filter")
 INITS = ("lbg", "random")
 STREAMS = ("head", "hands")
 BODIES = ("mean", "recording")
+RESIDUALS = ("none", "spectral")
 
 
 @dataclass(frozen=True)
@@ -201,6 +211,8 @@ class CDBNParams:
             raise ConfigError(f"cdbn.synth.posterior must be one of {POSTERIORS}, got {self.synth.posterior!r}")
         if self.synth.body not in BODIES:
             raise ConfigError(f"cdbn.synth.body must be one of {BODIES}, got {self.synth.body!r}")
+        if self.synth.residual not in RESIDUALS:
+            raise ConfigError(f"cdbn.synth.residual must be one of {RESIDUALS}, got {self.synth.residual!r}")
         if self.stream not in STREAMS:
             raise ConfigError(f"cdbn.stream must be one of {STREAMS}, got {self.stream!r}")
         if self.train.init not in INITS:

@@ -9,10 +9,12 @@ framework's annotation; a coarser mapping can be set in ``options.constraint_map
 data: at most frames / (4 * min_frames_per_state)), condition ``jdbn`` the baseline.
 synthesize: prosody of ``window.own_audio`` normalized with the character's training statistics,
 state posteriors under the window's own labels, motion = sum_i gamma_i mu_i (Eq. 4/6), key-point
-slerp smoothing; the rest of the body holds the training mean pose (``cdbn.synth.body=mean``) or,
-ours (``cdbn.synth.body=recording``, ``preset=quality``), plays an excerpt of one of the character's
-training recordings (drawn with the window's seed) whose head is replaced by the synthesized one.
-Head only: produces_hands False.
+slerp smoothing; ours (``cdbn.synth.residual=spectral``, ``preset=quality``): plus a draw of the
+residual the smoothed means lack against the training recordings' spectrum (``cdbn/residual.py``,
+fitted on the training clips). The rest of the body (the paper leaves it to its renderer) plays an
+excerpt of one of the character's training recordings (drawn with the window's seed) whose head is
+replaced by the synthesized one (``cdbn.synth.body=recording``, default), or holds the training mean
+pose (``cdbn.synth.body=mean``). Head only: produces_hands False.
 
 ``cdbn.stream`` (ours; ``system.options.stream=hands``) selects the model: ``head`` (default, 3 DOF
 head rotation, 15 key points/s) or ``hands`` (the paper's separate hand model: arm 3 DOF x 2 and
@@ -36,11 +38,22 @@ from ..cdbn.features import (
     FEATURE_LAYOUT,
     SPEECH_NAMES,
     Normalization,
+    head_euler_to_quat,
     head_rotation,
+    head_rotation_from_quat,
     speech_features,
 )
-from ..cdbn.hands import HAND_NAMES, arm_angles, arm_quaternions, arm_rig, arms_into_motion, keypoint_smooth_joints
+from ..cdbn.hands import (
+    HAND_NAMES,
+    arm_angles,
+    arm_quaternions,
+    arm_rig,
+    arms_into_motion,
+    keypoint_smooth_joints,
+    smooth_arm_angles,
+)
 from ..cdbn.params import CDBNParams
+from ..cdbn.residual import draw_residual, fit_residual_spectrum
 from ..cdbn.synthesize import (
     body_excerpt,
     expected_motion,
@@ -48,6 +61,7 @@ from ..cdbn.synthesize import (
     head_onto_body,
     keypoint_smooth,
     state_posteriors,
+    state_posteriors_batch,
     synthesize_head,
 )
 from ..annotate.kinds import AUDIO_LABEL_NAMES
@@ -71,6 +85,8 @@ class CDBNFit:
     stream: str = "head"        # head | hands
     rig: object = None          # hands: the ArmRig of the template's skeleton
     bodies: tuple = ()          # cdbn.synth.body=recording: the character's training motions
+    residual: object = None     # cdbn.synth.residual=spectral: the ResidualSpectrum of the training clips
+    keypoints_per_second: float | None = None  # the rate synthesis smooths with (None: the configured one)
 
 
 def _params(params, options: dict) -> CDBNParams:
@@ -82,6 +98,30 @@ def _params(params, options: dict) -> CDBNParams:
         raise CDBNError(f"system cdbn needs Params with a cdbn group or CDBNParams, got {type(params).__name__}")
     opts = {k: v for k, v in (options or {}).items() if k != "constraint_map"}
     return build_params(CDBNParams, opts, "system.options", base=base)
+
+
+RATE_LADDER = (15.0, 12.0, 10.0, 7.5, 6.0, 5.0, 4.0, 3.0)
+
+
+def _angular_jerk(x: np.ndarray, fps: float) -> float:
+    d = np.diff(np.asarray(x, np.float64), n=3, axis=0)
+    return float(np.linalg.norm(d, axis=1).mean() * fps ** 3) if len(d) else 0.0
+
+
+def match_keypoint_rate(recordings: list, means: list, fps: float, rate: float, smooth) -> float:
+    """Ours (``cdbn.synth.match_jerk``): the highest key-point rate, from ``rate`` (the paper's) down
+    the ladder 15, 12, 10, 7.5, 6, 5, 4, 3 per second, at which the smoothed output (``smooth(means_i,
+    rate)``) has at most the recordings' mean jerk over the training clips (frame-weighted); the
+    lowest rate where none has. The paper's rate stays where its output is not jerkier than the
+    recordings."""
+    frames = np.array([len(r) for r in recordings], float)
+    target = float(np.dot(frames, [_angular_jerk(r, fps) for r in recordings]) / frames.sum())
+    ladder = [rate] + [r for r in RATE_LADDER if r < rate]
+    for r in ladder:
+        out = float(np.dot(frames, [_angular_jerk(smooth(m, r), fps) for m in means]) / frames.sum())
+        if out <= target:
+            return float(r)
+    return float(ladder[-1])
 
 
 def _audio_of(clip):
@@ -155,8 +195,32 @@ class CDBNSystem(SynthesisSystem):
         else:
             tm = train_jdbn(seqs, self.cdbn.jdbn_states, sd, md, tp, layout)
         bodies = tuple(c.motion for c in mine) if self.cdbn.synth.body == "recording" and not hands else ()
+        residual, rate = None, self._rate(rig)
+        sp = self.cdbn.synth
+        if sp.residual == "spectral" or sp.match_jerk:   # ours: this model's own output on the training speech
+            gammas = state_posteriors_batch(tm.model, [sn.apply(s) for s in speech], codes if constrained else None,
+                                            sp.posterior)
+            fps = float(mine[0].motion.fps)
+            means = [mn.invert(expected_motion(tm.model, g)) for g in gammas]
+            if sp.match_jerk:
+                rate = match_keypoint_rate(motion, means, fps, rate, lambda a, r: self._smoothed(a, fps, rig, r))
+                log.info("cdbn %s/%s: %g key points per second (the recordings' jerk on the training clips)",
+                         character, condition, rate)
+            if sp.residual == "spectral":
+                residual = fit_residual_spectrum(motion, [self._smoothed(m, fps, rig, rate) for m in means], fps)
         return CDBNFit(tm, sn, mn, mine[0].motion, constrained, self.constraint_map, time.perf_counter() - t0,
-                       self.stream, rig, bodies)
+                       self.stream, rig, bodies, residual, rate)
+
+    def _rate(self, rig) -> float:
+        """The configured key-point rate of the stream (Sec. VI-B: 15/s head, 12/s hands)."""
+        sp = self.cdbn.synth
+        return sp.hand_keypoints_per_second if rig is not None else sp.keypoints_per_second
+
+    def _smoothed(self, angles: np.ndarray, fps: float, rig, rate: float) -> np.ndarray:
+        """The features after the paper's key-point smoothing (Sec. VI-B) at ``rate``, in feature space."""
+        if rig is not None:
+            return smooth_arm_angles(angles, rig, fps, rate)
+        return head_rotation_from_quat(keypoint_smooth(angles, fps, rate))
 
     def synthesize(self, model: CDBNFit, window: WindowInput, condition: str) -> WindowResult:
         t0 = time.perf_counter()
@@ -175,16 +239,22 @@ class CDBNSystem(SynthesisSystem):
                 lab = np.zeros(n, np.int64)
             cons = np.asarray(model.constraint_map, np.int32)[lab]
         name = f"cdbn:{window.session}:{window.role}"
+        rate = model.keypoints_per_second or self._rate(model.rig)
         if model.stream == "hands":
             gamma = state_posteriors(model.trained.model, model.speech_norm.apply(raw), cons, self.cdbn.synth.posterior)
             angles = model.motion_norm.invert(expected_motion(model.trained.model, gamma))
-            q = keypoint_smooth_joints(arm_quaternions(angles, model.rig), window.fps,
-                                       self.cdbn.synth.hand_keypoints_per_second)
+            if model.residual is not None:   # ours: the smoothed means plus the spectral residual
+                angles = self._smoothed(angles, window.fps, model.rig, rate) + self._residual(model, n, window.seed)
+                q = arm_quaternions(angles, model.rig)
+            else:
+                q = keypoint_smooth_joints(arm_quaternions(angles, model.rig), window.fps, rate)
             motion = arms_into_motion(model.template, q, model.rig, name)
         else:
             angles, gamma = synthesize_head(model.trained.model, model.speech_norm.apply(raw), cons,
                                             self.cdbn.synth.posterior, model.motion_norm.mean, model.motion_norm.sd)
-            q = keypoint_smooth(angles, window.fps, self.cdbn.synth.keypoints_per_second)
+            q = keypoint_smooth(angles, window.fps, rate)
+            if model.residual is not None:   # ours: the smoothed means plus the spectral residual
+                q = head_euler_to_quat(head_rotation_from_quat(q) + self._residual(model, n, window.seed))
             if model.bodies:   # ours (cdbn.synth.body=recording): the head on a training recording's body
                 body = body_excerpt(list(model.bodies), n, np.random.default_rng(window.seed))
                 motion = head_onto_body(body, q, self.cdbn.features.head_joints, name)
@@ -194,3 +264,9 @@ class CDBNSystem(SynthesisSystem):
         return WindowResult(True, motion=motion, seconds=time.perf_counter() - t0,
                             diagnostics={"states": model.trained.model.num_states,
                                          "posterior_entropy": float(ent.mean())})
+
+    @staticmethod
+    def _residual(model: CDBNFit, n: int, seed) -> np.ndarray:
+        """(n, d) degrees: a draw of the spectral residual, from the window's seed (its own stream, apart
+        from the body excerpt's)."""
+        return draw_residual(model.residual, n, np.random.default_rng([int(seed or 0), 1]))

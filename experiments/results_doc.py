@@ -25,7 +25,7 @@ REPO = Path(__file__).resolve().parent.parent
 RESULTS = REPO / "experiments" / "results"
 SCRIPT_DIRS = ("bench", "analysis", "paper")
 # Results whose name does not start with the name of the script that writes them.
-WRITERS = {"loo_seams_summary": "analysis/seam_summary.py"}
+WRITERS = {"loo_seams_summary": "analysis/seam_summary.py", "cdbn_energy_benchmark": "analysis/cdbn_benchmark_summary.py"}
 SUFFIXES = {
     "h100": "on one H100 GPU",
     "m4096": "with search.max_candidates=4096",

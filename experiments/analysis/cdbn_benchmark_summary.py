@@ -9,7 +9,7 @@ at most 3x), with the leaderboard copied beside it.
     python experiments/analysis/cdbn_benchmark_summary.py OUT/leaderboard.csv --name NAME \
       --seconds S --load "L1 L2" --override task.folds=[0,1,2] ...
 
-Writes experiments/results/NAME.json, .md, .csv (with manifests).
+Writes experiments/results/<name>.json, .md, .csv (with manifests).
 """
 import argparse
 import shutil

@@ -461,3 +461,21 @@ def test_fast_products_fall_back_across_a_structural_zero():
         np.testing.assert_allclose(xi[r], x, rtol=ref.XI_FLOAT32_RTOL, atol=ref.XI_FLOAT32_ATOL)
     lls_fast = got["fast"][0]
     assert not np.allclose(lls_fast, [w[0] for w in want], rtol=ref.LOGLIK_FLOAT32_RTOL)
+
+
+def test_backward_sampled_state_paths_have_the_smoothed_marginals():
+    """sample_state_path draws from P(q | speech, C): over many draws, the share of paths in each state
+    at each frame is the smoother's posterior there (within sampling noise)."""
+    from convsynth_jax.cdbn.synthesize import sample_state_path, state_posteriors
+
+    rng = np.random.default_rng(8)
+    model = random_model(rng, K=4, C=2)
+    x, c = sample(rng, model, 25)
+    speech = x[:, :2]
+    filtered = state_posteriors(model, speech, c, "filter")
+    smoothed = state_posteriors(model, speech, c, "smoother")
+    n = 3000
+    draws = np.stack([sample_state_path(model, filtered, c, rng) for _ in range(n)])
+    share = np.stack([(draws == k).mean(axis=0) for k in range(4)], axis=1)
+    assert np.abs(share - smoothed).max() < 4.5 * np.sqrt(0.25 / n)
+    assert np.abs(share - filtered).max() > 0.1     # the filter alone is not what is drawn

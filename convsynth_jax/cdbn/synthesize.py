@@ -48,6 +48,21 @@ def _posteriors(model: DBNModel, x, cc, lengths, posterior: str) -> np.ndarray:
     return g[:, :, :K]
 
 
+def sample_state_path(model: DBNModel, filtered: np.ndarray, constraints: np.ndarray, rng) -> np.ndarray:
+    """A state path (T,) drawn from P(q_1:T | speech, C) by backward sampling from the filtered
+    posteriors (T, K) (``state_posteriors(..., "filter")``) and the constraint codes (T,): the
+    state at t is drawn given the state drawn at t + 1. Its frame marginals are the smoothed posteriors."""
+    filtered = np.asarray(filtered, np.float64)
+    T, K = filtered.shape
+    A = np.asarray(model.transitions, np.float64)
+    q = np.empty(T, int)
+    q[-1] = rng.choice(K, p=filtered[-1] / filtered[-1].sum())
+    for t in range(T - 2, -1, -1):
+        p = filtered[t] * A[constraints[t + 1], :, q[t + 1]]
+        q[t] = rng.choice(K, p=p / p.sum())
+    return q
+
+
 def state_posteriors_batch(model: DBNModel, speeches: list, constraints: list | None = None,
                            posterior: str = "smoother") -> list[np.ndarray]:
     """:func:`state_posteriors` of several turns in one call (one padded batch: one dispatch and one

@@ -41,6 +41,7 @@ from convsynth_jax.cdbn.synthesize import (  # noqa: E402
     head_into_motion,
     head_onto_body,
     keypoint_smooth,
+    sample_state_path,
     state_posteriors,
 )
 from convsynth_jax.config import default_params  # noqa: E402
@@ -51,18 +52,6 @@ from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
 from convsynth_jax.evaluation.loo import fit_fold, session_windows, training_clips, window_input  # noqa: E402
 from convsynth_jax.systems.base import make_system  # noqa: E402
 from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
-
-
-def backward_sample(model, filtered: np.ndarray, cons: np.ndarray, rng) -> np.ndarray:
-    """A state path (T,) drawn from P(q_{1:T} | speech, C) given the filtered posteriors (T, K)."""
-    T, K = filtered.shape
-    A = np.asarray(model.transitions, np.float64)
-    q = np.empty(T, int)
-    q[-1] = rng.choice(K, p=filtered[-1] / filtered[-1].sum())
-    for t in range(T - 2, -1, -1):
-        p = filtered[t] * A[cons[t + 1], :, q[t + 1]]
-        q[t] = rng.choice(K, p=p / p.sum())
-    return q
 
 
 def main():
@@ -109,7 +98,7 @@ def main():
                     if post == "smoother":
                         smooth = m
                 md = list(tm.motion_dims)
-                q = backward_sample(tm, state_posteriors(tm, sz, cons, "filter"), cons, rng)
+                q = sample_state_path(tm, state_posteriors(tm, sz, cons, "filter"), cons, rng)
                 mu = np.asarray(tm.means)[q][:, md]
                 chol = np.linalg.cholesky(np.asarray(tm.covariances)[:, md][:, :, md])[q]
                 draw = inv(mu + np.einsum("tij,tj->ti", chol, rng.standard_normal((n, len(md)))))

@@ -137,14 +137,7 @@ def body_from_motion(motion, name: str = "", color: int | None = None) -> DrawnB
     while j >= 0:
         torso.add(j)
         j = parents[j]
-    below_hand = set()
-    for j in range(len(parents)):
-        q = parents[j]
-        while q >= 0:
-            if q in hands:
-                below_hand.add(j)
-                break
-            q = parents[q]
+    below_hand = sk.below(hands)
     kept = tuple(-2 if j in below_hand else p for j, p in enumerate(parents))
     b = DrawnBody(pos, kept, head, hands, frozenset(torso), shoulders if len(shoulders) == 2 else (), name, color=color)
     return replace(b, size=stature(b))

@@ -58,6 +58,19 @@ class Skeleton:
                     return j
         return None
 
+    def below(self, joints) -> set[int]:
+        """Every joint with one of ``joints`` among its ancestors (not the given joints themselves)."""
+        top = {int(j) for j in joints}
+        out = set()
+        for j in range(len(self.parents)):
+            a = self.parents[j]
+            while a >= 0:
+                if a in top:
+                    out.add(j)
+                    break
+                a = self.parents[a]
+        return out
+
     def children(self, j: int) -> list[int]:
         return [k for k, p in enumerate(self.parents) if p == j]
 

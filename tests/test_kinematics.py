@@ -120,3 +120,13 @@ def test_jerk_is_the_third_forward_difference():
     np.testing.assert_allclose(j, slow, rtol=1e-10, atol=1e-6)
     np.testing.assert_array_equal(j, forward_difference(x, 30.0, 3))
     assert mean_jerk(x, 30.0) == float(np.linalg.norm(j, axis=-1).mean())
+
+
+def test_joints_below_a_set_of_joints():
+    """Skeleton.below: every descendant of the given joints (the renderer and the viewer drop fingers
+    with it), none of the given joints themselves, nothing beside them."""
+    # 0 root -> 1 spine -> 2 left hand -> 3, 4 fingers (4 below 3); 1 -> 5 right hand -> 6 finger; 0 -> 7 leg
+    parents = (-1, 0, 1, 2, 3, 1, 5, 0)
+    sk = Skeleton(tuple(f"j{i}" for i in range(8)), parents, np.zeros((8, 3)), tuple(("Zrotation",) for _ in range(8)))
+    assert sk.below([2, 5]) == {3, 4, 6}
+    assert sk.below([0]) == set(range(1, 8)) and sk.below([]) == set() and sk.below([7]) == set()

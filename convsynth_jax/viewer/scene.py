@@ -78,14 +78,7 @@ def body(motion, name: str, color: str) -> dict:
     parents = [int(p) for p in sk.parents]
     hands = [j for j in (find_role(sk, "left_hand"), find_role(sk, "right_hand")) if j is not None]
     head = find_role(sk, "head")
-    drop = set()
-    for j in range(len(parents)):        # joints below a hand
-        a = parents[j]
-        while a >= 0:
-            if a in hands:
-                drop.add(j)
-                break
-            a = parents[a]
+    drop = sk.below(hands)               # joints below a hand
     keep = [j for j in range(len(parents)) if j not in drop]
     new = {j: k for k, j in enumerate(keep)}
     bones = [[new[parents[j]], new[j]] for j in keep if parents[j] >= 0 and parents[j] in new]

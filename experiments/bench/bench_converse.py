@@ -222,6 +222,17 @@ def input_figures(res: dict, out: Path) -> dict:
             "process_s": res["process_s"], "process_cpu_s": res["process_cpu_s"], "video": rep["outputs"]["video"]}
 
 
+def summed_by_kind(per_input: dict) -> tuple[dict, int, int]:
+    """({kind: [met, total]}, met, total) of the checker's figures summed over the inputs."""
+    kinds = {}
+    for f in per_input.values():
+        for k, v in f.get("met_by_kind", {}).items():
+            kinds.setdefault(k, [0, 0])
+            kinds[k][0] += v["met"]
+            kinds[k][1] += v["total"]
+    return kinds, sum(m for m, _ in kinds.values()), sum(t for _, t in kinds.values())
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--repeats", type=int, default=2)
@@ -252,13 +263,7 @@ def main():
                 else:
                     per_input[name] = input_figures(r, o)
                 print(name, json.dumps(per_input[name].get("met_by_kind", per_input[name].get("error"))), flush=True)
-    kinds = {}
-    for f in per_input.values():
-        for k, v in f.get("met_by_kind", {}).items():
-            kinds.setdefault(k, [0, 0])
-            kinds[k][0] += v["met"]
-            kinds[k][1] += v["total"]
-    met, total = sum(m for m, _ in kinds.values()), sum(t for _, t in kinds.values())
+    kinds, met, total = summed_by_kind(per_input)
     pc = kinds.get("PC", [0, 0])
     med = statistics.median(r["process_s"] for r in runs)
     task_med = statistics.median(r["task_total_s"] for r in runs)

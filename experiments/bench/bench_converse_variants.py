@@ -35,7 +35,7 @@ from _bench import REPO, SHARED, write
 
 HERE = Path(__file__).resolve().parent
 sys.path.insert(0, str(HERE))
-from bench_converse import input_figures, run  # noqa: E402
+from bench_converse import input_figures, run, summed_by_kind  # noqa: E402
 
 
 def _load(name: str):
@@ -236,13 +236,7 @@ def main():
                              "peak_rss_mb_at_most": peak / 1024.0,   # the largest of this and earlier runs
                              "load_avg_1min": r["load_avg_1min"]}
             print(name, json.dumps({k: per[name].get(k) for k in ("success", "met_by_kind", "error")}), flush=True)
-    kinds = {}
-    for f in per.values():
-        for k, v in f.get("met_by_kind", {}).items():
-            kinds.setdefault(k, [0, 0])
-            kinds[k][0] += v["met"]
-            kinds[k][1] += v["total"]
-    met, total = sum(m for m, _ in kinds.values()), sum(t for _, t in kinds.values())
+    kinds, met, total = summed_by_kind(per)
     pc = kinds.get("PC", [0, 0])
     ok = all(f.get("success") and f.get("frames_as_long_as_audio") for f in per.values())
     write(a.name, {"cache": str(cache), "overrides": a.overrides, "inputs": per,

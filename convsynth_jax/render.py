@@ -507,8 +507,9 @@ class TimelineStrip:
             y += self.ROW_BAR
             ticks.append((y + 1, y + self.ROW_TICK))
             y += self.ROW_TICK + self.ROW_GAP
-        self.kinds = [k for k in LABEL_RGB if any(len(t.segments) and (t.segments["kind"].astype(str) == k).any()
-                                                  for t in self.timelines)]
+        present = {str(k) for t in self.timelines if len(t.segments) for k in t.segments["kind"].astype(str)}
+        # the known labels in their order, then any other label drawn (e.g. a registered kind's, in grey)
+        self.kinds = [k for k in LABEL_RGB if k in present] + sorted(present - set(LABEL_RGB))
         self.has_ticks = any(len(t.ticks) for t in self.timelines)
         legend_rows = self._legend_rows(width)
         legend = (y, y + self.LEGEND_H * len(legend_rows))

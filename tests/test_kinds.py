@@ -170,3 +170,24 @@ def test_made_up_kind_weight_orders_best_effort(laughter):
     keys = [("idle", 0, 3), ("LR", 5, 9), ("LG", 12, 20), ("PC", 30, 40), ("PH", 1, 4)]
     order = constraint_order(keys, SearchParams())
     assert [k[0] for k in order] == ["PC", "LG", "PH", "LR", "idle"]    # 4, 3 (the kind's own), 2, 2, 1
+
+
+def test_the_viewer_shows_a_registered_kinds_labels():
+    """The viewer's timeline reads the registry: a made-up own kind's segments are kept, and a partner
+    kind's checker details go to the partner (as PH does to HP)."""
+    from convsynth_jax.viewer.scene import _labels_from_report, label_kinds
+
+    register_kind(ConstraintKind("LG", "LG", channel="own", weight=3.0))
+    register_kind(ConstraintKind("PQ", "Q", channel="partner", weight=1.0))
+    try:
+        assert label_kinds()[:3] == ("PC", "LR", "HP") and {"LG", "Q"} <= set(label_kinds())
+        rep = {"segments": {"a": [{"kind": "LG", "start": 1.0, "end": 2.0}, {"kind": "ZZ", "start": 0, "end": 1}]}}
+        assert _labels_from_report(rep, ["a", "b"], {"a": 30.0, "b": 30.0})["a"] == [{"kind": "LG", "start": 1.0, "end": 2.0}]
+        det = {"characters": {"a": {"checker": {"details": [{"kind": "PQ", "start": 30, "end": 60},
+                                                            {"kind": "PH", "start": 90, "end": 120}]}}}}
+        got = _labels_from_report(det, ["a", "b"], {"a": 30.0, "b": 30.0})
+        assert got["a"] == [] and got["b"] == [{"kind": "HP", "start": 3.0, "end": 4.0}, {"kind": "Q", "start": 1.0, "end": 2.0}]
+    finally:
+        unregister_kind("LG")
+        unregister_kind("PQ")
+    assert label_kinds() == ("PC", "LR", "HP")

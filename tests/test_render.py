@@ -302,3 +302,12 @@ def test_render_bad_input_names_the_path(tmp_path):
         run_task(_cfg(f"path={BVH}", "task.start=100"), tmp_path / "o4")
     with pytest.raises(ConvSynthError, match="task.format"):
         run_task(_cfg(f"path={BVH}", "task.format=avi"), tmp_path / "o5")
+
+
+def test_the_legend_names_every_label_drawn():
+    """A label the renderer has no colour for (a registered kind's) is drawn grey and still named in
+    the legend, after the known ones in their order."""
+    segs = pd.DataFrame({"kind": ["LG", "LR", "PC"], "start": [0.1, 0.8, 1.5], "end": [0.6, 1.2, 2.0]})
+    strip = R.TimelineStrip([R.Timeline("a", segs)], 3.0, 640)
+    assert strip.kinds == ["PC", "LR", "LG"]
+    assert any(k == "LG" for row in strip._legend for k, _ in row)

@@ -24,7 +24,16 @@ from ..errors import ConvSynthError, FormatError, MissingFileError
 
 log = logging.getLogger(__name__)
 
-KINDS = ("PC", "LR", "HP")
+
+
+def label_kinds() -> tuple:
+    """The audio labels a timeline shows: every label of the registry but idle (``annotate/kinds.py``;
+    a registered kind's label shows too), e.g. ("PC", "LR", "HP")."""
+    from ..annotate.kinds import AUDIO_LABELS
+
+    return tuple(k for k in AUDIO_LABELS if k != "idle")
+
+
 COLORS = ("#345ca8", "#ba5434", "#3f8f4f", "#8a4fa0")     # character 0, 1, 2, 3
 AUDIO_SUFFIXES = (".wav",)
 MAX_FILES = 8
@@ -91,13 +100,16 @@ def body(motion, name: str, color: str) -> dict:
 def _labels_from_report(rep: dict, chars: list[str], fps: dict) -> dict:
     """character -> [{kind, start, end}] (seconds): the report's ``segments`` (per character), or a
     synthesize report's checker details (PC, LR of the character; PH: the partner's HP)."""
+    from ..annotate.kinds import segment_kinds
+
+    kinds = label_kinds()
     out = {c: [] for c in chars}
     segs = rep.get("segments")
     if isinstance(segs, dict):
         for c, rows in segs.items():
             if c in out and isinstance(rows, list):
                 out[c] = [{"kind": str(r["kind"]), "start": float(r["start"]), "end": float(r["end"])}
-                          for r in rows if isinstance(r, dict) and r.get("kind") in KINDS]
+                          for r in rows if isinstance(r, dict) and r.get("kind") in kinds]
         return out
     info = rep.get("characters") or {}
     for c in chars:
@@ -107,17 +119,21 @@ def _labels_from_report(rep: dict, chars: list[str], fps: dict) -> dict:
             if not isinstance(d, dict) or "start" not in d or "end" not in d:
                 continue
             kind, who = d.get("kind"), c
-            if kind == "PH":            # the partner's hesitation pause, as this character's search saw it
+            ck = next((k for k in segment_kinds() if k.name == kind), None)
+            if ck is None:
+                continue
+            kind = ck.label
+            if ck.channel == "partner":  # e.g. the partner's hesitation pause, as this character's search saw it
                 if not others:
                     continue
-                kind, who = "HP", others[0]
-            if kind not in KINDS:
+                who = others[0]
+            if kind not in kinds:
                 continue
             row = {"kind": kind, "start": float(d["start"]) / fps[c], "end": float(d["end"]) / fps[c]}
             if row not in out[who]:
                 out[who].append(row)
     for c in out:
-        out[c].sort(key=lambda r: (KINDS.index(r["kind"]), r["start"]))
+        out[c].sort(key=lambda r: (kinds.index(r["kind"]), r["start"]))
     return out
 
 
@@ -192,7 +208,7 @@ def load_scene(path: str | Path, audio=None, title: str | None = None) -> dict:
         b["transitions"] = trans.get(b["name"], [])
     duration = max([b["frames"] / b["fps"] for b in bodies] + [t["duration"] for t in tracks])
     return {"title": title or Path(path).name, "source": str(path), "duration": duration, "scale": scale,
-            "height": height, "characters": bodies, "audio": tracks, "kinds": list(KINDS)}
+            "height": height, "characters": bodies, "audio": tracks, "kinds": list(label_kinds())}
 
 
 def error_scene(e: BaseException, path) -> dict:

@@ -41,37 +41,15 @@ from _bench import REPO, RESULTS, SHARED, write
 from convsynth_jax.config import default_params
 from convsynth_jax.annotate.cache import annotate_corpus_cached
 from convsynth_jax.annotate.kinds import hypotheses
+from convsynth_jax.evaluation.annotation import CLAUSE_TOLERANCE_S, audio_scores, detection_scores, near, words_stats
 from convsynth_jax.evaluation.summaries import to_markdown
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
 from convsynth_jax.tasks.common import open_corpus
 
 # the hypothesis table (audio kind, motion kinds, channel; the generator's planting key): the registry's
 SPEC = {h.name: (h.label, list(h.motions), h.channel) for h in hypotheses()}
-CLAUSE_TOL = 0.15  # s: clause boundary matching tolerance
+CLAUSE_TOL = CLAUSE_TOLERANCE_S  # s: clause boundary matching tolerance
 CONFIG_KEY = {h.name: h.planting for h in hypotheses()}
-
-
-def overlap_counts(planted, detected):
-    hp = sum(((detected["start"] < r.end) & (detected["end"] > r.start)).any() for r in planted.itertuples())
-    hd = sum(((planted["start"] < r.end) & (planted["end"] > r.start)).any() for r in detected.itertuples())
-    return hp, len(planted), hd, len(detected)
-
-
-def detection_scores(ann, ev):
-    per_kind = {}
-    for s, parts in ann.items():
-        for role, a in parts.items():
-            pl = ev[(ev.session == s) & (ev.participant == role)]
-            caused = pl[pl.source != "spontaneous"]
-            for k in ("LH", "RH", "Nod"):
-                d = a.events[a.events.kind == k].drop_duplicates(["start", "end"])
-                hp, n_p, _, _ = overlap_counts(caused[caused.kind == k], d)
-                _, _, hd, n_d = overlap_counts(pl[pl.kind == k], d)
-                per_kind[k] = per_kind.get(k, np.zeros(4)) + (hp, n_p, hd, n_d)
-    tot = sum(per_kind.values())
-    return {"recall": tot[0] / tot[1], "precision": tot[2] / tot[3], "planted_caused": int(tot[1]),
-            "detected": int(tot[3]),
-            "per_kind": {k: {"recall": v[0] / v[1], "precision": v[2] / v[3]} for k, v in per_kind.items()}}
 
 
 def planted_rate(ev, role, hypothesis):
@@ -95,49 +73,6 @@ def control(ann, how):
                 m = dataclasses.replace(a.motion, rotations=np.roll(a.motion.rotations, k, 0),
                                         translations=np.roll(a.motion.translations, k, 0))
             out.append(dataclasses.replace(a, motion=m))
-    return out
-
-
-def _near(a, b, tol):
-    """For each value of a: is there a value of b within tol."""
-    a, b = np.asarray(a, float), np.sort(np.asarray(b, float))
-    if not b.size:
-        return np.zeros(a.size, bool)
-    i = np.clip(np.searchsorted(b, a), 1, b.size) - 1
-    j = np.clip(i + 1, 0, b.size - 1)
-    return np.minimum(np.abs(a - b[i]), np.abs(a - b[j])) <= tol
-
-
-def words_stats(n_words) -> dict:
-    n = np.asarray(n_words, int)
-    if not n.size:
-        return {"clauses": 0}
-    return {"clauses": int(n.size), "mean": float(n.mean()), "sd": float(n.std()), "median": float(np.median(n)),
-            "max": int(n.max()), "over_15": int((n > 15).sum()),
-            "histogram": {int(k): int(v) for k, v in zip(*np.unique(n, return_counts=True))}}
-
-
-def audio_scores(ann, ev):
-    """Clause boundary precision/recall (start and end of every clause, matched within CLAUSE_TOL),
-    words per clause detected vs planted, LR/HP overlap precision/recall."""
-    hits = {k: np.zeros(4) for k in ("PC", "LR", "HP")}
-    det_words, pl_words = [], []
-    for s, parts in ann.items():
-        for role, a in parts.items():
-            pl = ev[(ev.session == s) & (ev.participant == role)]
-            seg = a.segments
-            p_pc, d_pc = pl[pl.kind == "PC"], seg[seg.kind == "PC"]
-            pb = np.concatenate([p_pc.start, p_pc.end])
-            db = np.concatenate([d_pc.start, d_pc.end])
-            hits["PC"] += (_near(pb, db, CLAUSE_TOL).sum(), pb.size, _near(db, pb, CLAUSE_TOL).sum(), db.size)
-            det_words += d_pc.text.str.split().str.len().tolist()
-            pl_words += p_pc.text.str.split().str.len().tolist()
-            for k in ("LR", "HP"):
-                hits[k] += overlap_counts(pl[pl.kind == k], seg[seg.kind == k])
-    out = {k: {"recall": v[0] / max(v[1], 1), "precision": v[2] / max(v[3], 1), "planted": int(v[1]),
-               "detected": int(v[3])} for k, v in hits.items()}
-    out["PC"]["tolerance_s"] = CLAUSE_TOL
-    out["words_per_clause"] = {"detected": words_stats(det_words), "planted": words_stats(pl_words)}
     return out
 
 
@@ -215,9 +150,9 @@ def fluent_scores(n_passages, base_params):
             seg = annotate_audio(w, audio, p)
             pc = seg[seg.kind == "PC"]
             truth, det = np.array([x.start for x in segs[1:]]), pc.start.to_numpy()[1:]
-            hp += int(_near(truth, det, CLAUSE_TOL).sum())
+            hp += int(near(truth, det, CLAUSE_TOL).sum())
             n_p += truth.size
-            hd += int(_near(det, truth, CLAUSE_TOL).sum())
+            hd += int(near(det, truth, CLAUSE_TOL).sum())
             n_d += det.size
             nw += pc.text.str.split().str.len().tolist()
             for x in segs:

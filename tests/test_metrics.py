@@ -46,7 +46,8 @@ def test_summaries_success_and_timing():
     cases = pd.DataFrame({"fold": [0, 0, 0, 0], "session": ["s"] * 4, "condition": ["all", "all", "none", "none"],
                           "window": [0, 0, 0, 0], "character": ["f", "m", "f", "m"], "success": [True, False, True, True],
                           "system": "motion_graph", "fit_seconds": [10.0, 12.0, 10.0, 12.0],
-                          "synthesis_seconds": [0.1, 0.2, 0.3, 0.4]})
+                          "synthesis_seconds": [0.1, 0.2, 0.3, 0.4], "fit_procedure": "fit (graph construction)",
+                          "synthesis_procedure": "synthesis (search)"})
     r = summaries.success_rates(cases).set_index("condition")
     assert r.loc["all", "success_rate"] == 0.0 and r.loc["none", "success_rate"] == 1.0
     assert r.loc["all", "success_rate_f"] == 1.0
@@ -55,6 +56,11 @@ def test_summaries_success_and_timing():
     md = summaries.to_markdown(t.reset_index())
     assert md.count("\n") == 4 and "| synthesis (search) |" in md
     assert "\\bottomrule" in summaries.to_latex(t.reset_index())
+    # the names come from the rows (the system), not from the system's name
+    other = cases.assign(system="my_system").drop(columns=["fit_procedure", "synthesis_procedure"])
+    assert summaries.timing_table(other)["procedure"].tolist() == ["fit", "synthesis"]
+    named = other.assign(fit_procedure="training", synthesis_procedure="sampling")
+    assert summaries.timing_table(named)["procedure"].tolist() == ["training", "sampling"]
 
 
 def _slow_seam_ratio(pos, gt, fps, synthetic_at, radius=3):

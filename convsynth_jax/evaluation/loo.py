@@ -260,7 +260,8 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
             row, motion = evaluate_window(system, fitted[ann.character], win, condition, gt, params,
                                           gt_thresholds=gt_thresholds[role],
                                           synth_thresholds=synth_thresholds[ann.character])
-            rows.append({"system": system.name, "fold": fold, "session": held_out, "condition": condition,
+            rows.append({"system": system.name, "fit_procedure": system.fit_procedure,
+                         "synthesis_procedure": system.synthesis_procedure, "fold": fold, "session": held_out, "condition": condition,
                          "window": w.index, "window_start": w.start, "window_end": w.end,
                          "character": ann.character, "role": role, "seed": seed, **row})
             if motion is not None:

@@ -45,20 +45,25 @@ def success_rates(cases: pd.DataFrame) -> pd.DataFrame:
 
 
 def timing_table(cases: pd.DataFrame) -> pd.DataFrame:
-    """Table 3: mean and standard deviation of the fitting (graph construction for the motion graph)
-    and synthesis (search + realization) wall-clock time, per system. Fitting is counted once per
-    fold and character; synthesis once per window and character."""
+    """Table 3: mean and standard deviation of the fitting and synthesis wall-clock time, per system,
+    each named as the system names it (the rows' ``fit_procedure`` / ``synthesis_procedure``, e.g. the
+    motion graph's "fit (graph construction)"; "fit" / "synthesis" for rows without them). Fitting is
+    counted once per fold and character; synthesis once per window and character."""
+    def named(g, column, default):
+        names = g[column].dropna() if column in g else ()
+        return str(names.iloc[0]) if len(names) else default
+
     rows = []
     groups = cases.groupby("system") if "system" in cases else [("", cases)]
     for system, g in groups:
         base = {"system": system} if system != "" else {}
         if "fit_seconds" in g:
             fit = g.drop_duplicates(["fold", "character"])["fit_seconds"].dropna()
-            rows.append({**base, "procedure": "fit (graph construction)" if system == "motion_graph" else "fit",
+            rows.append({**base, "procedure": named(g, "fit_procedure", "fit"),
                          "mean_s": fit.mean(), "std_s": fit.std(ddof=1), "n": int(fit.count())})
         if "synthesis_seconds" in g:
             syn = g["synthesis_seconds"].dropna()
-            rows.append({**base, "procedure": "synthesis (search)" if system == "motion_graph" else "synthesis",
+            rows.append({**base, "procedure": named(g, "synthesis_procedure", "synthesis"),
                          "mean_s": syn.mean(), "std_s": syn.std(ddof=1), "n": int(syn.count())})
     return pd.DataFrame(rows)
 

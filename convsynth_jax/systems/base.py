@@ -114,6 +114,9 @@ class SynthesisSystem(abc.ABC):
     #: training clips carry ``audio_path``/``audio_channel`` for systems that need samples in fit()
     needs_audio: bool = False
 
+    #: the names of its two timed procedures in Table 3 (the leave-one-out rows carry them)
+    fit_procedure: str = "fit"
+    synthesis_procedure: str = "synthesis"
     #: the frozen dataclass of ``system.options`` (conf/system/<name>.yaml): its defaults are the only
     #: ones, a key it lacks is a ConfigError naming it; None: the options stay a plain mapping
     options_type: type | None = None

@@ -75,6 +75,8 @@ def penalized_graph(graph: MotionGraph, transition_penalty: float = 0.0, loop_pe
 
 class MotionGraphSystem(PlaybackSystem):
     produces_hands = True
+    fit_procedure = "fit (graph construction)"
+    synthesis_procedure = "synthesis (search)"
 
     def fit(self, clips, character: str, condition: str, cache_dir=None) -> GraphModel:
         """Build (or load from ``cache_dir``) the graph of ``character`` from its training clips."""

@@ -275,6 +275,19 @@ def test_stereo_input_gives_the_same_conversation(chained, tiny_corpus_dir, cach
     assert (tmp_path / "o" / "A.bvh").read_text() == (chained[0] / "A.bvh").read_text()
 
 
+def test_report_of_one_window_without_transitions_reads_as_such(chained, tmp_path):
+    """A conversation searched in one window has no cuts (and a still path no transitions): the report
+    says so instead of printing nan."""
+    from convsynth_jax.tasks.converse import write_report_md
+
+    rep = json.loads((chained[0] / "report.json").read_text())
+    for ch in rep["characters"].values():
+        ch["continuity"]["at_cuts"], ch["continuity"]["at_synthetic_transitions_max"] = {}, None
+    write_report_md(tmp_path / "report.md", rep)
+    text = (tmp_path / "report.md").read_text()
+    assert "nan" not in text and text.count("– (one window)") == 2 and text.count("– (none)") == 2
+
+
 def test_one_speaker_alone_gives_a_silent_partner(tiny_corpus_dir, cache, inputs, tmp_path):
     """Only A's speech given (no task.audio_b, no task.transcript_b): B listens in silence for the whole
     of it, exactly as with a silent WAV and an empty transcript given for B."""

@@ -271,10 +271,11 @@ def write_report_md(path: Path, report: dict) -> None:
             continue
         kinds = [f"{tot['by_kind'][k]['met']}/{tot['by_kind'][k]['total']}" for k in kind_names()]
         cont = ch["continuity"]
-        cut = max(cont["at_cuts"].values()) if cont["at_cuts"] else float("nan")
+        cut = f"{max(cont['at_cuts'].values()):.3f}" if cont["at_cuts"] else "– (one window)"
         inner = cont["at_synthetic_transitions_max"]
+        inner = "– (none)" if inner is None else f"{inner:.3f}"
         lines.append(f"| {who} | {tot['met']}/{tot['total']} | " + " | ".join(kinds) +
-                     f" | {ch['num_synthetic_transitions']} | {cut:.3f} | {float('nan') if inner is None else inner:.3f} | "
+                     f" | {ch['num_synthetic_transitions']} | {cut} | {inner} | "
                      f"{cont['median_all']:.3f} / {cont['p99_all']:.3f} |")
     t = report["timings"]
     lines += ["", "Excess acceleration: the realized joint acceleration minus the source clip's own, largest joint "

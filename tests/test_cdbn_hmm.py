@@ -479,3 +479,24 @@ def test_backward_sampled_state_paths_have_the_smoothed_marginals():
     share = np.stack([(draws == k).mean(axis=0) for k in range(4)], axis=1)
     assert np.abs(share - smoothed).max() < 4.5 * np.sqrt(0.25 / n)
     assert np.abs(share - filtered).max() > 0.1     # the filter alone is not what is drawn
+
+
+def test_sampled_motion_averages_to_the_expected_motion():
+    """sample_motion: the means along drawn state paths average to Eq. 4's expected motion under the
+    smoother (the posterior mean), and the draws scatter around those means with the states' variance."""
+    from convsynth_jax.cdbn.synthesize import expected_motion, sample_motion, state_posteriors
+
+    rng = np.random.default_rng(9)
+    model = random_model(rng, K=4, C=2)
+    x, c = sample(rng, model, 20)
+    speech = x[:, :2]
+    n = 1500
+    mus, draws = zip(*[sample_motion(model, speech, c, rng) for _ in range(n)])
+    mus, draws = np.stack(mus), np.stack(draws)
+    assert mus.shape == draws.shape == (n, 20, 2)
+    target = expected_motion(model, state_posteriors(model, speech, c, "smoother"))
+    spread = np.asarray(model.means)[:, 2:].std()
+    assert np.abs(mus.mean(axis=0) - target).max() < 5 * spread / np.sqrt(n)
+    resid = (draws - mus).reshape(-1, 2)
+    var = np.einsum("k,kii->i", np.ones(4) / 4, np.asarray(model.covariances)[:, 2:, 2:])  # rough scale
+    assert 0.3 * var.min() < resid.var(axis=0).min() and resid.var(axis=0).max() < 3 * var.max()

@@ -63,6 +63,17 @@ def sample_state_path(model: DBNModel, filtered: np.ndarray, constraints: np.nda
     return q
 
 
+def sample_motion(model: DBNModel, speech: np.ndarray, constraints: np.ndarray, rng) -> tuple[np.ndarray, np.ndarray]:
+    """(means, draw), each (T, motion dims) in the model's normalized motion space: a state path drawn
+    by :func:`sample_state_path` from the filtered posteriors of ``speech`` (T, d_s) under
+    ``constraints`` (T,), its states' motion means, and one draw from each frame's state Gaussian."""
+    q = sample_state_path(model, state_posteriors(model, speech, constraints, "filter"), constraints, rng)
+    md = list(model.motion_dims)
+    mu = np.asarray(model.means)[q][:, md]
+    chol = np.linalg.cholesky(np.asarray(model.covariances)[:, md][:, :, md])[q]
+    return mu, mu + np.einsum("tij,tj->ti", chol, rng.standard_normal((len(q), len(md))))
+
+
 def state_posteriors_batch(model: DBNModel, speeches: list, constraints: list | None = None,
                            posterior: str = "smoother") -> list[np.ndarray]:
     """:func:`state_posteriors` of several turns in one call (one padded batch: one dispatch and one

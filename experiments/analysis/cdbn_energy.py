@@ -42,7 +42,7 @@ from scipy.signal import welch  # noqa: E402
 
 from convsynth_jax.cdbn.features import head_rotation, head_rotation_from_quat, speech_features  # noqa: E402
 from convsynth_jax.cdbn.residual import draw_residual  # noqa: E402
-from convsynth_jax.cdbn.synthesize import body_excerpt, expected_motion, keypoint_smooth, sample_state_path, state_posteriors  # noqa: E402
+from convsynth_jax.cdbn.synthesize import body_excerpt, expected_motion, keypoint_smooth, sample_motion, state_posteriors  # noqa: E402
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa: E402
 from convsynth_jax.evaluation.field.kinematic import average_jerk  # noqa: E402
@@ -142,11 +142,8 @@ def main():
                         stages(f"{cond}_{post}", m, fps)
                         if post == "smoother":
                             smooth = m
-                    md = list(tm.motion_dims)
-                    q = sample_state_path(tm, state_posteriors(tm, sz, cons, "filter"), cons, rng)
-                    mu = np.asarray(tm.means)[q][:, md]
-                    chol = np.linalg.cholesky(np.asarray(tm.covariances)[:, md][:, :, md])[q]
-                    draw = inv(mu + np.einsum("tij,tj->ti", chol, rng.standard_normal((n, len(md)))))
+                    mu, draw = sample_motion(tm, sz, cons, rng)
+                    draw = inv(draw)
                     add(f"{cond}_draws_kp15", kp(draw, fps, rate), fps)
                     if mdl.residual is not None:
                         add(f"{cond}_spectral", kp(smooth, fps, rate) + draw_residual(mdl.residual, n, rng), fps)

@@ -41,7 +41,7 @@ from convsynth_jax.cdbn.synthesize import (  # noqa: E402
     head_into_motion,
     head_onto_body,
     keypoint_smooth,
-    sample_state_path,
+    sample_motion,
     state_posteriors,
 )
 from convsynth_jax.config import default_params  # noqa: E402
@@ -97,11 +97,8 @@ def main():
                     add(f"{post}_mean_kp15", mean_body(keypoint_smooth(m, fps, rate)))
                     if post == "smoother":
                         smooth = m
-                md = list(tm.motion_dims)
-                q = sample_state_path(tm, state_posteriors(tm, sz, cons, "filter"), cons, rng)
-                mu = np.asarray(tm.means)[q][:, md]
-                chol = np.linalg.cholesky(np.asarray(tm.covariances)[:, md][:, :, md])[q]
-                draw = inv(mu + np.einsum("tij,tj->ti", chol, rng.standard_normal((n, len(md)))))
+                mu, draw = sample_motion(tm, sz, cons, rng)
+                draw = inv(draw)
                 add("sampled_path_means_kp15", mean_body(keypoint_smooth(inv(mu), fps, rate)))
                 add("sampled_draws_raw", mean_body(head_euler_to_quat(draw)))
                 add("sampled_draws_kp15", mean_body(keypoint_smooth(draw, fps, rate)))

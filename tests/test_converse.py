@@ -356,6 +356,11 @@ def test_given_graph_folder(chained, tiny_corpus_dir, cache, inputs, tmp_path):
                           "progress=false", "preset=quality",
                           *[f"+task.graphs.{ch}={tmp_path / 'g' / f'graph_{ch}.npz'}" for ch in ("female", "male")]]),
                  tmp_path / "o3")
+    with pytest.raises(ConfigError, match="system=motion_graph"):   # graph files for a system without graphs
+        run_task(compose(["task=synthesize", "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}", f"cache_dir={cache}",
+                          "progress=false", "system=random_playback", "task.condition=none",
+                          *[f"+task.graphs.{ch}={tmp_path / 'g' / f'graph_{ch}.npz'}" for ch in ("female", "male")]]),
+                 tmp_path / "o4")
     rep = json.loads((tmp_path / "o3" / "report.json").read_text())
     from convsynth_jax.graph import load_graph
 

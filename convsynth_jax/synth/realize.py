@@ -104,20 +104,20 @@ def composed_blend(source: np.ndarray, source_at, prev_of, synthetic_at, blend_f
     return out
 
 
-def continuation_end(rotations: np.ndarray, frame: int, max_step_deg: float, horizon: int, large_steps=None) -> int:
+def continuation_end(rotations: np.ndarray, frame: int, max_step_deg: float, horizon: int, steps=None) -> int:
     """The last frame a continuation of a clip from ``frame`` plays (ours): the frame before the first
     step g - 1 -> g (frame < g <= frame + horizon) in which some joint below the root turns more than
     ``max_step_deg`` degrees, else frame + horizon (at most the clip's last frame). rotations: (n, J, 4)
-    the clip's rotations; ``max_step_deg`` <= 0: no limit. ``large_steps``: the clip's
+    the clip's rotations; ``max_step_deg`` <= 0: no limit. ``steps``: the clip's
     :func:`large_steps` when known (a realization asks for many continuations of one clip: the turns
     are then computed once per clip, not once per transition over the rest of the clip)."""
     n = rotations.shape[0]
     stop = min(n - 1, int(frame) + int(horizon))
     if max_step_deg <= 0 or stop <= frame:
         return stop
-    if large_steps is not None:
-        i = int(np.searchsorted(large_steps, frame))
-        return int(large_steps[i]) if i < len(large_steps) and large_steps[i] < stop else stop
+    if steps is not None:
+        i = int(np.searchsorted(steps, frame))
+        return int(steps[i]) if i < len(steps) and steps[i] < stop else stop
     big = np.flatnonzero(joint_turn_deg_np(rotations[frame:stop + 1]) > max_step_deg)
     return int(frame) + int(big[0]) if big.size else stop
 

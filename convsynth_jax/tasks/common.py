@@ -87,7 +87,10 @@ def graph_file_models(given, ann, system):
     """Motion-graph models from graph files (``task.graphs.<character>=FILE``: task=synthesize and
     task=converse), each clip checked against the configured corpus's recordings."""
     from ..graph import load_graph
+    from ..systems.motion_graph import MotionGraphSystem
 
+    if not isinstance(system, MotionGraphSystem):
+        raise ConfigError(f"task.graphs gives motion graphs: it needs system=motion_graph (got {system.name!r})")
     out = {}
     for char, path in given.items():
         g = load_graph(path)

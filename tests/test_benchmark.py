@@ -146,3 +146,37 @@ def test_a_null_system_label_is_left_out():
     s = build_params(BenchmarkSettings, {"systems": systems}, "task")
     assert s.systems["motion_graph"] is None
     assert s.systems["cdbn"].system == "cdbn" and s.systems["random_playback"].condition == "none"
+
+
+def test_set_metrics_compare_a_system_with_the_ground_truth_of_the_windows_it_scored(gt_views):
+    """A system that replays the recordings of the windows it solved and fails the rest has no
+    distance to the ground truth at all (scored against every window it would have one); the
+    noise-floor row is the odd windows' distance to the even ones, computed here independently."""
+    cases, views, gt, mm = gt_views
+    solved = [c for c in cases if c.role == cases[0].role and c.window % 3 == 0]
+    assert 0 < len(solved) < len(cases)
+    subset = bm.SystemMotions("subset", ("body", "head"),
+                              {c.key: (gt.motions[c.key] if c in solved else ("failed", "unsolvable", None))
+                               for c in cases})
+    res = bm.score_benchmark(cases, [gt, mm, subset], {}, FPS, FieldMetricParams(bootstrap=5, bootstrap_set_level=3),
+                             AnnotateParams(), {})
+    board = res.leaderboard.set_index(["system", "scope", "metric"])
+    assert board.loc[("subset", "body", "fgd_raw"), "value"] == pytest.approx(0.0, abs=1e-6)
+    assert board.loc[("subset", "body", "hellinger_speed_set"), "value"] == pytest.approx(0.0, abs=1e-7)
+    assert board.loc[("subset", "body", "fgd_raw"), "n_windows"] == len(solved)
+    all_feat = np.concatenate([_raw(views[c.key].relative) for c in cases])
+    sub_feat = np.concatenate([_raw(views[c.key].relative) for c in solved])
+    assert fgd.fgd(sub_feat, all_feat) > 1e-3   # what the old reference (every window) would have reported
+    odd = np.concatenate([_raw(views[c.key].relative) for c in cases if c.window % 2])
+    even = np.concatenate([_raw(views[c.key].relative) for c in cases if not c.window % 2])
+    floor = board.loc[(bm.NOISE_FLOOR, "body", "fgd_raw")]
+    assert floor["value"] == pytest.approx(fgd.fgd(odd, even), rel=1e-6) and floor["value"] > 0
+    assert np.isnan(floor["rank"]) and floor["n_windows"] == sum(c.window % 2 for c in cases)
+    assert (bm.NOISE_FLOOR, "body", "jerk") not in board.index   # no per-window metrics for two halves
+    assert (bm.NOISE_FLOOR, "body", "cca_m_set") not in board.index
+    from convsynth_jax.figures.benchmark import leaderboard_figure
+
+    fig = leaderboard_figure(res.leaderboard)
+    lines = [ln for ax in fig.axes for ln in ax.get_lines() if ln.get_label() == "GT odd vs even"]
+    assert lines and all(bm.NOISE_FLOOR.replace("_", "\n") not in [t.get_text() for t in ax.get_xticklabels()]
+                         for ax in fig.axes)

@@ -40,6 +40,9 @@ log = logging.getLogger(__name__)
 
 GROUND_TRUTH = "ground_truth"
 MISMATCHED = "mismatched_ground_truth"
+# not a system: the set-level metrics of the ground truth's odd windows against its even windows (each
+# metric's noise floor at half the windows); it has no per-window metrics
+NOISE_FLOOR = "ground_truth_odd_vs_even"
 
 
 @dataclass(frozen=True)
@@ -238,12 +241,20 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
     t_audio = time.perf_counter() - t0
     rows: List[dict] = []
     set_moments: Dict[tuple, score.SetMoments] = {}
-    refs: Dict[str, score.SetMoments] = {}
+    refs: Dict[tuple, score.SetMoments] = {}   # (system, scope) -> the ground truth of the windows it scored
     for scope in SCOPES:
         aes = {w: ae for (s, w), ae in autoencoders.items() if s == scope}
         gt_views = {c.key: (c.session, motion_view(gt_sys.motions[c.key][2], scope, params.joints, annotate_params))
                     for c in cases}
-        refs[scope] = score.reference_moments(gt_views, params, aes, fps)
+        by_keys: Dict[frozenset, score.SetMoments] = {}
+
+        def reference(keys) -> score.SetMoments:
+            keys = frozenset(keys)
+            if keys not in by_keys:
+                by_keys[keys] = score.reference_moments({k: v for k, v in gt_views.items() if k in keys},
+                                                        params, aes, fps)
+            return by_keys[keys]
+
         gt_cells = ({k: covered_cells(v.relative, v.parents, params.coverage) for k, (_, v) in gt_views.items()}
                     if scope == "body" else {})
         for sysm in systems:
@@ -251,6 +262,7 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
                 continue
             mom = set_moments.setdefault((sysm.name, scope), score.SetMoments())
             encoded = []   # (session, relative) of the scored windows, encoded together below
+            scored = []
             for c in tqdm(cases, desc=f"{sysm.name} {scope}", disable=not progress, leave=False):
                 status, err, motion = sysm.motions.get(c.key, ("missing", "not run", None))
                 base = {"system": sysm.name, "scope": scope, "fold": c.fold, "session": c.session, "window": c.window,
@@ -264,11 +276,20 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
                                                gt_cells.get(c.key))
                         base.update(m)
                         encoded.append((c.session, view.relative))
+                        scored.append(c.key)
                     except Exception as e:  # a window the metrics cannot read is recorded, not fatal
                         log.exception("%s %s: metrics failed", sysm.name, c)
                         base.update({"status": "error", "error": f"metrics: {type(e).__name__}: {e}"})
                 rows.append(base)
             score.add_codes(mom, encoded, aes)
+            # set-level metrics compare the system with the ground truth of the windows it scored, so
+            # a system that fails some windows is neither helped nor hurt by which ones
+            refs[(sysm.name, scope)] = reference(scored)
+        odd = [c.key for c in cases if c.window % 2]
+        even = [c.key for c in cases if not c.window % 2]
+        if odd and even:
+            set_moments[(NOISE_FLOOR, scope)] = reference(odd)
+            refs[(NOISE_FLOOR, scope)] = reference(even)
     df = pd.DataFrame(rows)
     # CCA: one fit per (system, scope) over all its windows, then each window's correlation
     for (name, scope), mom in set_moments.items():
@@ -292,31 +313,44 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
 def leaderboard(rows: pd.DataFrame, set_moments: dict, refs: dict, params: FieldMetricParams) -> pd.DataFrame:
     """system x scope x metric: value, bootstrap 95% interval over sessions, rank within the scope
     (1 = best by :data:`.field.score.DIRECTION`; ``gt`` metrics rank by the distance to the ground
-    truth's value), windows scored and failed."""
+    truth's value), windows scored and failed. ``refs``: (system, scope) -> the ground truth's set
+    moments of the windows that system scored. The row :data:`NOISE_FLOOR` (set-level metrics of
+    the ground truth's odd windows against its even ones) is shown without a rank."""
     out = []
-    caches: Dict[str, dict] = {scope: {} for scope in SCOPES}   # reference Gaussians per resample, shared by systems
+    caches: Dict[int, dict] = {}   # reference Gaussians per resample, one cache per reference, shared by systems
     for (name, scope), mom in set_moments.items():
+        ref = refs[(name, scope)]
+        cache = caches.setdefault(id(ref), {})
         sub = rows[(rows["system"] == name) & (rows["scope"] == scope)]
         ok = sub[sub["status"] == "ok"]
         sessions = sorted(rows["session"].unique())
         ones = {s: 1.0 for s in sessions}
         sums = score.window_sums(ok)
-        point = {**score.window_means(sums, ones), **score.set_metrics(mom, refs[scope], ones, params)}
+        floor = name == NOISE_FLOOR
+        point = {**({} if floor else score.window_means(sums, ones)), **score.set_metrics(mom, ref, ones, params)}
+        if floor:   # only what two sets of recordings can be compared by: no CCA against a paired stream
+            point = {k: v for k, v in point.items() if not k.startswith("cca")}
 
-        ci_w = score.bootstrap_intervals(lambda w: score.window_means(sums, w), sessions, params.bootstrap, params.seed)
+        ci_w = ({} if floor else
+                score.bootstrap_intervals(lambda w: score.window_means(sums, w), sessions, params.bootstrap, params.seed))
         ci_s = score.bootstrap_intervals(
-            lambda w: score.set_metrics(mom, refs[scope], w, params, fast=True, cache=caches[scope]), sessions,
+            lambda w: score.set_metrics(mom, ref, w, params, fast=True, cache=cache), sessions,
             params.bootstrap_set_level, params.seed)
         ci = {**ci_w, **ci_s}
+        n_ok = int(len(ok))
+        if floor:   # the odd windows' count, from the rows of the ground truth in this scope
+            gt = rows[(rows["system"] == GROUND_TRUTH) & (rows["scope"] == scope) & (rows["status"] == "ok")]
+            n_ok = int((gt["window"] % 2 == 1).sum())
         for metric, v in point.items():
             lo, hi = ci.get(metric, (np.nan, np.nan))
             out.append({"system": name, "scope": scope, "metric": metric, "value": v, "ci_low": lo, "ci_high": hi,
-                        "n_windows": int(len(ok)), "n_failed": int(len(sub) - len(ok))})
+                        "n_windows": n_ok, "n_failed": 0 if floor else int(len(sub) - len(ok))})
     board = pd.DataFrame(out)
     if board.empty:
         return board
     board["rank"] = np.nan
-    for (scope, metric), g in board.groupby(["scope", "metric"]):
+    ranked = board[board["system"] != NOISE_FLOOR]   # the noise floor is shown, not ranked
+    for (scope, metric), g in ranked.groupby(["scope", "metric"]):
         direction = score.DIRECTION.get(metric, "low" if metric.startswith("fgd") else "high")
         v = g["value"].to_numpy(np.float64)
         if direction == "gt":

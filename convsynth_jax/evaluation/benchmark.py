@@ -20,7 +20,7 @@ import logging
 import time
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any, Dict, List, Optional
+from typing import Any, Dict, List, Optional, Tuple
 
 import numpy as np
 import pandas as pd
@@ -241,7 +241,8 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
     t_audio = time.perf_counter() - t0
     rows: List[dict] = []
     set_moments: Dict[tuple, score.SetMoments] = {}
-    refs: Dict[tuple, score.SetMoments] = {}   # (system, scope) -> the ground truth of the windows it scored
+    # (system, scope) -> (scope, the keys of the windows it scored), the ground truth's moments of them
+    refs: Dict[tuple, Tuple[tuple, score.SetMoments]] = {}
     for scope in SCOPES:
         aes = {w: ae for (s, w), ae in autoencoders.items() if s == scope}
         gt_views = {c.key: (c.session, motion_view(gt_sys.motions[c.key][2], scope, params.joints, annotate_params))
@@ -284,12 +285,12 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
             score.add_codes(mom, encoded, aes)
             # set-level metrics compare the system with the ground truth of the windows it scored, so
             # a system that fails some windows is neither helped nor hurt by which ones
-            refs[(sysm.name, scope)] = reference(scored)
+            refs[(sysm.name, scope)] = ((scope, frozenset(scored)), reference(scored))
         odd = [c.key for c in cases if c.window % 2]
         even = [c.key for c in cases if not c.window % 2]
         if odd and even:
             set_moments[(NOISE_FLOOR, scope)] = reference(odd)
-            refs[(NOISE_FLOOR, scope)] = reference(even)
+            refs[(NOISE_FLOOR, scope)] = ((scope, frozenset(even)), reference(even))
     df = pd.DataFrame(rows)
     # CCA: one fit per (system, scope) over all its windows, then each window's correlation
     for (name, scope), mom in set_moments.items():
@@ -313,14 +314,14 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
 def leaderboard(rows: pd.DataFrame, set_moments: dict, refs: dict, params: FieldMetricParams) -> pd.DataFrame:
     """system x scope x metric: value, bootstrap 95% interval over sessions, rank within the scope
     (1 = best by :data:`.field.score.DIRECTION`; ``gt`` metrics rank by the distance to the ground
-    truth's value), windows scored and failed. ``refs``: (system, scope) -> the ground truth's set
-    moments of the windows that system scored. The row :data:`NOISE_FLOOR` (set-level metrics of
+    truth's value), windows scored and failed. ``refs``: (system, scope) -> (a key naming the
+    windows that system scored, the ground truth's set moments of them). The row :data:`NOISE_FLOOR` (set-level metrics of
     the ground truth's odd windows against its even ones) is shown without a rank."""
     out = []
-    caches: Dict[int, dict] = {}   # reference Gaussians per resample, one cache per reference, shared by systems
+    caches: Dict[tuple, dict] = {}   # reference Gaussians per resample, one per set of windows, shared by systems
     for (name, scope), mom in set_moments.items():
-        ref = refs[(name, scope)]
-        cache = caches.setdefault(id(ref), {})
+        ref_key, ref = refs[(name, scope)]
+        cache = caches.setdefault(ref_key, {})
         sub = rows[(rows["system"] == name) & (rows["scope"] == scope)]
         ok = sub[sub["status"] == "ok"]
         sessions = sorted(rows["session"].unique())

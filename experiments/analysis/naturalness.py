@@ -75,6 +75,14 @@ VARIANTS = {   # name -> (system, condition, overrides)
     # each option of the preset off alone
     "quality_no_retime_detail": ("motion_graph", "all", ["preset=quality", "synth.retime_detail_frames=0"]),
     "quality_no_blend_detail": ("motion_graph", "all", ["preset=quality", "synth.blend_detail_frames=0"]),
+    # which constraint kinds cost naturalness: the preset under the ablation conditions
+    "quality_none": ("motion_graph", "none", ["preset=quality"]),
+    "quality_no_lr": ("motion_graph", "no_lr", ["preset=quality"]),
+    "quality_no_hp": ("motion_graph", "no_hp", ["preset=quality"]),
+    # the beam's sampling temperature (relative to the median synthetic edge cost; default 0.05):
+    # hotter picks transitions less greedily, so paths need not return to the cheapest (nearest) frames
+    "quality_temp02": ("motion_graph", "all", ["preset=quality", "search.temperature=0.2"]),
+    "quality_temp1": ("motion_graph", "all", ["preset=quality", "search.temperature=1.0"]),
     # controls, on the preset before the detail options
     "before_inertialize": ("motion_graph", "all", [*BEFORE, "synth.blend_method=inertialize"]),
     "before_no_retime": ("motion_graph", "all", [*BEFORE, "search.retime_factor=0"]),

@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import shutil
 import socket
-import threading
 import time
 from pathlib import Path
 
@@ -246,23 +245,11 @@ def _raw_get(port: int, path: str) -> tuple[int, bytes]:
 @pytest.fixture(scope="module")
 def served(out):
     """uvicorn serving the fixture on a free loopback port, in a thread of this process."""
-    import uvicorn
-
+    from convsynth_jax.testing.web import serve_in_thread
     from convsynth_jax.viewer.server import create_viewer_app
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_viewer_app(out), host="127.0.0.1", port=port, log_level="warning"))
-    th = threading.Thread(target=server.run, daemon=True)
-    th.start()
-    deadline = time.monotonic() + 20
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert server.started
-    yield f"http://127.0.0.1:{port}", port
-    server.should_exit = True
-    th.join(10)
+    with serve_in_thread(create_viewer_app(out)) as (url, port):
+        yield url, port
 
 
 def test_traversal_probes_get_no_file(served):
@@ -276,28 +263,16 @@ def test_traversal_probes_get_no_file(served):
 
 
 # ------------------------------------------------------------------------------------------ the browser
-def _browser():
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        b = shutil.which(name)
-        if b and shutil.which("chromedriver"):
-            return b, shutil.which("chromedriver")
-    return None
-
-
 @pytest.fixture(scope="module")
 def driver():
-    found = _browser()
+    from convsynth_jax.testing.web import find_browser, headless_chrome
+
+    found = find_browser()
     if found is None:
         pytest.skip("no Chromium and chromedriver on this machine (apt-get install chromium chromium-driver)")
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
-
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = found[0]
-    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1000,800", "--mute-audio",
-              "--autoplay-policy=no-user-gesture-required", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"):
-        opts.add_argument(a)
-    d = webdriver.Chrome(service=Service(executable_path=found[1]), options=opts)
+    pytest.importorskip("selenium.webdriver")
+    d = headless_chrome(found, "--window-size=1000,800", "--mute-audio", "--autoplay-policy=no-user-gesture-required",
+                        "--use-angle=swiftshader", "--enable-unsafe-swiftshader")
     d.set_page_load_timeout(30)
     yield d
     d.quit()
@@ -388,25 +363,13 @@ def test_browser_timeline_cursor_follows_the_audio_clock(driver, served):
 
 
 def test_browser_shows_a_malformed_file_as_an_error(driver, broken):
-    import uvicorn
-
+    from convsynth_jax.testing.web import serve_in_thread
     from convsynth_jax.viewer.server import create_viewer_app
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_viewer_app(broken), host="127.0.0.1", port=port, log_level="critical"))
-    th = threading.Thread(target=server.run, daemon=True)
-    th.start()
-    while not server.started:
-        time.sleep(0.05)
-    try:
-        assert _open(driver, f"http://127.0.0.1:{port}/") is None
+    with serve_in_thread(create_viewer_app(broken), log_level="critical") as (url, _):
+        assert _open(driver, f"{url}/") is None
         state, text = driver.execute_script("return [document.body.dataset.state, document.getElementById('error').textContent]")
         assert state == "error" and "x.bvh" in text and "Cannot show" in text
-    finally:
-        server.should_exit = True
-        th.join(10)
 
 
 def test_browser_draws_the_static_export_from_the_file_system(driver, out, tmp_path):

@@ -21,67 +21,26 @@ import pytest
 pytest.importorskip("starlette")
 
 FPS, FRAMES = 10, 100
-HIER = """HIERARCHY
-ROOT Hips
-{{
-  OFFSET 0 0 0
-  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
-  JOINT Spine
-  {{
-    OFFSET 0 20 0
-    CHANNELS 3 Zrotation Xrotation Yrotation
-    JOINT Head
-    {{
-      OFFSET 0 25 0
-      CHANNELS 3 Zrotation Xrotation Yrotation
-      End Site
-      {{
-        OFFSET 0 10 0
-      }}
-    }}
-    JOINT LeftArm
-    {{
-      OFFSET 15 20 0
-      CHANNELS 3 Zrotation Xrotation Yrotation
-      JOINT LeftHand
-      {{
-        OFFSET 0 -30 0
-        CHANNELS 3 Zrotation Xrotation Yrotation
-        End Site
-        {{
-          OFFSET 0 -5 0
-        }}
-      }}
-    }}
-    JOINT RightArm
-    {{
-      OFFSET -15 20 0
-      CHANNELS 3 Zrotation Xrotation Yrotation
-      JOINT RightHand
-      {{
-        OFFSET 0 -30 0
-        CHANNELS 3 Zrotation Xrotation Yrotation
-        End Site
-        {{
-          OFFSET 0 -5 0
-        }}
-      }}
-    }}
-  }}
-}}
-MOTION
-Frames: {frames}
-Frame Time: {ft}
-"""
+JOINTS = ("Hips", "Spine", "Head", "LeftArm", "LeftHand", "RightArm", "RightHand")
 
 
 def write_bvh(path: Path, z: float, yaw: float, phase: float) -> None:
-    rows = []
-    for f in range(FRAMES):
-        wave = 150.0 * (0.5 + 0.5 * np.sin(2 * np.pi * f / FRAMES + phase))   # the left arm swings up and down
-        ch = [0, 90, z, 0, 0, yaw] + [0, 0, 0] * 2 + [wave, 0, 0, 0, 0, 0] + [-10, 0, 0, 0, 0, 0]
-        rows.append(" ".join(f"{v:.4f}" for v in ch))
-    path.write_text(HIER.format(frames=FRAMES, ft=1.0 / FPS) + "\n".join(rows) + "\n")
+    """A seven-joint character at (0, 90, z) turned by ``yaw`` degrees, its left arm waving about Z."""
+    from convsynth_jax.io import save_bvh
+    from convsynth_jax.rotations import euler_deg_to_quat_np
+    from convsynth_jax.skeleton import Motion, Skeleton
+
+    rot = ("Zrotation", "Xrotation", "Yrotation")
+    offsets = np.array([[0, 0, 0], [0, 20, 0], [0, 25, 0], [15, 20, 0], [0, -30, 0], [-15, 20, 0], [0, -30, 0]], float)
+    skel = Skeleton(JOINTS, (-1, 0, 1, 1, 3, 1, 5), offsets, (("Xposition", "Yposition", "Zposition") + rot,) + (rot,) * 6,
+                    ((2, (0.0, 10.0, 0.0)), (4, (0.0, -5.0, 0.0)), (6, (0.0, -5.0, 0.0))))
+    euler = np.zeros((FRAMES, len(JOINTS), 3))                       # (Z, X, Y) degrees, the channels' order
+    euler[:, 0, 2] = yaw
+    euler[:, 3, 0] = 150.0 * (0.5 + 0.5 * np.sin(2 * np.pi * np.arange(FRAMES) / FRAMES + phase))   # the left arm swings
+    euler[:, 5, 0] = -10.0
+    trans = np.broadcast_to(offsets, (FRAMES, len(JOINTS), 3)).copy()
+    trans[:, 0] = [0.0, 90.0, z]
+    save_bvh(Motion(skel, euler_deg_to_quat_np(euler, "ZXY"), trans, float(FPS)), path, precision=4)
 
 
 def write_wav(path: Path, seconds: float, hz: float) -> None:

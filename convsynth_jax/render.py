@@ -896,20 +896,3 @@ def render_pair_video(left, right, fps: float, path: str | Path, audio: str | Pa
         raise ConvSynthError(f"study video panels need an even width and height, got {width} x {height}")
     step = _step(fps, render_fps)
     return write_video(side_by_side_frames(left, right, width, height, step, yaw_deg, pitch_deg), fps / step, path, audio)
-
-
-# ------------------------------------------------------------------------------------------ inputs
-def bvh_files(path: str | Path) -> list[Path]:
-    """The BVH file ``path`` or the ``*.bvh`` files directly in the folder ``path`` (sorted).
-    Raises MissingFileError for a missing path or a folder without BVH files."""
-    p = Path(path)
-    if not p.exists():
-        raise MissingFileError("no such BVH file or folder", p)
-    if p.is_dir():
-        files = sorted(q for q in p.iterdir() if q.suffix.lower() == ".bvh" and q.is_file())
-        if not files:
-            raise MissingFileError("folder holds no .bvh files", p)
-        return files
-    if p.suffix.lower() != ".bvh":
-        raise MissingFileError("not a .bvh file", p)
-    return [p]

@@ -6,7 +6,6 @@ Serves the built study (``task=study_build``) on a loopback port with a throw-aw
 to the consent page, begins, plays the first video to its end (the choice buttons become enabled)
 and saves the page. Needs Chromium and chromedriver (Debian: chromium, chromium-driver)."""
 import argparse
-import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -15,7 +14,8 @@ REPO = Path(__file__).resolve().parents[1]
 if str(REPO) not in sys.path:
     sys.path.insert(0, str(REPO))
 
-from convsynth_jax.testing.study import free_port, serve_subprocess  # noqa: E402
+from convsynth_jax.testing.study import serve_subprocess  # noqa: E402
+from convsynth_jax.testing.web import find_browser, free_port, headless_chrome  # noqa: E402
 
 
 def main():
@@ -24,24 +24,16 @@ def main():
     ap.add_argument("--out", default=str(REPO / "docs" / "study_trial.png"))
     ap.add_argument("--size", default="1000,760")
     args = ap.parse_args()
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
-    browser = next((shutil.which(n) for n in ("chromium", "chromium-browser", "google-chrome") if shutil.which(n)), None)
-    driver_exe = shutil.which("chromedriver")
-    if not browser or not driver_exe:
+    found = find_browser()
+    if found is None:
         raise SystemExit("needs chromium and chromedriver")
     with tempfile.TemporaryDirectory() as tmp:
         port = free_port()
         proc = serve_subprocess(args.study, Path(tmp) / "answers.sqlite", port, "screenshot-admin-token-0123456789")
-        opts = webdriver.ChromeOptions()
-        opts.binary_location = browser
-        for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu", f"--window-size={args.size}",
-                  "--mute-audio", "--hide-scrollbars"):
-            opts.add_argument(a)
-        driver = webdriver.Chrome(service=Service(executable_path=driver_exe), options=opts)
+        driver = headless_chrome(found, "--disable-gpu", f"--window-size={args.size}", "--mute-audio", "--hide-scrollbars")
         try:
             wait = WebDriverWait(driver, 120)
             driver.get(f"http://127.0.0.1:{port}/")

@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pandas as pd
 import pytest
 from scipy.io import wavfile
 
@@ -9,35 +10,10 @@ from conftest import shared_path
 from convsynth_jax.config import compose, to_params
 from convsynth_jax.errors import ConfigError, CorpusError, MissingFileError
 from convsynth_jax.io.beat2 import load_beat2
+from convsynth_jax.io.transcripts import save_textgrid
 from convsynth_jax.tasks.common import open_corpus, pairing_note
 
-TEXTGRID = """File type = "ooTextFile"
-Object class = "TextGrid"
-
-xmin = 0
-xmax = 4
-tiers? <exists>
-size = 1
-item []:
-    item [1]:
-        class = "IntervalTier"
-        name = "words"
-        xmin = 0
-        xmax = 4
-        intervals: size = 3
-        intervals [1]:
-            xmin = 0
-            xmax = 0.5
-            text = "hello"
-        intervals [2]:
-            xmin = 0.5
-            xmax = 2.5
-            text = ""
-        intervals [3]:
-            xmin = 2.5
-            xmax = 3.0
-            text = "world"
-"""
+WORDS = pd.DataFrame({"start": [0.0, 2.5], "end": [0.5, 3.0], "word": ["hello", "world"]})   # 4 s TextGrid
 
 
 def make_take(root, take, T=120, seed=0):
@@ -49,7 +25,7 @@ def make_take(root, take, T=120, seed=0):
              mocap_frame_rate=np.int32(30))
     wavfile.write(root / "wave16k" / f"{take}.wav", 16000,
                   (0.1 * np.sin(np.arange(T * 16000 // 30) / 10.0)).astype(np.float32))
-    (root / "textgrid" / f"{take}.TextGrid").write_text(TEXTGRID)
+    save_textgrid(WORDS, root / "textgrid" / f"{take}.TextGrid", duration=4.0)
 
 
 def test_single_take_is_a_pseudo_dyad_with_a_shifted_copy(tmp_path):

@@ -123,6 +123,20 @@ def test_missing_file(tmp_path):
         load_bvh(tmp_path / "nope.bvh")
 
 
+def test_bvh_files_of_a_file_or_a_folder(tmp_path):
+    from convsynth_jax.io.bvh import bvh_files
+
+    upper, lower = write(tmp_path, HAND, "A.BVH"), write(tmp_path, HAND, "b.bvh")
+    write(tmp_path, "not motion", "notes.txt")
+    (tmp_path / "sub.bvh").mkdir()                                   # a folder named like a file is skipped
+    assert bvh_files(tmp_path) == [upper, lower]                     # sorted, any case of the suffix
+    assert bvh_files(str(lower)) == [lower]
+    for bad, why in ((tmp_path / "missing.bvh", "no such"), (tmp_path / "notes.txt", "not a .bvh"),
+                     (tmp_path / "sub.bvh", "holds no .bvh")):
+        with pytest.raises(MissingFileError, match=why):
+            bvh_files(bad)
+
+
 def test_failed_write_leaves_nothing(tmp_path):
     m = load_bvh(write(tmp_path, HAND))
     rot = m.rotations.copy()

@@ -40,6 +40,35 @@ def test_only_the_save_helper_writes_figures():
     assert not (PKG / "cdbn" / "figures.py").exists() and not (PKG / "walktalk" / "figures.py").exists()
 
 
+def test_panel_row_and_label_panel():
+    from convsynth_jax.figures.panels import label_panel, panel_row
+
+    fig, axes = panel_row(3, 2.0, 1.5)
+    assert len(axes) == 3 and tuple(fig.get_size_inches()) == (6.0, 1.5)
+    assert len(panel_row(0, 2.0, 1.5)[1]) == 1                      # an empty table still gets a panel
+    axes[0].plot([0, 1], [0, 1], label="a")
+    label_panel(axes[0], "t", "y", "x")
+    label_panel(axes[1], "u", "v")
+    assert (axes[0].get_title(), axes[0].get_xlabel(), axes[0].get_ylabel()) == ("t", "x", "y")
+    assert (axes[1].get_title(), axes[1].get_xlabel(), axes[1].get_ylabel()) == ("u", "", "v")
+    assert axes[0].get_legend().get_texts()[0].get_fontsize() == 7
+
+
+def test_condition_bars_place_truth_then_each_condition_per_hypothesis():
+    import pandas as pd
+
+    from convsynth_jax.figures.motion_graph.bars import condition_bars
+
+    g = pd.DataFrame({"hypothesis": ["LR", "PC", "LR", "PC"], "condition": ["all", "all", "none", "none"],
+                      "gt_rate": [0.5, 0.3, 0.5, 0.3], "synth_rate": [0.1, 0.2, 0.3, 0.4]})
+    b = condition_bars(g)
+    assert b.hypotheses == ["LR", "PC"] and b.width == pytest.approx(0.8 / 3)
+    np.testing.assert_allclose(b.truth_x, [-0.4 + 0.4 / 3, 0.6 + 0.4 / 3])
+    assert [c for c, _, _ in b.conditions] == ["all", "none"]
+    np.testing.assert_allclose(b.conditions[1][2], b.truth_x + 2 * b.width)     # side by side
+    assert list(b.conditions[1][1]["synth_rate"]) == [0.3, 0.4] and list(b.truth["gt_rate"]) == [0.5, 0.3]
+
+
 def test_cdbn_figures_plot_the_given_data():
     """Each figure draws exactly the numbers it is given: the scatter and the state ellipses (centre,
     axes from the covariance's eigenvalues), the CCA_m and LLR curves per number of states, and the

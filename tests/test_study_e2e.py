@@ -13,7 +13,6 @@ import csv
 import io
 import json
 import os
-import shutil
 import time
 from pathlib import Path
 
@@ -66,44 +65,35 @@ def test_study_build_writes_balanced_stimuli_with_h264_aac_videos_and_hashes(tin
 def _browser():
     """(browser, chromedriver) paths, or None. While ``.ci/run`` installs them in the background it names a
     file in ``CONVSYNTH_BROWSER_INSTALL`` that appears when apt-get is done: wait for it (at most 15 min)."""
+    from convsynth_jax.testing.web import find_browser
+
     marker = os.environ.get("CONVSYNTH_BROWSER_INSTALL")
     deadline = time.monotonic() + 900
     while marker and not os.path.exists(marker) and time.monotonic() < deadline:
         time.sleep(1.0)
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        b = shutil.which(name)
-        if b:
-            d = shutil.which("chromedriver")
-            if d:
-                return b, d
-    return None
+    return find_browser()
 
 
 def test_headless_chromium_participants_and_analysis_match_the_clicks(tiny_study, tmp_path):
     found = _browser()
     if found is None:
         pytest.skip("no Chromium and chromedriver on this machine (apt-get install chromium chromium-driver)")
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
+    pytest.importorskip("selenium.webdriver")
     from selenium.common.exceptions import StaleElementReferenceException
     from selenium.webdriver.common.by import By
     from selenium.webdriver.support.ui import WebDriverWait
 
     from convsynth_jax.config import compose, run_task
     from convsynth_jax.study.build import load_study_manifest
-    from convsynth_jax.testing.study import free_port, serve_subprocess
+    from convsynth_jax.testing.study import serve_subprocess
+    from convsynth_jax.testing.web import free_port, headless_chrome
 
     study, _ = tiny_study
     stim = {s["id"]: s for s in load_study_manifest(study)["stimuli"]}
     port = free_port()
     proc = serve_subprocess(study, tmp_path / "answers.sqlite", port, ADMIN)
     base = f"http://127.0.0.1:{port}"
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = found[0]
-    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--disable-gpu", "--window-size=900,700",
-              "--mute-audio"):
-        opts.add_argument(a)
-    driver = webdriver.Chrome(service=Service(executable_path=found[1]), options=opts)
+    driver = headless_chrome(found, "--disable-gpu", "--window-size=900,700", "--mute-audio")
     driver.set_page_load_timeout(60)
     wait = WebDriverWait(driver, 60, ignored_exceptions=(StaleElementReferenceException,))
     clicks = []                                     # (participant token, stimulus id, side)

@@ -20,7 +20,8 @@ pytest.importorskip("fastapi")
 from fastapi.testclient import TestClient  # noqa: E402
 
 from convsynth_jax.study.server import create_app  # noqa: E402
-from convsynth_jax.testing.study import answer_all, free_port, make_fake_study, serve_subprocess, sign_up  # noqa: E402
+from convsynth_jax.testing.study import answer_all, make_fake_study, serve_subprocess, sign_up  # noqa: E402
+from convsynth_jax.testing.web import free_port  # noqa: E402
 
 ADMIN = "a-long-admin-token-0123456789"
 

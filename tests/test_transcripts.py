@@ -1,9 +1,11 @@
 import numpy as np
+import pandas as pd
 import pytest
 
 from conftest import TEST_DATA
 from convsynth_jax.errors import MissingFileError, TranscriptFormatError
 from convsynth_jax.io import load_transcript, save_transcript_tsv
+from convsynth_jax.io.transcripts import save_textgrid, textgrid_text
 
 
 def test_long_textgrid_chooses_tier_and_unquotes():
@@ -98,3 +100,16 @@ def test_whisper_and_whisperx_json(tmp_path, caplog):
     (tmp_path / "other.json").write_text(json.dumps({"words": []}))
     with pytest.raises(TranscriptFormatError, match=r"other\.json: expected IBM Watson.*Whisper"):
         load_transcript(tmp_path / "other.json")
+
+
+def test_textgrid_writer_round_trips_through_our_reader_and_praat(tmp_path):
+    df = pd.DataFrame({"start": [0.5, 0.9, 1.6], "end": [0.9, 1.4, 2.0], "word": ["well", 'I said "hi"', "there"]})
+    path = save_textgrid(df, tmp_path / "w.TextGrid", duration=2.5)
+    assert load_transcript(path).equals(df)
+    text = textgrid_text(df, 2.5)
+    assert "xmin = 0\n" in text and "xmax = 2.5\n" in text and 'text = "I said ""hi"""' in text
+    assert text.count('text = ""\n') == 1 + 1 + 1                    # before the first word, between, after
+    assert textgrid_text(df.iloc[:0]).count("intervals [") == 0      # no words: an empty tier
+    parselmouth = pytest.importorskip("parselmouth")
+    tg = parselmouth.read(str(path))                                  # Praat reads it: tiles the tier
+    assert parselmouth.praat.call(tg, "Get number of intervals", 1) == len(df) + 3

@@ -12,7 +12,6 @@ from __future__ import annotations
 import json
 import shutil
 import socket
-import threading
 import time
 from pathlib import Path
 
@@ -22,67 +21,26 @@ import pytest
 pytest.importorskip("starlette")
 
 FPS, FRAMES = 10, 100
-HIER = """HIERARCHY
-ROOT Hips
-{{
-  OFFSET 0 0 0
-  CHANNELS 6 Xposition Yposition Zposition Zrotation Xrotation Yrotation
-  JOINT Spine
-  {{
-    OFFSET 0 20 0
-    CHANNELS 3 Zrotation Xrotation Yrotation
-    JOINT Head
-    {{
-      OFFSET 0 25 0
-      CHANNELS 3 Zrotation Xrotation Yrotation
-      End Site
-      {{
-        OFFSET 0 10 0
-      }}
-    }}
-    JOINT LeftArm
-    {{
-      OFFSET 15 20 0
-      CHANNELS 3 Zrotation Xrotation Yrotation
-      JOINT LeftHand
-      {{
-        OFFSET 0 -30 0
-        CHANNELS 3 Zrotation Xrotation Yrotation
-        End Site
-        {{
-          OFFSET 0 -5 0
-        }}
-      }}
-    }}
-    JOINT RightArm
-    {{
-      OFFSET -15 20 0
-      CHANNELS 3 Zrotation Xrotation Yrotation
-      JOINT RightHand
-      {{
-        OFFSET 0 -30 0
-        CHANNELS 3 Zrotation Xrotation Yrotation
-        End Site
-        {{
-          OFFSET 0 -5 0
-        }}
-      }}
-    }}
-  }}
-}}
-MOTION
-Frames: {frames}
-Frame Time: {ft}
-"""
+JOINTS = ("Hips", "Spine", "Head", "LeftArm", "LeftHand", "RightArm", "RightHand")
 
 
 def write_bvh(path: Path, z: float, yaw: float, phase: float) -> None:
-    rows = []
-    for f in range(FRAMES):
-        wave = 150.0 * (0.5 + 0.5 * np.sin(2 * np.pi * f / FRAMES + phase))   # the left arm swings up and down
-        ch = [0, 90, z, 0, 0, yaw] + [0, 0, 0] * 2 + [wave, 0, 0, 0, 0, 0] + [-10, 0, 0, 0, 0, 0]
-        rows.append(" ".join(f"{v:.4f}" for v in ch))
-    path.write_text(HIER.format(frames=FRAMES, ft=1.0 / FPS) + "\n".join(rows) + "\n")
+    """A seven-joint character at (0, 90, z) turned by ``yaw`` degrees, its left arm waving about Z."""
+    from convsynth_jax.io import save_bvh
+    from convsynth_jax.rotations import euler_deg_to_quat_np
+    from convsynth_jax.skeleton import Motion, Skeleton
+
+    rot = ("Zrotation", "Xrotation", "Yrotation")
+    offsets = np.array([[0, 0, 0], [0, 20, 0], [0, 25, 0], [15, 20, 0], [0, -30, 0], [-15, 20, 0], [0, -30, 0]], float)
+    skel = Skeleton(JOINTS, (-1, 0, 1, 1, 3, 1, 5), offsets, (("Xposition", "Yposition", "Zposition") + rot,) + (rot,) * 6,
+                    ((2, (0.0, 10.0, 0.0)), (4, (0.0, -5.0, 0.0)), (6, (0.0, -5.0, 0.0))))
+    euler = np.zeros((FRAMES, len(JOINTS), 3))                       # (Z, X, Y) degrees, the channels' order
+    euler[:, 0, 2] = yaw
+    euler[:, 3, 0] = 150.0 * (0.5 + 0.5 * np.sin(2 * np.pi * np.arange(FRAMES) / FRAMES + phase))   # the left arm swings
+    euler[:, 5, 0] = -10.0
+    trans = np.broadcast_to(offsets, (FRAMES, len(JOINTS), 3)).copy()
+    trans[:, 0] = [0.0, 90.0, z]
+    save_bvh(Motion(skel, euler_deg_to_quat_np(euler, "ZXY"), trans, float(FPS)), path, precision=4)
 
 
 def write_wav(path: Path, seconds: float, hz: float) -> None:
@@ -246,23 +204,11 @@ def _raw_get(port: int, path: str) -> tuple[int, bytes]:
 @pytest.fixture(scope="module")
 def served(out):
     """uvicorn serving the fixture on a free loopback port, in a thread of this process."""
-    import uvicorn
-
+    from convsynth_jax.testing.web import serve_in_thread
     from convsynth_jax.viewer.server import create_viewer_app
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_viewer_app(out), host="127.0.0.1", port=port, log_level="warning"))
-    th = threading.Thread(target=server.run, daemon=True)
-    th.start()
-    deadline = time.monotonic() + 20
-    while not server.started and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert server.started
-    yield f"http://127.0.0.1:{port}", port
-    server.should_exit = True
-    th.join(10)
+    with serve_in_thread(create_viewer_app(out)) as (url, port):
+        yield url, port
 
 
 def test_traversal_probes_get_no_file(served):
@@ -276,28 +222,16 @@ def test_traversal_probes_get_no_file(served):
 
 
 # ------------------------------------------------------------------------------------------ the browser
-def _browser():
-    for name in ("chromium", "chromium-browser", "google-chrome"):
-        b = shutil.which(name)
-        if b and shutil.which("chromedriver"):
-            return b, shutil.which("chromedriver")
-    return None
-
-
 @pytest.fixture(scope="module")
 def driver():
-    found = _browser()
+    from convsynth_jax.testing.web import find_browser, headless_chrome
+
+    found = find_browser()
     if found is None:
         pytest.skip("no Chromium and chromedriver on this machine (apt-get install chromium chromium-driver)")
-    webdriver = pytest.importorskip("selenium.webdriver")
-    from selenium.webdriver.chrome.service import Service
-
-    opts = webdriver.ChromeOptions()
-    opts.binary_location = found[0]
-    for a in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1000,800", "--mute-audio",
-              "--autoplay-policy=no-user-gesture-required", "--use-angle=swiftshader", "--enable-unsafe-swiftshader"):
-        opts.add_argument(a)
-    d = webdriver.Chrome(service=Service(executable_path=found[1]), options=opts)
+    pytest.importorskip("selenium.webdriver")
+    d = headless_chrome(found, "--window-size=1000,800", "--mute-audio", "--autoplay-policy=no-user-gesture-required",
+                        "--use-angle=swiftshader", "--enable-unsafe-swiftshader")
     d.set_page_load_timeout(30)
     yield d
     d.quit()
@@ -388,25 +322,13 @@ def test_browser_timeline_cursor_follows_the_audio_clock(driver, served):
 
 
 def test_browser_shows_a_malformed_file_as_an_error(driver, broken):
-    import uvicorn
-
+    from convsynth_jax.testing.web import serve_in_thread
     from convsynth_jax.viewer.server import create_viewer_app
 
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        port = s.getsockname()[1]
-    server = uvicorn.Server(uvicorn.Config(create_viewer_app(broken), host="127.0.0.1", port=port, log_level="critical"))
-    th = threading.Thread(target=server.run, daemon=True)
-    th.start()
-    while not server.started:
-        time.sleep(0.05)
-    try:
-        assert _open(driver, f"http://127.0.0.1:{port}/") is None
+    with serve_in_thread(create_viewer_app(broken), log_level="critical") as (url, _):
+        assert _open(driver, f"{url}/") is None
         state, text = driver.execute_script("return [document.body.dataset.state, document.getElementById('error').textContent]")
         assert state == "error" and "x.bvh" in text and "Cannot show" in text
-    finally:
-        server.should_exit = True
-        th.join(10)
 
 
 def test_browser_draws_the_static_export_from_the_file_system(driver, out, tmp_path):

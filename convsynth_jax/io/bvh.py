@@ -159,6 +159,23 @@ def bvh_duration(path: Path) -> float:
     return frames / nominal_fps(frame_time)
 
 
+def bvh_files(path: str | Path) -> list[Path]:
+    """The BVH file ``path`` or the ``*.bvh`` files directly in the folder ``path`` (sorted): what
+    the renderer and the viewer show. Raises MissingFileError for a missing path, a folder without
+    BVH files or a file that is not a .bvh."""
+    p = Path(path)
+    if not p.exists():
+        raise MissingFileError("no such BVH file or folder", p)
+    if p.is_dir():
+        files = sorted(q for q in p.iterdir() if q.suffix.lower() == ".bvh" and q.is_file())
+        if not files:
+            raise MissingFileError("folder holds no .bvh files", p)
+        return files
+    if p.suffix.lower() != ".bvh":
+        raise MissingFileError("not a .bvh file", p)
+    return [p]
+
+
 def load_bvh(path: str | Path, fps: float | None = None) -> Motion:
     """Read a BVH file into a :class:`Motion`; optionally resample to ``fps`` (slerp rotations)."""
     path = Path(path)

@@ -1,7 +1,7 @@
 """Word-level transcript readers: Praat TextGrid (long and short text formats), TSV/CSV word
 timings, IBM Watson Speech-to-Text JSON and the word-timestamped JSON of OpenAI Whisper
 (``word_timestamps=True``), whisper-timestamped and WhisperX. All return a DataFrame with columns start, end, word
-(seconds, sorted by start, validated)."""
+(seconds, sorted by start, validated). Writers: TSV (the GENEA layout) and the long TextGrid format."""
 from __future__ import annotations
 
 import json
@@ -259,4 +259,45 @@ def save_transcript_tsv(words: pd.DataFrame, path: str | Path) -> Path:
     lines = [f"{float(r.start):.3f}\t{float(r.end):.3f}\t{r.word}" for r in words.itertuples(index=False)]
     with atomic_path(path) as tmp:
         tmp.write_text("\n".join(lines) + ("\n" if lines else ""))
+    return path
+
+
+def _praat_number(x: float) -> str:
+    """A time as Praat writes it: the shortest text that reads back to the same float, whole numbers
+    without a decimal point."""
+    text = repr(float(x))
+    return text[:-2] if text.endswith(".0") else text
+
+
+def textgrid_text(words: pd.DataFrame, duration: float | None = None, tier: str = "words") -> str:
+    """A Praat long-format TextGrid with one interval tier ``tier`` holding the ``words`` (columns
+    start, end, word; sorted) from 0 to ``duration`` (default: the last word's end). The gaps
+    between words become empty intervals, as Praat requires intervals to tile the tier; a double
+    quote in a word is doubled, Praat's escape."""
+    intervals, t = [], 0.0
+    for r in words.itertuples(index=False):
+        if r.start > t + 1e-6:
+            intervals.append((t, r.start, ""))
+        intervals.append((r.start, r.end, str(r.word)))
+        t = r.end
+    duration = t if duration is None else duration
+    if duration > t + 1e-6:
+        intervals.append((t, duration, ""))
+    end = _praat_number(duration)
+    lines = ['File type = "ooTextFile"', 'Object class = "TextGrid"', "", "xmin = 0", f"xmax = {end}",
+             "tiers? <exists>", "size = 1", "item []:", "    item [1]:", '        class = "IntervalTier"',
+             f'        name = "{tier}"', "        xmin = 0", f"        xmax = {end}",
+             f"        intervals: size = {len(intervals)}"]
+    for i, (a, b, text) in enumerate(intervals, 1):
+        escaped = text.replace('"', '""')
+        lines += [f"        intervals [{i}]:", f"            xmin = {_praat_number(a)}",
+                  f"            xmax = {_praat_number(b)}", f'            text = "{escaped}"']
+    return "\n".join(lines) + "\n"
+
+
+def save_textgrid(words: pd.DataFrame, path: str | Path, duration: float | None = None, tier: str = "words") -> Path:
+    """Write :func:`textgrid_text` of ``words`` to ``path``, atomically."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        tmp.write_text(textgrid_text(words, duration, tier))
     return path

@@ -43,6 +43,17 @@ def character_clip_sets(params):
                 for d in ann.values() for a in d.values() if a.character == c] for c in characters(ann)}
 
 
+def character_graph_statistics(params, ks, **options) -> list:
+    """Table 2 rows and Figure 4 data (``graph.statistics.graph_statistics`` with ``options``) of each
+    character's clip set (:func:`character_clip_sets`; the bvh_folder set is called "all"), for the
+    key-state granularities ``ks``."""
+    from ..graph import build_database
+    from ..graph.statistics import graph_statistics
+
+    return [graph_statistics(build_database(clips, params.features), params.graph, ks, char or "all", **options)
+            for char, clips in character_clip_sets(params).items()]
+
+
 @dataclass(frozen=True)
 class BuildGraphSettings:
     """``conf/task/build_graph.yaml``."""

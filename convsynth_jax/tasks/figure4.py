@@ -22,22 +22,15 @@ class Figure4Settings:
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..graph import build_database
-    from ..graph.statistics import graph_statistics
-    from .build_graph import character_clip_sets
+    from .build_graph import character_graph_statistics
     from ..config import task_settings
     from .common import params_of
 
     params = params_of(cfg)
-    hist_rows, fit_rows = [], []
-    for char, clips in character_clip_sets(params).items():
-        db = build_database(clips, params.features)
-        # w_v as build_graph would choose it for each k, so each panel's threshold is the graph's
-        st = graph_statistics(db, params.graph, task_settings(cfg).ks, char or "all", build_graphs=False,
-                              fit_all=True)
-        hist_rows += st.histograms
-        fit_rows += st.fits
-    hist, fits = pd.DataFrame(hist_rows), pd.DataFrame(fit_rows)
+    # w_v as build_graph would choose it for each k, so each panel's threshold is the graph's
+    stats = character_graph_statistics(params, task_settings(cfg).ks, build_graphs=False, fit_all=True)
+    hist = pd.DataFrame([row for st in stats for row in st.histograms])
+    fits = pd.DataFrame([row for st in stats for row in st.fits])
     for name, df in (("figure4_histograms", hist), ("figure4_fits", fits)):
         with atomic_path(out_dir / f"{name}.csv") as tmp:
             df.to_csv(tmp, index=False)

@@ -58,7 +58,8 @@ class RenderSettings:
 
 def run(cfg, out_dir: Path) -> dict:
     from ..io import load_bvh
-    from ..render import Panel, Timeline, body_from_motion, bvh_files, contact_sheet, render_animation, render_video
+    from ..io.bvh import bvh_files
+    from ..render import Panel, Timeline, body_from_motion, contact_sheet, render_animation, render_video
 
     from ..config import task_settings
 

@@ -29,18 +29,12 @@ class Table2Settings:
 
 
 def run(cfg, out_dir: Path) -> dict:
-    from ..graph import build_database
-    from ..graph.statistics import graph_statistics
-    from .build_graph import character_clip_sets
+    from .build_graph import character_graph_statistics
     from ..config import task_settings
     from .common import params_of
 
-    params = params_of(cfg)
-    ks = task_settings(cfg).ks
-    rows = []
-    for char, clips in character_clip_sets(params).items():
-        db = build_database(clips, params.features)
-        rows += graph_statistics(db, params.graph, ks, char or "all").table2
+    stats = character_graph_statistics(params_of(cfg), task_settings(cfg).ks)
+    rows = [row for st in stats for row in st.table2]
     table = pd.DataFrame(rows)[TABLE2_COLUMNS]
     with atomic_path(out_dir / "table2.csv") as tmp:
         table.to_csv(tmp, index=False)

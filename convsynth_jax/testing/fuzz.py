@@ -37,33 +37,9 @@ IBM_JSON = """{"results": [
   {"alternatives": [{"transcript": "yeah ", "timestamps": [["yeah", 1.4, 1.6]]}], "final": true}
 ]}
 """
-TEXTGRID = '''File type = "ooTextFile"
-Object class = "TextGrid"
-
-xmin = 0
-xmax = 1.8
-tiers? <exists>
-size = 1
-item []:
-    item [1]:
-        class = "IntervalTier"
-        name = "words"
-        xmin = 0
-        xmax = 1.8
-        intervals: size = 3
-        intervals [1]:
-            xmin = 0
-            xmax = 0.5
-            text = ""
-        intervals [2]:
-            xmin = 0.5
-            xmax = 0.9
-            text = "well"
-        intervals [3]:
-            xmin = 0.9
-            xmax = 1.8
-            text = "I said ""hi"""
-'''
+# the TextGrid seed (written by io.transcripts.save_textgrid): a leading gap and a word with quotes
+TEXTGRID_WORDS = ((0.5, 0.9, "well"), (0.9, 1.8, 'I said "hi"'))
+TEXTGRID_SECONDS = 1.8
 MANIFEST_YAML = """sessions:
   - name: s1
     participants:
@@ -94,8 +70,11 @@ def _motion(frames: int = 60):
 
 def write_seeds(root: Path) -> dict[str, Path]:
     """Valid seed files under ``root``: reader name -> the file (or folder) its reader opens."""
+    import pandas as pd
+
     from ..io.audio import save_wav
     from ..io.bvh import save_bvh
+    from ..io.transcripts import COLUMNS, save_textgrid
 
     root.mkdir(parents=True, exist_ok=True)
     m = _motion()
@@ -103,7 +82,7 @@ def write_seeds(root: Path) -> dict[str, Path]:
     (root / "words.tsv").write_text(TSV)
     (root / "words.csv").write_text(CSV)
     (root / "words.json").write_text(IBM_JSON)
-    (root / "words.TextGrid").write_text(TEXTGRID)
+    save_textgrid(pd.DataFrame(TEXTGRID_WORDS, columns=COLUMNS), root / "words.TextGrid", TEXTGRID_SECONDS)
     save_bvh(m, root / "clip.bvh", precision=4)
     save_wav(root / "clip.wav", wav, 8000)
     man = root / "manifest"

@@ -70,14 +70,6 @@ def sign_up(client) -> str:
     return r.headers["location"].split("/p/")[1].split("/")[0]
 
 
-def free_port() -> int:
-    import socket
-
-    with socket.socket() as s:
-        s.bind(("127.0.0.1", 0))
-        return s.getsockname()[1]
-
-
 def serve_subprocess(study, db, port: int, admin_token: str, extra: str = ""):
     """A uvicorn process serving ``study`` on 127.0.0.1:``port`` (its own session, so the caller
     can SIGKILL it alone); returns the Popen once /healthz answers."""

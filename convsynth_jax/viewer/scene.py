@@ -50,19 +50,14 @@ class SceneFiles:
 
 
 def _bvh_files(p: Path) -> list[Path]:
-    if not p.exists():
-        raise MissingFileError("no such BVH file or folder", p)
-    if p.is_dir():
-        files = sorted(q for q in p.iterdir() if q.suffix.lower() == ".bvh" and q.is_file())
-        if not files:
-            raise MissingFileError("folder holds no .bvh files", p)
-        if len(files) > MAX_FILES:
-            log.warning("%s holds %d BVH files; showing the first %d", p, len(files), MAX_FILES)
-            files = files[:MAX_FILES]
-        return files
-    if p.suffix.lower() != ".bvh":
-        raise MissingFileError("not a .bvh file", p)
-    return [p]
+    """The BVH files of ``p`` (:func:`convsynth_jax.io.bvh.bvh_files`), at most ``MAX_FILES`` of a folder."""
+    from ..io.bvh import bvh_files
+
+    files = bvh_files(p)
+    if len(files) > MAX_FILES:
+        log.warning("%s holds %d BVH files; showing the first %d", p, len(files), MAX_FILES)
+        files = files[:MAX_FILES]
+    return files
 
 
 def _read_report(path: Path) -> dict:

@@ -36,20 +36,18 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 import numpy as np  # noqa: E402
-from _bench import write, write_markdown  # noqa: E402
+from _bench import loo_setup, write, write_markdown  # noqa: E402
 from scipy.interpolate import CubicSpline  # noqa: E402
 from scipy.signal import welch  # noqa: E402
 
 from convsynth_jax.cdbn.features import head_rotation, head_rotation_from_quat, speech_features  # noqa: E402
 from convsynth_jax.cdbn.residual import draw_residual  # noqa: E402
 from convsynth_jax.cdbn.synthesize import body_excerpt, expected_motion, keypoint_smooth, sample_motion, state_posteriors  # noqa: E402
-from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa: E402
 from convsynth_jax.evaluation.field.kinematic import average_jerk  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.loo import fit_fold, session_windows, training_clips, window_input  # noqa: E402
-from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.tasks.common import cache_dir  # noqa: E402
 
 BANDS = ((0.0, 1.0), (1.0, 3.0), (3.0, 7.5), (7.5, 15.01))
 
@@ -82,9 +80,7 @@ def main():
     args = ap.parse_args()
     t0 = time.perf_counter()
     over = ["system=cdbn", "cdbn.synth.residual=spectral", *args.override]
-    params = default_params(over)
-    _, ann = annotated_corpus(params)
-    system = make_system(params, params.system)
+    params, ann, system = loo_setup(over)
     rate = system.cdbn.synth.keypoints_per_second
     names = list(ann)
     rng = np.random.default_rng(params.seed)

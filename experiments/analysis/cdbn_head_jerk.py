@@ -32,7 +32,7 @@ from pathlib import Path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
 import numpy as np  # noqa: E402
-from _bench import write, write_markdown  # noqa: E402
+from _bench import loo_setup, write, write_markdown  # noqa: E402
 
 from convsynth_jax.cdbn.features import head_euler_to_quat, head_rotation, speech_features  # noqa: E402
 from convsynth_jax.cdbn.synthesize import (  # noqa: E402
@@ -44,14 +44,12 @@ from convsynth_jax.cdbn.synthesize import (  # noqa: E402
     sample_motion,
     state_posteriors,
 )
-from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa: E402
 from convsynth_jax.evaluation.field.kinematic import average_jerk  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
 from convsynth_jax.evaluation.loo import fit_fold, session_windows, training_clips, window_input  # noqa: E402
-from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.tasks.common import cache_dir  # noqa: E402
 
 
 def main():
@@ -61,9 +59,7 @@ def main():
     args = ap.parse_args()
     t0 = time.perf_counter()
     over = ["system=cdbn", *args.override]
-    params = default_params(over)
-    _, ann = annotated_corpus(params)
-    system = make_system(params, params.system)
+    params, ann, system = loo_setup(over)
     fp, hj, rate = FieldMetricParams(), system.cdbn.features.head_joints, system.cdbn.synth.keypoints_per_second
     names = list(ann)
     rng = np.random.default_rng(params.seed)

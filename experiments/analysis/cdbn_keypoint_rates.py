@@ -12,12 +12,10 @@ from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
-from _bench import write  # noqa: E402
+from _bench import loo_setup, write  # noqa: E402
 
-from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.loo import fit_fold  # noqa: E402
-from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.tasks.common import cache_dir  # noqa: E402
 
 
 def main():
@@ -27,9 +25,7 @@ def main():
     args = ap.parse_args()
     t0 = time.perf_counter()
     over = ["system=cdbn", "preset=quality", *args.override]
-    params = default_params(over)
-    _, ann = annotated_corpus(params)
-    system = make_system(params, params.system)
+    params, ann, system = loo_setup(over)
     names = list(ann)
     rates = {}
     for fold in args.folds:

@@ -50,3 +50,16 @@ def write_markdown(name: str, lines: list, overrides=None) -> None:
     (RESULTS / f"{name}.md").write_text("\n".join(lines) + "\n")
     write_manifest(name, overrides=overrides)
     print("\n".join(lines))
+
+
+def loo_setup(overrides):
+    """(params, annotated sessions, system) of the configured corpus and system under ``overrides``
+    (Hydra override strings): what a leave-one-out analysis starts from. The annotations come from
+    the cache when they are there; the corpus is annotated before the system is made."""
+    from convsynth_jax.config import default_params
+    from convsynth_jax.systems.base import make_system
+    from convsynth_jax.tasks.common import annotated_corpus
+
+    params = default_params(overrides)
+    _, ann = annotated_corpus(params)
+    return params, ann, make_system(params, params.system)

@@ -68,26 +68,6 @@ def _transform(x, rate, words, speed=1.0, semitones=0.0, out_rate=None):
     return np.clip(y, -1, 1).astype(np.float32), rate, w
 
 
-def _textgrid_long(words: pd.DataFrame, duration: float, path: Path) -> None:
-    """A Praat long-format TextGrid with one interval tier "words" (gaps as empty intervals)."""
-    iv, t = [], 0.0
-    for r in words.itertuples(index=False):
-        if r.start > t + 1e-6:
-            iv.append((t, r.start, ""))
-        iv.append((r.start, r.end, r.word))
-        t = r.end
-    if duration > t + 1e-6:
-        iv.append((t, duration, ""))
-    lines = ['File type = "ooTextFile"', 'Object class = "TextGrid"', "", "xmin = 0", f"xmax = {duration}",
-             "tiers? <exists>", "size = 1", "item []:", "    item [1]:", '        class = "IntervalTier"',
-             '        name = "words"', "        xmin = 0", f"        xmax = {duration}",
-             f"        intervals: size = {len(iv)}"]
-    for i, (a, b, text) in enumerate(iv, 1):
-        lines += [f"        intervals [{i}]:", f"            xmin = {a}", f"            xmax = {b}",
-                  f'            text = "{text}"']
-    path.write_text("\n".join(lines) + "\n")
-
-
 def _whisper_json(words: pd.DataFrame, path: Path) -> None:
     segs, cur = [], []
     for r in words.itertuples(index=False):
@@ -127,7 +107,7 @@ def build(folder: Path) -> dict:
     import soundfile
 
     from convsynth_jax.io import save_wav
-    from convsynth_jax.io.transcripts import save_transcript_tsv
+    from convsynth_jax.io.transcripts import save_textgrid, save_transcript_tsv
 
     out = {}
     ac, cold, beat = _load("acoustic_corpus"), _load("cold_corpus"), _load("beat2")
@@ -136,7 +116,7 @@ def build(folder: Path) -> dict:
     d.mkdir()
     x, r, w = _transform(*ac, speed=0.8, semitones=-4, out_rate=44100)
     soundfile.write(d / "a.flac", x, r, subtype="PCM_16")
-    _textgrid_long(w, len(x) / r, d / "a.TextGrid")
+    save_textgrid(w, d / "a.TextGrid", len(x) / r)
     out["slow_low_flac"] = ({"task.audio_a": d / "a.flac", "task.transcript_a": d / "a.TextGrid"},
                             "acoustic_corpus 0.8x, -4 st, 44.1 kHz FLAC, long TextGrid; B not given")
 

@@ -25,7 +25,8 @@ from _bench import write
 import numpy as np
 
 from convsynth_jax.study import design
-from convsynth_jax.testing.study import free_port, make_fake_study, serve_subprocess
+from convsynth_jax.testing.study import make_fake_study, serve_subprocess
+from convsynth_jax.testing.web import free_port
 
 ADMIN = "bench-admin-token-0123456789abcdef"
 

@@ -613,6 +613,19 @@ def contact_phases(data_dir: Path) -> dict:
     return {"per_gait": per_gait, "loops": rows, "skipped": skipped}
 
 
+# The diagnoses that run alone, instead of the benchmark: flag -> (what it reports, the name of the
+# result it writes under experiments/results/).
+ALONE = {
+    "elbow-diagnosis": ("the elbow-tracking diagnosis", "bench_walktalk_elbow_diagnosis"),
+    "limits-breakdown": ("where the per-frame joint-limit reading fails", "bench_walktalk_limits_breakdown"),
+    "jerk-coupling": ("the splices over 2x jerk and the gesture's reach against splice.rescale_coupling",
+                      "bench_walktalk_jerk"),
+    "combined": ("every goal for the candidate settings", "bench_walktalk_combined"),
+    "loop-seams": ("what the loops' seam correction does to the recordings", "bench_walktalk_loop_seams"),
+    "contact-phases": ("the contact fractions of every loop in both readings", "bench_walktalk_contact_phases"),
+}
+
+
 def main():
     ap = argparse.ArgumentParser()
     ap.add_argument("--skip-ablation", action="store_true")
@@ -621,18 +634,8 @@ def main():
     ap.add_argument("--synthesized-dir", default=None, help="output folder of task=synthesize: also time the demo "
                     "with gestures from that synthesized conversation")
     ap.add_argument("--out", default="bench_walktalk.json", help="file name under experiments/results/")
-    ap.add_argument("--elbow-diagnosis", action="store_true", help="only the elbow-tracking diagnosis "
-                    "(writes bench_walktalk_elbow_diagnosis.json under experiments/results/)")
-    ap.add_argument("--limits-breakdown", action="store_true", help="only where the per-frame joint-limit "
-                    "reading fails (writes bench_walktalk_limits_breakdown.json under experiments/results/)")
-    ap.add_argument("--jerk-coupling", action="store_true", help="only the splices over 2x jerk and the gesture's "
-                    "reach against splice.rescale_coupling (writes experiments/results/bench_walktalk_jerk.json)")
-    ap.add_argument("--combined", action="store_true", help="only every goal for the candidate settings "
-                    "(writes experiments/results/bench_walktalk_combined.json)")
-    ap.add_argument("--loop-seams", action="store_true", help="only what the loops' seam correction does to the "
-                    "recordings (writes experiments/results/bench_walktalk_loop_seams.json)")
-    ap.add_argument("--contact-phases", action="store_true", help="only the contact fractions of every loop in "
-                    "both readings (writes experiments/results/bench_walktalk_contact_phases.json)")
+    for flag, (what, name) in ALONE.items():
+        ap.add_argument(f"--{flag}", action="store_true", help=f"only {what} (writes experiments/results/{name}.json)")
     a = ap.parse_args()
     if a.quick:
         a.skip_ablation = a.skip_elbow = True
@@ -658,19 +661,19 @@ def main():
 
         res = contact_phases(data_dir)
         res["load_average"] = list(os.getloadavg())
-        return write("bench_walktalk_contact_phases", {"data_dir": str(data_dir), **res})
+        return write(ALONE["contact-phases"][1], {"data_dir": str(data_dir), **res})
     if a.limits_breakdown:
-        return write_only(limits_breakdown(data_dir), "bench_walktalk_limits_breakdown.json", "per_loop", 4,
+        return write_only(limits_breakdown(data_dir), ALONE["limits-breakdown"][1] + ".json", "per_loop", 4,
                           ["limit_clips", "load_average"])
     if a.jerk_coupling:
         jc = jerk_coupling(data_dir)
-        write_only(jc, "bench_walktalk_jerk.json", "per_coupling", 4, ["seconds", "load_average"])
+        write_only(jc, ALONE["jerk-coupling"][1] + ".json", "per_coupling", 4, ["seconds", "load_average"])
         for r in jc["reach"]:
             print({k: (round(v, 3) if isinstance(v, float) else v) for k, v in r.items()})
         return None
     if a.loop_seams:
         res = loop_seams(data_dir)
-        write_only(res, "bench_walktalk_loop_seams.json", "per_gait", 3, ["torso_radius_cm"])
+        write_only(res, ALONE["loop-seams"][1] + ".json", "per_gait", 3, ["torso_radius_cm"])
         for r in res["loops"]:
             if r["in_eval"] or r["hand_in_torso_frac"] > 0:
                 print({k: (round(v, 2) if isinstance(v, float) else v) for k, v in r.items()})
@@ -679,10 +682,10 @@ def main():
         result.update(combined(data_dir))
         result["load_average"] = list(os.getloadavg())
         RESULTS.mkdir(parents=True, exist_ok=True)
-        write_json_atomic(RESULTS / "bench_walktalk_combined.json", result)
+        write_json_atomic(RESULTS / f"{ALONE['combined'][1]}.json", result)
         return print_combined(result)
     if a.elbow_diagnosis:
-        return write_only(elbow_diagnosis(data_dir), "bench_walktalk_elbow_diagnosis.json", "per_gait_variant", 3,
+        return write_only(elbow_diagnosis(data_dir), ALONE["elbow-diagnosis"][1] + ".json", "per_gait_variant", 3,
                           ["loops_spread"])
     result.update(bench_splice(data_dir))
     result.update(bench_eval(data_dir))

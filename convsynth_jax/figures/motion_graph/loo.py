@@ -5,6 +5,8 @@ from matplotlib.figure import Figure
 import numpy as np
 import pandas as pd
 
+from ..panels import label_panel, panel_row
+from .bars import condition_bars
 from .table1 import rate_errors
 
 
@@ -28,26 +30,18 @@ def ablation_figure(co: pd.DataFrame):
     """Grouped bars: co-occurrence rate per hypothesis, ground truth vs each condition (per character),
     with Wilson intervals as error bars when ``co`` has them (gt_ci_low/gt_ci_high, ci_low/ci_high)."""
     chars = sorted(co["character"].unique()) if not co.empty else []
-    fig = Figure(figsize=(5.5 * max(1, len(chars)), 3.4))
-    axes = fig.subplots(1, max(1, len(chars)), squeeze=False)
-    for ax, char in zip(axes[0], chars):
+    fig, axes = panel_row(len(chars), 5.5, 3.4)
+    for ax, char in zip(axes, chars):
         g = co[co["character"] == char]
-        hyps = list(dict.fromkeys(g["hypothesis"]))
-        conds = list(dict.fromkeys(g["condition"]))
-        width = 0.8 / (len(conds) + 1)
-        x = np.arange(len(hyps))
-        first = g.groupby("hypothesis").first().reindex(hyps)
-        gerr = (rate_errors(first["gt_rate"], first["gt_ci_low"], first["gt_ci_high"])
+        b = condition_bars(g)
+        gerr = (rate_errors(b.truth["gt_rate"], b.truth["gt_ci_low"], b.truth["gt_ci_high"])
                 if {"gt_ci_low", "gt_ci_high"} <= set(g) else None)
-        ax.bar(x - 0.4 + width / 2, 100 * first["gt_rate"].values, width, yerr=gerr, capsize=2,
+        ax.bar(b.truth_x, 100 * b.truth["gt_rate"].values, b.width, yerr=gerr, capsize=2,
                label="ground truth", color="k", alpha=0.7)
-        for i, c in enumerate(conds):
-            r = g[g["condition"] == c].set_index("hypothesis").reindex(hyps)
+        for c, r, xc in b.conditions:
             err = rate_errors(r["synth_rate"], r["ci_low"], r["ci_high"]) if {"ci_low", "ci_high"} <= set(r) else None
-            ax.bar(x - 0.4 + width * (i + 1.5), 100 * r["synth_rate"].values, width, yerr=err, capsize=2, label=c)
-        ax.set_xticks(x, hyps, rotation=20)
-        ax.set_ylabel("co-occurrence rate (%)")
-        ax.set_title(char)
-        ax.legend(fontsize=7)
+            ax.bar(xc, 100 * r["synth_rate"].values, b.width, yerr=err, capsize=2, label=c)
+        ax.set_xticks(b.x, b.hypotheses, rotation=20)
+        label_panel(ax, char, "co-occurrence rate (%)")
     fig.tight_layout()
     return fig

@@ -7,6 +7,9 @@ import numpy as np
 import pandas as pd
 from matplotlib.figure import Figure
 
+from ..panels import panel_row
+from .bars import condition_bars
+
 OURS, PAPER = "#4f6fa8", "#d9a441"
 
 
@@ -33,8 +36,7 @@ def _pair_bars(ax, labels, ours, paper):
 def table1_beside_paper_figure(t: pd.DataFrame) -> Figure:
     """One panel per character: matched rate per hypothesis, this run vs the paper (Table 1)."""
     chars = list(dict.fromkeys(t["character"]))
-    fig = Figure(figsize=(4.8 * max(1, len(chars)), 3.3))
-    axes = fig.subplots(1, max(1, len(chars)), squeeze=False)[0]
+    fig, axes = panel_row(len(chars), 4.8, 3.3)
     for ax, c in zip(axes, chars):
         g = t[t["character"] == c]
         _pair_bars(ax, list(g["hypothesis"]), (g["rate"], g["ci_low"], g["ci_high"]),
@@ -65,26 +67,19 @@ def ablation_ci_figure(co: pd.DataFrame) -> Figure:
     """One panel per character: co-occurrence rate per hypothesis in the held-out ground truth and
     in each condition's synthesized motion, with 95% intervals; * marks p < alpha vs ground truth."""
     chars = list(dict.fromkeys(co["character"]))
-    fig = Figure(figsize=(5.8 * max(1, len(chars)), 3.5))
-    axes = fig.subplots(1, max(1, len(chars)), squeeze=False)[0]
+    fig, axes = panel_row(len(chars), 5.8, 3.5)
     for ax, char in zip(axes, chars):
-        g = co[co["character"] == char]
-        hyps = list(dict.fromkeys(g["hypothesis"]))
-        conds = list(dict.fromkeys(g["condition"]))
-        w = 0.8 / (len(conds) + 1)
-        x = np.arange(len(hyps))
-        gt = g.groupby("hypothesis")[["gt_rate", "gt_ci_low", "gt_ci_high"]].first().reindex(hyps)
-        ax.bar(x - 0.4 + w / 2, 100 * gt["gt_rate"], w, yerr=_err(gt["gt_rate"], gt["gt_ci_low"], gt["gt_ci_high"]),
+        b = condition_bars(co[co["character"] == char])
+        gt = b.truth
+        ax.bar(b.truth_x, 100 * gt["gt_rate"], b.width, yerr=_err(gt["gt_rate"], gt["gt_ci_low"], gt["gt_ci_high"]),
                capsize=2, color="k", alpha=0.7, label="ground truth")
-        for i, c in enumerate(conds):
-            r = g[g["condition"] == c].set_index("hypothesis").reindex(hyps)
-            xi = x - 0.4 + w * (i + 1.5)
-            ax.bar(xi, 100 * r["synth_rate"], w, yerr=_err(r["synth_rate"], r["ci_low"], r["ci_high"]),
+        for c, r, xi in b.conditions:
+            ax.bar(xi, 100 * r["synth_rate"], b.width, yerr=_err(r["synth_rate"], r["ci_low"], r["ci_high"]),
                    capsize=2, label=c)
             for xx, rr, sig in zip(xi, r["ci_high"], r["significant"]):
                 if sig is True or sig == 1:
                     ax.text(xx, 100 * rr + 1, "*", ha="center", fontsize=9)
-        ax.set_xticks(x, hyps, rotation=20)
+        ax.set_xticks(b.x, b.hypotheses, rotation=20)
         ax.set_ylim(0, 115)
         ax.set_ylabel("co-occurrence rate (%)")
         ax.set_title(char, fontsize=9)

@@ -4,6 +4,8 @@ from __future__ import annotations
 import numpy as np
 from matplotlib.figure import Figure
 
+from ..panels import label_panel, panel_row
+
 
 def rate_errors(rate, low, high) -> np.ndarray | None:
     """(2, N) error-bar lengths in percent below/above each rate from its interval columns, or None
@@ -20,9 +22,8 @@ def table1_figure(table) -> Figure:
     the Wilson intervals (ci_low/ci_high, chance_ci_low/chance_ci_high) as error bars when the table
     has them; a row without a chance baseline (chance_method ``none``) draws no chance bar."""
     chars = list(dict.fromkeys(table["character"]))
-    fig = Figure(figsize=(5 * max(1, len(chars)), 3.2))
-    axes = fig.subplots(1, max(1, len(chars)), squeeze=False)
-    for ax, c in zip(axes[0], chars):
+    fig, axes = panel_row(len(chars), 5, 3.2)
+    for ax, c in zip(axes, chars):
         g = table[table["character"] == c]
         x = np.arange(len(g))
         err = rate_errors(g["rate"], g.get("ci_low"), g.get("ci_high"))
@@ -34,8 +35,6 @@ def table1_figure(table) -> Figure:
         if "chance_method" in g:  # say which baseline a row used when it is not the usual one
             labels = [h if m == "away" else f"{h}\n({m})" for h, m in zip(labels, g["chance_method"])]
         ax.set_xticks(x, labels, rotation=20)
-        ax.set_ylabel("matched (%)")
-        ax.set_title(c)
-        ax.legend(fontsize=7)
+        label_panel(ax, c, "matched (%)")
     fig.tight_layout()
     return fig

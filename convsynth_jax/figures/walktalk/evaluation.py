@@ -10,6 +10,7 @@ from matplotlib.figure import Figure
 
 from ...kinematics import forward_kinematics_np
 from ...skeleton import Motion
+from ..panels import label_panel
 
 
 def peak_phase_figure(df: pd.DataFrame) -> Figure:
@@ -25,10 +26,7 @@ def peak_phase_figure(df: pd.DataFrame) -> Figure:
             d = df[(df["gait"] == gait) & (df["method"] == m)]
             ax.hist(d["gait_phase"], bins=bins, histtype="step", lw=1.5,
                     label=f"{m} ({100 * d['peak_in_contact'].mean():.0f}% in contact)")
-        ax.set_title(f"{gait}: stroke peak vs gait phase")
-        ax.set_xlabel("phase in the two-cycle loop (0 = left contact)")
-        ax.set_ylabel("splices")
-        ax.legend(fontsize=7)
+        label_panel(ax, f"{gait}: stroke peak vs gait phase", "splices", "phase in the two-cycle loop (0 = left contact)")
     fig.tight_layout()
     return fig
 
@@ -44,10 +42,7 @@ def elbow_bend_figure(df: pd.DataFrame) -> Figure:
             e = d[d["gait"] == gait]
             ax.scatter(e["loop_elbow_bend_deg"], e["elbow_bend_deg"], s=6, marker=mk, alpha=0.5, label=gait)
         r = np.corrcoef(d["loop_elbow_bend_deg"], d["elbow_bend_deg"])[0, 1] if d["elbow_bend_deg"].std() > 0 else np.nan
-        ax.set_title(f"{m}: r = {r:.2f}")
-        ax.set_xlabel("loop mean elbow bend (deg)")
-        ax.set_ylabel("stroke elbow bend (deg)")
-        ax.legend(fontsize=7)
+        label_panel(ax, f"{m}: r = {r:.2f}", "stroke elbow bend (deg)", "loop mean elbow bend (deg)")
     fig.tight_layout()
     return fig
 

@@ -37,7 +37,6 @@ the union of the folds of earlier runs (e.g. ``--folds 0 1 2`` and ``--folds 3 4
 ``--folds 0 1 2 3 4 5``).
 """
 import argparse
-import dataclasses
 import pickle
 import sys
 import time
@@ -61,6 +60,7 @@ from convsynth_jax.evaluation.summaries import cooccurrence_by_condition  # noqa
 from convsynth_jax.seeding import derive_seed  # noqa: E402
 from convsynth_jax.synth.retime import warp_times  # noqa: E402
 from convsynth_jax.systems.base import SystemParams, make_system  # noqa: E402
+from convsynth_jax.systems.random_playback import RandomPlaybackOptions  # noqa: E402
 from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
 
 FP = FieldMetricParams()
@@ -177,9 +177,13 @@ def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None) -> d
                         out[key] = {"ok": False}
                         continue
                     run = n / fps / (ref["transitions"] + 1)
-                    sysm.system = dataclasses.replace(RP_SPEC, options={"min_excerpt_seconds": run,
-                                                                        "max_excerpt_seconds": run})
+                    sysm.options = RandomPlaybackOptions(min_excerpt_seconds=run, max_excerpt_seconds=run)
                 res = sysm.synthesize(fitted[a.character], win, condition)
+                if matched_from is not None and res.success:   # excerpts of round(run * fps) frames each
+                    want = -(-n // max(1, int(round(run * fps)))) - 1
+                    if len(res.synthetic_at or []) != want:
+                        raise RuntimeError(f"{name} {key}: {len(res.synthetic_at or [])} transitions where excerpts of "
+                                           f"{run:.2f} s make {want}: the excerpt lengths did not apply")
                 if not res.success:
                     out[key] = {"ok": False}
                     continue

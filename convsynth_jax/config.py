@@ -74,6 +74,7 @@ TASKS = {
     "main": "convsynth_jax.tasks.main:MainSettings",
     "make_corpus": "convsynth_jax.tasks.make_corpus:MakeCorpusSettings",
     "make_scale_db": "convsynth_jax.tasks.make_scale_db:MakeScaleDBSettings",
+    "notebooks": "convsynth_jax.tasks.notebooks:NotebooksSettings",
     "render": "convsynth_jax.tasks.render:RenderSettings",
     "study_analyze": "convsynth_jax.tasks.study_analyze:StudyAnalyzeSettings",
     "study_build": "convsynth_jax.tasks.study_build:StudyBuildSettings",

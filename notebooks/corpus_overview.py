@@ -13,6 +13,9 @@
 # Sessions, durations, transcripts and planted events of the dyadic corpus used by the last main run,
 # and the joint-speed curves the motion segmentation works on.
 
+# %% tags=["parameters"]
+run = None  # a main run folder; None: the newest outputs/main/* of the checkout
+
 # %%
 import sys
 from pathlib import Path
@@ -21,12 +24,14 @@ sys.path.insert(0, str(Path.cwd()))
 import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
-from _paths import corpus_dir
+from _paths import corpus_dir, reads, show
 
 from convsynth_jax.kinematics import forward_kinematics
 from convsynth_jax.io import load_corpus
 
-corpus = load_corpus(corpus_dir())
+root = corpus_dir(run)  # the run's summary.json names it
+reads(root)
+corpus = load_corpus(root)
 rows = []
 for s in corpus.sessions:
     for p in s.participants:
@@ -57,3 +62,4 @@ for name in ("LeftHand", "RightHand", "Head"):
         ax.plot(np.arange(len(speed)) / m.fps, speed[:, m.skeleton.index(name)], label=name, lw=0.8)
 ax.set_xlabel("time (s)"); ax.set_ylabel("speed (cm/s)"); ax.legend()
 fig.tight_layout()
+show(fig)

@@ -134,7 +134,7 @@ def test_benchmark_task_writes_leaderboard(tmp_path, tiny_corpus_dir, tiny_cache
     assert set(rows["scope"]) == {"body", "head"} and len(rows) == 3 * 2 * 2
     board = pd.read_csv(tmp_path / "leaderboard.csv")
     assert {"fgd_raw", "fgd_ae30", "beat_consistency", "gac"} <= set(board["metric"])
-    assert json.loads((tmp_path / "summary.json").read_text())["num_cases"] == summary["num_cases"] == 2
+    assert json.loads((tmp_path / "summary.json").read_text())["character_windows"] == summary["character_windows"] == 2
 
 
 def test_a_null_system_label_is_left_out():

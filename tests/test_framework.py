@@ -280,7 +280,7 @@ def test_loo_task_for_any_system(tiny_corpus_dir, tiny, tmp_path):
     s = run_task(compose(["task=loo", "system=random_playback", "fold=0", "condition=none", "loo.max_windows=1",
                           "corpus=synthetic_tiny", f"corpus.root={tiny_corpus_dir}", f"cache_dir={cache}",
                           "progress=false"]), tmp_path)
-    assert s["success"] and s["system"] == "random_playback" and s["num_success"] == 2
+    assert s["success"] and s["system"] == "random_playback" and s["solved_character_windows"] == 2
     bad = run_task(compose(["task=loo", "system=random_playback", "condition=all", "corpus=synthetic_tiny",
                             f"corpus.root={tiny_corpus_dir}", f"cache_dir={cache}", "progress=false"]), tmp_path / "b")
     assert not bad["success"] and "no condition" in bad["error"]

@@ -40,7 +40,7 @@ def test_report_has_every_paper_artifact_with_the_papers_values(main_run):
     assert (t2["states_after_scc"] <= t2["states_before_scc"]).all()
     # success rates: this run's counts, the paper's 81/116 and 100/116
     sr = pd.read_csv(out / "success_beside_paper.csv").set_index("condition")
-    assert sr.loc["all", "paper_solved"] == 81 and sr.loc["no_hp", "paper_solved"] == 100
+    assert sr.loc["all", "paper_solved_windows"] == 81 and sr.loc["no_hp", "paper_solved_windows"] == 100
     assert list(sr.index) == ["all", "no_lr", "no_hp", "none"]
     t3 = pd.read_csv(out / "table3_beside_paper.csv")
     assert set(t3["paper_mean_s"]) == {47.94, 1.16}
@@ -79,7 +79,7 @@ def test_tables_pass_extra_columns_through_and_sort_by_condition_then_character(
     q = R.quality_by_condition_character(cases)
     assert list(zip(q["condition"], q["character"])) == [("all", "female"), ("all", "male"), ("none", "male")]
     assert "seam_ratio" in q and list(q["seam_ratio"]) == [1.2, 0.9, 0.5]
-    rates = pd.DataFrame({"condition": ["none", "no_hp", "all"], "cases": [4, 4, 4], "solved": [1, 2, 3],
+    rates = pd.DataFrame({"condition": ["none", "no_hp", "all"], "windows": [4, 4, 4], "solved_windows": [1, 2, 3],
                           "success_rate": [0.25, 0.5, 0.75], "ci_extra": [0, 0, 0]})
     sr = R.success_beside_paper(rates)
     assert list(sr["condition"]) == ["all", "no_hp", "none"] and "ci_extra" in sr

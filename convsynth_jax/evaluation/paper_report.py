@@ -85,15 +85,16 @@ def table3_beside_paper(timing: pd.DataFrame) -> pd.DataFrame:
 
 
 def success_beside_paper(rates: pd.DataFrame) -> pd.DataFrame:
-    """Success rate per condition (cases, solved, success_rate, per-character rates...) with its
-    Wilson interval and the paper's solved / cases / rate where the paper reports one."""
+    """Success rate per condition (windows, solved_windows, success_rate, per-character rates...) with
+    its Wilson interval and the paper's solved windows / windows / rate where the paper reports one
+    (the paper's "test cases" are windows)."""
     t = rates.copy()
-    t["ci_low"], t["ci_high"] = wilson(t["solved"], t["cases"])
+    t["ci_low"], t["ci_high"] = wilson(t["solved_windows"], t["windows"])
     pk = [P.SUCCESS.get(c, (np.nan, np.nan)) for c in t["condition"]]
-    t["paper_solved"] = [k for k, _ in pk]
-    t["paper_cases"] = [n for _, n in pk]
-    t["paper_success_rate"] = t["paper_solved"] / t["paper_cases"]
-    t["paper_ci_low"], t["paper_ci_high"] = wilson(t["paper_solved"].fillna(0), t["paper_cases"].fillna(0))
+    t["paper_solved_windows"] = [k for k, _ in pk]
+    t["paper_windows"] = [n for _, n in pk]
+    t["paper_success_rate"] = t["paper_solved_windows"] / t["paper_windows"]
+    t["paper_ci_low"], t["paper_ci_high"] = wilson(t["paper_solved_windows"].fillna(0), t["paper_windows"].fillna(0))
     return _sort(t)
 
 

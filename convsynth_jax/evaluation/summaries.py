@@ -24,24 +24,125 @@ def _group_keys(cases: pd.DataFrame, *rest: str) -> list[str]:
 
 
 def test_cases(cases: pd.DataFrame) -> pd.DataFrame:
-    """One row per test case (fold x window x condition): a case succeeds when every character
-    succeeded (the paper counts a window as solved when motion was found for it)."""
+    """One row per window (test case: fold x window x condition): a window is solved when every
+    character in it succeeded (the paper counts a window as solved when motion was found for it)."""
     ok = cases.assign(success=cases["success"].fillna(False).astype(bool))
     keys = [k for k in ("system", "fold", "session", "condition", "window") if k in ok]
     return ok.groupby(keys, dropna=False)["success"].all().reset_index()
 
 
 def success_rates(cases: pd.DataFrame) -> pd.DataFrame:
-    """Per condition: number of test cases, solved cases, success rate, and per-character rates."""
+    """Per condition: ``windows`` (test cases), ``solved_windows`` (every character solved),
+    ``success_rate`` (their share), and per character the share of its character-windows solved
+    (``success_rate_<character>``). ``cases`` has one row per character-window."""
     tc = test_cases(cases)
     keys = _group_keys(cases, "condition")
-    out = tc.groupby(keys)["success"].agg(cases="count", solved="sum").reset_index()
-    out["success_rate"] = out["solved"] / out["cases"]
+    out = tc.groupby(keys)["success"].agg(windows="count", solved_windows="sum").reset_index()
+    out["success_rate"] = out["solved_windows"] / out["windows"]
     per_char = cases.assign(success=cases["success"].fillna(False).astype(bool)).pivot_table(
         index=keys, columns="character", values="success", aggfunc="mean")
     per_char.columns = [f"success_rate_{c}" for c in per_char.columns]
     out = out.merge(per_char.reset_index(), on=keys, how="left")
     return _ordered(out)
+
+
+def success_by_character(cases: pd.DataFrame) -> pd.DataFrame:
+    """Per condition and character: ``character_windows``, ``solved_character_windows`` and their share."""
+    ok = cases.assign(success=cases["success"].fillna(False).astype(bool))
+    keys = _group_keys(cases, "condition", "character")
+    out = ok.groupby(keys)["success"].agg(character_windows="count", solved_character_windows="sum").reset_index()
+    out["success_rate"] = out["solved_character_windows"] / out["character_windows"]
+    return _ordered(out)
+
+
+def _condition_sorted(df: pd.DataFrame, keys: list) -> pd.DataFrame:
+    order = {c: i for i, c in enumerate(CONDITION_ORDER)}
+    by = [k for k in keys if k in df] + ["speaker", "condition"]
+    return df.sort_values(by, key=lambda s: s.map(lambda c: order.get(c, len(order))) if s.name == "condition" else s,
+                          kind="stable").reset_index(drop=True)
+
+
+def _reference_constraints(cons: pd.DataFrame, group: dict, reference: str) -> tuple[set, str]:
+    """The constraints (kind, start, end) of the reference condition's job for one speaker (and sweep
+    point ``group``); without that condition in the sweep, the union over its conditions."""
+    g = cons
+    for k, v in group.items():
+        g = g[g[k].astype(str) == str(v)]
+    ref = g[g["condition"] == reference]
+    name = reference
+    if ref.empty:
+        ref, name = g, "union"
+    return set(zip(ref["kind"], ref["start"], ref["end"])), name
+
+
+def _own_constraints(cons: pd.DataFrame, job_dir, speaker) -> dict:
+    own = cons[(cons["job_dir"] == job_dir) & (cons["speaker"] == speaker)]
+    return {(k, s, e): bool(m) for k, s, e, m in zip(own["kind"], own["start"], own["end"], own["met"])}
+
+
+def converse_constraints_met(constraints: pd.DataFrame, speakers: pd.DataFrame, keys=(),
+                             reference: str = "all") -> pd.DataFrame:
+    """Constraints met per condition and speaker of a converse sweep, on the same denominator in every
+    condition: the constraints the checker judged under ``reference`` (condition all: every kind on)
+    for that speaker, matched by kind, start and end. ``constraints``: the reference's count;
+    ``switched_off``: how many of them are of kinds the condition switches off (``kinds_off``: neither
+    searched for nor checked under it; reported apart, never counted as met); ``on``: the others;
+    ``met``; ``share_met`` = met / constraints (comparable across conditions); ``share_met_on`` =
+    met / on; ``not_checked``: of kinds on but absent from the condition's check; ``checked`` / ``checked_met``: the
+    condition's own count, as its report gives it. ``keys``: the sweep's other axes."""
+    keys = [k for k in keys if k in speakers]
+    rows = []
+    if speakers.empty:
+        return pd.DataFrame()
+    for sp in speakers.to_dict("records"):
+        group = {**{k: sp[k] for k in keys}, "speaker": sp["speaker"]}
+        ref, ref_name = _reference_constraints(constraints, group, reference) if len(constraints) else (set(), reference)
+        own = _own_constraints(constraints, sp["job_dir"], sp["speaker"]) if len(constraints) else {}
+        off = {k for k in str(sp.get("kinds_off") or "").split(",") if k}
+        on = [c for c in ref if c[0] not in off]
+        met = sum(own.get(c, False) for c in on)
+        n = len(ref)
+        rows.append({**{k: sp[k] for k in keys}, "condition": sp["condition"], "speaker": sp["speaker"],
+                     "character": sp.get("character"), "success": sp.get("success"), "reference": ref_name,
+                     "constraints": n, "met": met, "share_met": met / n if n else np.nan,
+                     "switched_off": n - len(on), "kinds_off": ",".join(sorted(off)), "on": len(on),
+                     "share_met_on": met / len(on) if on else np.nan,
+                     "not_checked": sum(c not in own for c in on),
+                     "checked": len(own), "checked_met": sum(own.values())})
+    return _condition_sorted(pd.DataFrame(rows), keys)
+
+
+def converse_constraints_by_kind(constraints: pd.DataFrame, speakers: pd.DataFrame, keys=(),
+                                 reference: str = "all") -> pd.DataFrame:
+    """:func:`converse_constraints_met` split by constraint kind (the registry's order): per condition,
+    speaker and kind, the reference's ``constraints``, ``met`` and whether the condition asks for the
+    kind (``on``)."""
+    from ..annotate.kinds import constraint_kinds
+
+    keys = [k for k in keys if k in speakers]
+    rows = []
+    if speakers.empty:
+        return pd.DataFrame()
+    for sp in speakers.to_dict("records"):
+        group = {**{k: sp[k] for k in keys}, "speaker": sp["speaker"]}
+        ref, _ = _reference_constraints(constraints, group, reference) if len(constraints) else (set(), reference)
+        own = _own_constraints(constraints, sp["job_dir"], sp["speaker"]) if len(constraints) else {}
+        off = {k for k in str(sp.get("kinds_off") or "").split(",") if k}
+        for kind in [k.name for k in constraint_kinds()]:
+            mine = [c for c in ref if c[0] == kind]
+            rows.append({**{k: sp[k] for k in keys}, "condition": sp["condition"], "speaker": sp["speaker"],
+                         "character": sp.get("character"), "kind": kind, "on": kind not in off,
+                         "constraints": len(mine), "met": sum(own.get(c, False) for c in mine) if kind not in off else 0,
+                         "share_met": (sum(own.get(c, False) for c in mine) / len(mine)) if mine and kind not in off else np.nan})
+    return _condition_sorted(pd.DataFrame(rows), keys)
+
+
+def leaderboard_wide(board: pd.DataFrame, keys=()) -> pd.DataFrame:
+    """A benchmark leaderboard with one row per (sweep point,) scope and system and one column per metric."""
+    index = [k for k in keys if k in board] + ["scope", "system"]
+    wide = board.pivot_table(index=index, columns="metric", values="value", aggfunc="first", sort=False)
+    wide.columns = [str(c) for c in wide.columns]
+    return wide.reset_index()
 
 
 def timing_table(cases: pd.DataFrame) -> pd.DataFrame:

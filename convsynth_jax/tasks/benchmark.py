@@ -165,7 +165,7 @@ def run(cfg, out_dir: Path) -> dict:
         save_figure(leaderboard_figure(res.leaderboard), out_dir / "leaderboard.png")
     counts = res.rows.groupby(["system", "scope", "status"]).size()
     return {
-        "num_cases": len(cases), "folds": sorted({c.fold for c in cases}), "systems": [s.name for s in scored],
+        "character_windows": len(cases), "folds": sorted({c.fold for c in cases}), "systems": [s.name for s in scored],
         "sources": {s.name: s.source for s in scored}, "autoencoder_training": ae_source,
         "autoencoder_seconds": {f"{k[0]}_{k[1]}": v.seconds for k, v in aes.items()},
         "status_counts": {"/".join(map(str, k)): int(v) for k, v in counts.items()},

@@ -1,11 +1,18 @@
-"""Task ``collect``: merge a multirun of leave-one-out jobs into one table plus summary tables.
+"""Task ``collect``: merge a multirun into one table per kind of job plus summary tables.
 
-``convsynth task=collect collect.dir=multirun/loo/<timestamp>`` writes ``all_cases.csv``,
-``success_rates``, ``table3``, ``cooccurrence_by_condition`` and ``quality_by_condition`` (CSV and
-Markdown) into this task's output directory. Failed jobs appear as rows with status ``error``.
-``convsynth task=collect task.store=DIR`` reads the results store of resumable sweeps instead (every
-finished job kept there, ``convsynth_jax/evaluation/store.py``; the default store of ``task=loo`` is
-``${cache_dir}/results/loo``).
+``convsynth task=collect task.dir=multirun/<task>/<timestamp>`` reads every job of the sweep by its
+task (``convsynth_jax/evaluation/collect.py``): leave-one-out (``task=loo``) into ``all_cases.csv``,
+``success_rates`` (per condition: windows, solved windows), ``success_by_character`` (character-windows),
+``table3``, ``cooccurrence_by_condition`` and ``quality_by_condition``; ``task=converse`` into
+``converse_by_condition`` (constraints met per condition and speaker on the constraints of condition
+``all``, those a condition switches off reported apart), ``converse_by_kind`` and
+``converse_speakers``; ``task=benchmark`` into ``leaderboard`` and ``leaderboard_wide``;
+``task=walktalk_eval`` into ``walktalk``; ``task=cdbn_eval`` into ``cdbn_head`` (and its gesture and
+hand tables). Each table as CSV and Markdown, ``jobs.csv`` (one row per job: kind, status, error,
+overrides), and the main table printed. Failed jobs appear with status ``error`` and are counted in
+``num_failed_jobs``. ``convsynth task=collect task.store=DIR`` reads the results store of resumable
+leave-one-out sweeps instead (``convsynth_jax/evaluation/store.py``; the default store of
+``task=loo`` is ``${cache_dir}/results/loo``).
 """
 from __future__ import annotations
 
@@ -14,7 +21,7 @@ from pathlib import Path
 from typing import Optional
 
 from ..errors import ConfigError
-from ..evaluation.collect import collect_cases, write_collected
+from ..evaluation.collect import collect_cases, collect_sweep, write_collected
 
 
 @dataclass(frozen=True)
@@ -22,7 +29,7 @@ class CollectSettings:
     """``conf/task/collect.yaml``."""
 
     name: str = "collect"
-    dir: Optional[str] = None           # a multirun folder of task=loo jobs
+    dir: Optional[str] = None           # a multirun folder (any task the collection knows)
     store: Optional[str] = None         # or: a results store (task=loo's task.store)
 
 
@@ -35,8 +42,45 @@ def run(cfg, out_dir: Path) -> dict:
     if settings.store:
         from ..evaluation.store import collect_store
 
-        src, cases = settings.store, collect_store(settings.store)
-    else:
-        src, cases = settings.dir, collect_cases(settings.dir)
-    summary = write_collected(cases, out_dir)
-    return {"source": str(src), **summary}
+        summary = write_collected(collect_store(settings.store), out_dir)
+        return {"source": str(settings.store), **summary}
+    sweep = collect_sweep(settings.dir)
+    loo = "loo" in sweep.kinds or not sweep.kinds
+    summary = write_collected(collect_cases(settings.dir, sweep) if loo else _no_cases(), out_dir, sweep)
+    figures = _figures(out_dir)
+    return {"source": str(settings.dir), **summary, "figures": figures}
+
+
+def _figures(out_dir: Path) -> list[str]:
+    """The main table's figure, where there is one: success rates (leave-one-out), constraints met per
+    condition (converse), the leaderboard (benchmark)."""
+    import pandas as pd
+
+    from ..figures import save_figure
+
+    made = []
+    if (out_dir / "success_rates.csv").is_file() and (out_dir / "success_rates.csv").stat().st_size > 1:
+        from ..figures.motion_graph import success_rate_figure
+
+        rates = pd.read_csv(out_dir / "success_rates.csv")
+        if len(rates):
+            made.append(save_figure(success_rate_figure(rates), out_dir / "success_rates.png", dpi=120).name)
+    if (out_dir / "converse_by_condition.csv").is_file():
+        from ..figures.converse import converse_conditions_figure
+
+        t = pd.read_csv(out_dir / "converse_by_condition.csv")
+        if len(t):
+            made.append(save_figure(converse_conditions_figure(t), out_dir / "converse_by_condition.png", dpi=120).name)
+    if (out_dir / "leaderboard.csv").is_file():
+        from ..figures.benchmark import leaderboard_figure
+
+        board = pd.read_csv(out_dir / "leaderboard.csv")
+        if len(board):
+            made.append(save_figure(leaderboard_figure(board), out_dir / "leaderboard.png", dpi=110).name)
+    return made
+
+
+def _no_cases():
+    import pandas as pd
+
+    return pd.DataFrame()

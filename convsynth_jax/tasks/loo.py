@@ -25,6 +25,7 @@ from typing import Optional
 
 import pandas as pd
 
+from ..evaluation import summaries
 from ..utils import atomic_path
 
 log = logging.getLogger(__name__)
@@ -117,8 +118,12 @@ def _run_job(cfg, out_dir: Path, settings: LooSettings) -> dict:
         error = traceback.format_exc()
     _write_cases(cases, out_dir)
     ok = cases.get("success", pd.Series(dtype=bool)).fillna(False).astype(bool)
+    # a window (test case) is solved when every character in it is; a character-window is one row
+    windows = summaries.test_cases(cases) if error is None and "window" in cases else pd.DataFrame({"success": []})
     return {
-        "system": system_name, "fold": fold, "condition": condition, "num_cases": int(len(cases)),
-        "num_success": int(ok.sum()), "success": error is None, "error": error,
+        "system": system_name, "fold": fold, "condition": condition,
+        "windows": int(len(windows)), "solved_windows": int(windows["success"].sum()),
+        "character_windows": int(len(cases)) if error is None else 0,
+        "solved_character_windows": int(ok.sum()), "success": error is None, "error": error,
         "seconds": time.perf_counter() - t0,
     }

@@ -155,7 +155,7 @@ def run(cfg, out_dir: Path) -> dict:
     timings["total_s"] = time.perf_counter() - t_start
     report = [
         "# convsynth main report", "",
-        f"Corpus: `{corpus.root}` ({len(corpus.sessions)} sessions). Held-out session: `{held_out}` (fold {fold}). "
+        f"Corpus: `{Path(corpus.root).resolve()}` ({len(corpus.sessions)} sessions). Held-out session: `{held_out}` (fold {fold}). "
         f"System: `{system.name}`.", "",
         "Each section below is computed from this run's data; the paper's values (Yang et al. 2020, "
         "`convsynth_jax/paper_values.py`) stand in the `paper_*` columns or the orange bars. Rates carry "
@@ -171,8 +171,10 @@ def run(cfg, out_dir: Path) -> dict:
     steps.close()
     print("Success rates\n" + summaries.to_markdown(rates))
     log.info("report: %s", out_dir / "report.md")
-    return {"success": True, "system": system.name, "corpus_root": str(corpus.root), "held_out_session": held_out,
-            "num_cases": int(len(cases)),
+    # absolute: whoever reads the summary (a notebook kernel, task=notebooks) runs in another directory
+    return {"success": True, "system": system.name, "corpus_root": str(Path(corpus.root).resolve()),
+            "held_out_session": held_out,
+            "character_windows": int(len(cases)),  # window x character x condition rows of cases.csv
             "success_rates": rates.to_dict(orient="records"), "timings": timings,
             "seconds": time.perf_counter() - t_start}
 
@@ -290,7 +292,9 @@ def _paper_sections(out_dir: Path, table1, graph_stats, timing, rates, co, cases
             "the first synthesis of a process includes loading or compiling the JAX kernels.", ""]
     sr = R.success_beside_paper(rates)
     _csv(sr, out_dir / "success_beside_paper.csv")
-    out += [f"## Leave-one-out success rate per condition (paper: {P.SUCCESS_SOURCE}, 116 test cases)", "",
+    out += [f"## Leave-one-out success rate per condition (paper: {P.SUCCESS_SOURCE}, 116 windows)", "",
+            "A window (test case) is solved when every character in it is; `success_rate_<character>` is the share "
+            "of that character's character-windows solved.", "",
             md(sr), save(success_beside_paper_figure(sr), "success_beside_paper.png"), ""]
     ab = R.ablation_with_significance(co, alpha)
     if not ab.empty:

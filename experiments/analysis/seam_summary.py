@@ -72,8 +72,9 @@ def summarize(name: str, d: Path, ann, fps: float) -> dict:
         out["over_1_blend"] = int((over["seam_ratio"] > np.maximum(1.0, over["seam_content_ratio"])
                                    * (1 + BLEND_MARGIN)).sum())
         out["blend_worst"] = float((s["seam_ratio"] / s["seam_content_ratio"]).max())
-    rates = pd.read_csv(d / "success_rates.csv")
-    out["success"] = {r.condition: f"{r.solved}/{r.cases}" for r in rates.itertuples()}
+    # stored sweeps collected before the columns said windows call them cases
+    rates = pd.read_csv(d / "success_rates.csv").rename(columns={"solved": "solved_windows", "cases": "windows"})
+    out["success"] = {r.condition: f"{r.solved_windows}/{r.windows}" for r in rates.itertuples()}
     co = pd.read_csv(d / "cooccurrence_by_condition.csv")
     sig = co[co["p_value"] < 0.05]
     out["cooccurrence_significant"] = {c: [f"{r.character} {r.hypothesis} {r.synth_rate:.2f} vs {r.gt_rate:.2f}"

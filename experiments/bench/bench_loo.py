@@ -58,7 +58,7 @@ if __name__ == "__main__":
     write_collected(cases, out)
     total = time.perf_counter() - t0
     rates = pd.read_csv(out / "success_rates.csv")
-    result = {"system": system.name, "folds": n, "conditions": len(system.conditions), "test_cases_per_condition": int(rates["cases"].iloc[0]),
+    result = {"system": system.name, "folds": n, "conditions": len(system.conditions), "windows_per_condition": int(rates["windows"].iloc[0]),
               "total_seconds": total, "corpus_and_annotation_seconds": t_ann,
               "success_rates": rates.to_dict(orient="records"), "goal_seconds": 900}
     (out / "bench_loo.json").write_text(json.dumps(result, indent=2))

@@ -11,16 +11,16 @@ from .table1 import rate_errors
 
 
 def success_rate_figure(table: pd.DataFrame):
-    """Bar chart of the test-case success rate per condition."""
+    """Bar chart of the share of windows (test cases) solved per condition."""
     fig = Figure(figsize=(5, 3.2))
     ax = fig.subplots()
     x = np.arange(len(table))
     ax.bar(x, 100 * table["success_rate"], color="#5b7fb5")
-    for i, (r, n, k) in enumerate(zip(table["success_rate"], table["cases"], table["solved"])):
+    for i, (r, n, k) in enumerate(zip(table["success_rate"], table["windows"], table["solved_windows"])):
         ax.text(i, 100 * r + 1, f"{100 * r:.1f}%\n({k}/{n})", ha="center", va="bottom", fontsize=8)
     ax.set_xticks(x, table["condition"])
     ax.set_ylim(0, 115)
-    ax.set_ylabel("test cases solved (%)")
+    ax.set_ylabel("windows solved (%)")
     ax.set_title("Search success rate per condition")
     fig.tight_layout()
     return fig

@@ -49,14 +49,14 @@ def table1_beside_paper_figure(t: pd.DataFrame) -> Figure:
 
 
 def success_beside_paper_figure(t: pd.DataFrame) -> Figure:
-    """Test cases solved per condition, this run vs the paper (n/r: not reported)."""
+    """Windows (test cases) solved per condition, this run vs the paper (n/r: not reported)."""
     fig = Figure(figsize=(6.4, 3.3))
     ax = fig.subplots()
     _pair_bars(ax, list(t["condition"]), (t["success_rate"], t["ci_low"], t["ci_high"]),
                (t["paper_success_rate"], t["paper_ci_low"], t["paper_ci_high"]))
-    for i, (k, n) in enumerate(zip(t["solved"], t["cases"])):
+    for i, (k, n) in enumerate(zip(t["solved_windows"], t["windows"])):
         ax.text(i - 0.2, 1, f"{int(k)}/{int(n)}", ha="center", fontsize=7, color="w")
-    ax.set_ylabel("test cases solved (%)")
+    ax.set_ylabel("windows solved (%)")
     ax.set_title("Success rate per condition (95% CI)", fontsize=9)
     ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     fig.tight_layout()

@@ -75,6 +75,7 @@ TASKS = {
     "make_corpus": "convsynth_jax.tasks.make_corpus:MakeCorpusSettings",
     "make_scale_db": "convsynth_jax.tasks.make_scale_db:MakeScaleDBSettings",
     "notebooks": "convsynth_jax.tasks.notebooks:NotebooksSettings",
+    "paper": "convsynth_jax.tasks.paper:PaperSettings",
     "render": "convsynth_jax.tasks.render:RenderSettings",
     "study_analyze": "convsynth_jax.tasks.study_analyze:StudyAnalyzeSettings",
     "study_build": "convsynth_jax.tasks.study_build:StudyBuildSettings",

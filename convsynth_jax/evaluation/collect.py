@@ -235,7 +235,7 @@ def collect_cases(root: str | Path, sweep: Sweep | None = None) -> pd.DataFrame:
     frames = [sw.tables["cases"]] if "cases" in sw.tables else []
     have = set(sw.tables["cases"]["job_dir"]) if "cases" in sw.tables else set()
     for r in sw.jobs.to_dict("records"):  # a failed job that wrote no table: one row saying why
-        if r["status"] == "error" and r["kind"] in ("loo", None) and r["job_dir"] not in have:
+        if r["status"] == "error" and (pd.isna(r["kind"]) or r["kind"] == "loo") and r["job_dir"] not in have:
             frames.append(pd.DataFrame([{
                 "fold": pd.to_numeric(r.get("fold"), errors="coerce"), "condition": r.get("condition"),
                 "status": "error", "error": r["error"], "success": False, "job_dir": r["job_dir"]}]))

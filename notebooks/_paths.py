@@ -72,4 +72,5 @@ def show(fig, dpi: int = 100) -> None:
     buf = io.BytesIO()
     fig.savefig(buf, format="png", dpi=dpi, bbox_inches="tight")
     plt.close(fig)
-    display(Image(data=buf.getvalue(), format="png"))
+    titles = [t for t in [fig.get_suptitle()] + [ax.get_title() for ax in fig.axes] if t]
+    display(Image(data=buf.getvalue(), format="png", alt="; ".join(titles) or "figure"))

@@ -16,6 +16,7 @@ ipykernel and a Jupyter front end to open the notebooks).
 from __future__ import annotations
 
 import logging
+import re
 import time
 from dataclasses import dataclass
 from pathlib import Path
@@ -96,6 +97,14 @@ def outputs_of(nb, output_type: str | None = None, mime: str | None = None) -> l
     return out
 
 
+class _NoAltTextWarning(logging.Filter):
+    """nbconvert's lab template does not read an image's alternative text from the output (the
+    notebooks give one, JupyterLab shows it) and warns on every figure: not a fault of the notebook."""
+
+    def filter(self, record: logging.LogRecord) -> bool:
+        return not str(record.msg).startswith("Alternative text is missing")
+
+
 def execute_notebook(src: Path, out_dir: Path, values: dict, kernel: str, timeout_s: int, html: bool) -> dict:
     """Execute one notebook into ``out_dir/<name>.ipynb`` (and ``.html``); its row of ``notebooks.csv``."""
     import jupytext
@@ -111,7 +120,8 @@ def execute_notebook(src: Path, out_dir: Path, values: dict, kernel: str, timeou
         NotebookClient(nb, timeout=timeout_s, kernel_name=kernel,
                        resources={"metadata": {"path": str(src.parent)}}).execute()
     except CellExecutionError as e:
-        error = str(e).strip().splitlines()[-1] if str(e).strip() else type(e).__name__
+        text = re.sub(r"\x1b\[[0-9;]*m", "", str(e)).strip()   # the traceback's terminal colours
+        error = text.splitlines()[-1] if text else type(e).__name__
     except Exception as e:  # noqa: BLE001 (a kernel that does not start or dies: reported like a failed cell)
         error = f"{type(e).__name__}: {e}"
     errors = outputs_of(nb, "error")
@@ -122,7 +132,13 @@ def execute_notebook(src: Path, out_dir: Path, values: dict, kernel: str, timeou
     if html:
         from nbconvert import HTMLExporter
 
-        body, _ = HTMLExporter().from_notebook_node(nb)
+        exporter = HTMLExporter()
+        quiet = _NoAltTextWarning()
+        exporter.log.addFilter(quiet)
+        try:
+            body, _ = exporter.from_notebook_node(nb)
+        finally:
+            exporter.log.removeFilter(quiet)
         write_text_atomic(out_dir / f"{src.stem}.html", body)
     figures = len(outputs_of(nb, mime="image/png"))
     return {"notebook": src.stem, "status": "error" if error else "ok", "error": error, "figures": figures,

@@ -2,7 +2,7 @@
 
 Each notebook has a cell tagged ``parameters`` naming its inputs (``run = None`` and so on);
 ``convsynth task=notebooks [path=RUN]`` executes every notebook with the values it was given written
-in a cell after that one (papermill's convention, so papermill works too). Left at None, a notebook
+in a cell after that one (papermill's convention). Left at None, a notebook
 opened by hand reads the newest run of the checkout (``outputs/<task>/<stamp>``, the folder
 ``convsynth`` writes when run from the repository's root) and, where a notebook has one, the
 project's stored result in ``experiments/results/``.

@@ -89,3 +89,16 @@ def test_notebooks_task_names_a_missing_run(tmp_path, monkeypatch):
         run_task(compose(["task=notebooks"]), tmp_path / "out")
     with pytest.raises(ConvSynthError, match="task.only"):
         run_task(compose(["task=notebooks", f"path={tmp_path}", "task.only=[nope]"]), tmp_path / "out")
+
+
+def test_parameters_go_after_the_parameters_cell_or_first():
+    import nbformat
+
+    from convsynth_jax.tasks.notebooks import inject_parameters
+
+    tagged = nbformat.v4.new_notebook(cells=[nbformat.v4.new_markdown_cell("# t"),
+                                             nbformat.v4.new_code_cell("run = None", metadata={"tags": ["parameters"]}),
+                                             nbformat.v4.new_code_cell("print(run)")])
+    assert inject_parameters(tagged, {"run": "/r"}) and tagged.cells[2].source.endswith("run = '/r'")
+    plain = nbformat.v4.new_notebook(cells=[nbformat.v4.new_code_cell("print(run)")])
+    assert not inject_parameters(plain, {"run": "/r"}) and plain.cells[0].source.endswith("run = '/r'")

@@ -75,15 +75,17 @@ def notebook_files(folder: Path, only=None) -> list[Path]:
 
 def inject_parameters(nb, values: dict) -> bool:
     """Insert a cell setting ``values`` after the cell tagged ``parameters`` (tagged
-    ``injected-parameters``, as papermill does). Returns False when the notebook has no such cell."""
+    ``injected-parameters``, as papermill does); without such a cell, before the first cell. Returns
+    whether the notebook has a parameters cell."""
     import nbformat
 
+    src = "# Parameters given by convsynth task=notebooks\n" + "\n".join(f"{k} = {v!r}" for k, v in values.items())
+    new = nbformat.v4.new_code_cell(src, metadata={"tags": ["injected-parameters"]})
     for i, cell in enumerate(nb.cells):
         if cell.cell_type == "code" and PARAMETERS_TAG in cell.get("metadata", {}).get("tags", []):
-            src = "# Parameters given by convsynth task=notebooks\n" + "\n".join(f"{k} = {v!r}" for k, v in values.items())
-            new = nbformat.v4.new_code_cell(src, metadata={"tags": ["injected-parameters"]})
             nb.cells.insert(i + 1, new)
             return True
+    nb.cells.insert(0, new)
     return False
 
 

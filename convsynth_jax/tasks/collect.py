@@ -43,12 +43,12 @@ def run(cfg, out_dir: Path) -> dict:
         from ..evaluation.store import collect_store
 
         summary = write_collected(collect_store(settings.store), out_dir)
-        return {"source": str(settings.store), **summary}
+        return {"source": str(Path(settings.store).resolve()), **summary}
     sweep = collect_sweep(settings.dir)
     loo = "loo" in sweep.kinds or not sweep.kinds
     summary = write_collected(collect_cases(settings.dir, sweep) if loo else _no_cases(), out_dir, sweep)
     figures = _figures(out_dir)
-    return {"source": str(settings.dir), **summary, "figures": figures}
+    return {"source": str(Path(settings.dir).resolve()), **summary, "figures": figures}
 
 
 def _figures(out_dir: Path) -> list[str]:

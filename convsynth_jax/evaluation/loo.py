@@ -104,9 +104,10 @@ def session_windows(held: dict, fps: float, length: float, hop: float, max_windo
 
 
 @functools.lru_cache(maxsize=4)
-def _recording_audio(path: str, channel):
+def _recording_audio(path: str, channel, content: str = ""):
     """One participant's whole recording, read once for all of its windows (the two roles of the
-    held-out session are the ones in use at a time)."""
+    held-out session are the ones in use at a time); ``content``: the file's digest, so a file edited
+    in place is read again."""
     from ..io import load_audio
 
     return load_audio(path, channel=channel)
@@ -118,7 +119,9 @@ def _audio_slice(ann, w: Window):
         return None
     from ..io.audio import Audio
 
-    aud = _recording_audio(str(ann.audio_path), ann.audio_channel)
+    from ..fingerprint import file_digest
+
+    aud = _recording_audio(str(ann.audio_path), ann.audio_channel, file_digest(ann.audio_path))
     a0, a1 = int(round(w.start * aud.sample_rate)), int(round(w.end * aud.sample_rate))
     return Audio(aud.samples[a0:a1], aud.sample_rate)
 

@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -65,6 +66,30 @@ def test_every_system_config_builds_its_system(name):
     assert isinstance(s, SynthesisSystem) and s.name == name and s.conditions
     with pytest.raises(ConfigError, match="no condition"):
         s.condition_options("no_such_condition")
+
+
+@pytest.mark.parametrize("override,key", [
+    ("system.conditions.no_lr.use_lr=nope", "system.conditions.no_lr.use_lr"),   # 'nope' was truthy: LR stayed on
+    ("+system.conditions.no_lr.use_lrr=false", "system.conditions.no_lr.use_lrr"),  # a TypeError at synthesis
+    ("+system.conditions.none.beam_size=4", "system.conditions.none.beam_size"),
+])
+def test_a_bad_condition_switch_is_refused_when_the_config_is_composed(override, key):
+    with pytest.raises(ConfigError, match=re.escape(key)):
+        compose([override])
+
+
+def test_conditions_are_typed_and_set_only_what_they_name():
+    from convsynth_jax.systems.base import make_system
+    from convsynth_jax.systems.motion_graph import MotionGraphCondition
+
+    p = default_params(["system.conditions.no_lr.use_lr=true", "+system.conditions.half={use_hp: false}"])
+    assert p.system.conditions["no_lr"] == MotionGraphCondition(True, True, True)
+    s = make_system(p, p.system)
+    assert s.condition_options("half") == {"use_hp": False}   # the rest keeps the search group's values
+    sp = s.search_params("half")
+    assert not sp.use_hp and sp.use_lr == p.search.use_lr and sp.use_constraints == p.search.use_constraints
+    with pytest.raises(ConfigError, match=re.escape("system.conditions.jdbn.constrained")):
+        compose(["system=cdbn", "system.conditions.jdbn.constrained=no"])
 
 
 def test_a_models_graph_comes_from_the_systems_hook_not_an_attribute():

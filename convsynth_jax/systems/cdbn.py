@@ -30,6 +30,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -137,9 +138,18 @@ def _audio_of(clip):
                     f"{getattr(clip, 'session', '?')}/{getattr(clip, 'role', '?')}")
 
 
+@dataclass(frozen=True)
+class CDBNCondition:
+    """A condition of ``system=cdbn`` (``conf/system/cdbn.yaml``): the constrained DBN (Chiu & Marsella
+    2011) or the unconstrained joint DBN; None: constrained for the condition named ``cdbn``."""
+
+    constrained: Optional[bool] = None
+
+
 class CDBNSystem(SynthesisSystem):
     produces_hands = False
     needs_audio = True
+    condition_type = CDBNCondition
 
     def __init__(self, params, system):
         super().__init__(params, system)

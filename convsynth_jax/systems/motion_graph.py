@@ -9,6 +9,7 @@ import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
@@ -24,7 +25,7 @@ from .playback import PlaybackSystem, clip_name, training_labels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["GraphModel", "MotionGraphSystem", "clip_name", "graph_key"]
+__all__ = ["GraphModel", "MotionGraphCondition", "MotionGraphSystem", "clip_name", "graph_key"]
 
 
 @dataclass
@@ -87,7 +88,18 @@ def graph_key(items, params, *extra) -> str:
                        params.graph, params.features, params.annotate, code_fingerprint(*GRAPH_CODE), *extra)
 
 
+@dataclass(frozen=True)
+class MotionGraphCondition:
+    """One ablation condition of the motion graph (``conf/system/motion_graph.yaml``, paper Section 8):
+    the search's constraint switches it sets (None: the ``search`` group's value)."""
+
+    use_constraints: Optional[bool] = None   # any audio constraint at all
+    use_lr: Optional[bool] = None            # listener-response constraints
+    use_hp: Optional[bool] = None            # hesitation-pause constraints
+
+
 class MotionGraphSystem(PlaybackSystem):
+    condition_type = MotionGraphCondition
     produces_hands = True
     fit_procedure = "fit (graph construction)"
     synthesis_procedure = "synthesis (search)"

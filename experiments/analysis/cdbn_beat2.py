@@ -47,7 +47,7 @@ from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
 from convsynth_jax.io.audio import Audio, load_audio  # noqa: E402
 from convsynth_jax.kinematics import jerk  # noqa: E402
 from convsynth_jax.systems.base import SystemParams, make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus  # noqa: E402
+from convsynth_jax.api import annotated_corpus  # noqa: E402
 
 VARIANTS = {"paper_still_body": {"synth": {"body": "mean"}}, "default": {},
             "residual_only": {"synth": {"residual": "spectral"}},

@@ -40,7 +40,7 @@ from convsynth_jax.synth.seam_glitches import (glitch_frames, seam_glitch_counts
                                                window_seam_glitches)
 from convsynth_jax.systems.base import make_system  # noqa: E402
 from convsynth_jax.systems.playback import clip_name  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
 
 
 def window_seams(res, gt_motion, motions: dict, glitches: dict, max_step: float, fps: float) -> tuple[list, int]:
@@ -175,7 +175,7 @@ if __name__ == "__main__":
     overrides = ["search.matching=labels", *args.overrides]
     params = default_params([f"cache_dir={args.cache}", "progress=false", *overrides])
     if args.from_partial:  # a cut-short sweep: its folds so far, from the files rewritten after each fold
-        from convsynth_jax.tasks.common import open_corpus
+        from convsynth_jax.api import open_corpus
 
         seams = read_seams(RESULTS / f"{args.name}.partial.csv")
         wpath = RESULTS / f"{args.name}.partial_windows.csv"

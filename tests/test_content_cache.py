@@ -81,6 +81,28 @@ def test_corpus_fingerprint_follows_content_not_place(tiny_corpus_dir, tmp_path)
     assert annotation_key(load_corpus(a), AnnotateParams(), 30.0) != key
 
 
+def test_an_edited_file_re_annotates_its_session_only(tiny_corpus_dir, tmp_path, monkeypatch):
+    """The annotation cache is per session: after one BVH is edited in place, only its session is
+    annotated again; the others are read from the cache."""
+    from convsynth_jax.annotate import cache as ann_cache
+    from convsynth_jax.annotate.params import AnnotateParams
+    from convsynth_jax.io import load_corpus
+
+    corpus_dir = _corpus_copy(tiny_corpus_dir, tmp_path / "c")
+    annotated = []
+
+    def stand_in(corpus, params, fps, progress=True, workers=None):
+        annotated.append([s.name for s in corpus.sessions])
+        return {s.name: (s.name, len(annotated)) for s in corpus.sessions}
+
+    monkeypatch.setattr(ann_cache, "annotate_corpus", stand_in)
+    first = ann_cache.annotate_corpus_cached(load_corpus(corpus_dir), AnnotateParams(), 30.0, tmp_path / "cache")
+    _edit_in_place(corpus_dir / "session02_main-agent.bvh")
+    again = ann_cache.annotate_corpus_cached(load_corpus(corpus_dir), AnnotateParams(), 30.0, tmp_path / "cache")
+    assert annotated == [["session01", "session02", "session03"], ["session02"]]
+    assert again == {**first, "session02": ("session02", 2)}
+
+
 def test_graph_cache_is_keyed_by_the_clips_content(tiny_annotations, tmp_path):
     """Fitting on other motion with the same clip names (e.g. another corpus whose sessions are also
     named session01...) builds the graph again instead of returning the cached one."""

@@ -171,6 +171,7 @@ def run_task(cfg: DictConfig, out_dir: str | Path) -> dict:
     from . import kernel_cache
 
     task_settings(cfg)  # unknown or mistyped task keys fail before any work
+    check_composed(cfg)  # and the system's conditions
     kernel_cache.enable_compilation_cache(group_params(cfg, "jax_cache") if cfg.get("jax_cache") is not None else None)
     t0 = time.perf_counter()
     summary = module.run(cfg, out_dir) or {}
@@ -203,7 +204,17 @@ def compose(overrides: list[str] | None = None) -> DictConfig:
     from hydra import compose as _compose, initialize_config_dir
 
     with initialize_config_dir(version_base="1.3", config_dir=CONFIG_DIR):
-        return _compose(config_name="config", overrides=list(overrides or []))
+        cfg = _compose(config_name="config", overrides=list(overrides or []))
+    check_composed(cfg)
+    return cfg
+
+
+def check_composed(cfg: DictConfig) -> None:
+    """The checks Hydra's schemas cannot make when a config is composed: each ablation condition of the
+    system converted to the system's typed condition (``SystemParams``), so a mistyped value or an
+    unknown key (``system.conditions.no_lr.use_lr=nope``) is a ConfigError naming the key."""
+    if cfg.get("system") is not None:
+        group_params(cfg, "system")
 
 
 def default_params(overrides: list[str] | None = None):

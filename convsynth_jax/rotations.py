@@ -193,6 +193,14 @@ def quat_to_matrix_np(q) -> np.ndarray:
         np.stack([2 * (x * z - w * y), 2 * (y * z + w * x), 1 - 2 * (x * x + y * y)], -1)], -2)
 
 
+def matrix_to_quat_np(m) -> np.ndarray:
+    """(..., 3, 3) rotation matrices -> (..., 4) (w, x, y, z) quaternions, float64 NumPy (SciPy's
+    conversion; :func:`matrix_to_quat` is the jnp kernel's)."""
+    m = np.asarray(m, dtype=np.float64)
+    q = _Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()
+    return _from_scipy(q).reshape(m.shape[:-2] + (4,))
+
+
 def quat_multiply_np(a, b) -> np.ndarray:
     """Hamilton product a * b of (..., 4) quaternions (NumPy, broadcasting)."""
     a, b = np.asarray(a, dtype=np.float64), np.asarray(b, dtype=np.float64)

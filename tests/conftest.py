@@ -160,7 +160,7 @@ def tiny_annotations(_tiny_annotation_cache, tiny_corpus_dir) -> dict:
 @pytest.fixture(scope="session")
 def tiny_cache_dir(_tiny_annotation_cache, tmp_path_factory):
     """A factory of fresh folders for ``cache_dir=`` that already hold the tiny corpus's annotation
-    where tasks look for it (``<cache_dir>/loo_cache``, :func:`convsynth_jax.tasks.common.cache_dir`),
+    where tasks look for it (``<cache_dir>/loo_cache``, :func:`convsynth_jax.api.cache_dir`),
     so a task run on the tiny corpus does not annotate it again (everything else starts empty)."""
     import shutil
 

@@ -15,19 +15,21 @@ def test_cache_is_not_reused_after_the_corpus_files_change(tmp_path, monkeypatch
 
     def fake_annotate(corpus, params, fps, progress=True, workers=None):
         calls.append(1)
-        return {"n": len(calls)}
+        return {s.name: {"n": len(calls)} for s in corpus.sessions}
 
     monkeypatch.setattr(ann_cache, "annotate_corpus", fake_annotate)
     cdir = tmp_path / "ann"
     first = ann_cache.annotate_corpus_cached(corpus, p.annotate, 30.0, cdir, progress=False)
     again = ann_cache.annotate_corpus_cached(corpus, p.annotate, 30.0, cdir, progress=False)
-    assert first == again == {"n": 1} and len(calls) == 1  # unchanged corpus: the cache is used
+    names = [s.name for s in corpus.sessions]
+    assert first == again == {n: {"n": 1} for n in names} and len(calls) == 1  # unchanged corpus: the cache is used
     f = corpus.sessions[0].participants[0].transcript_path
     st = os.stat(f)
     f.write_text(f.read_text() + "\n")
     os.utime(f, ns=(st.st_atime_ns, st.st_mtime_ns + 10**9))
     changed = ann_cache.annotate_corpus_cached(corpus, p.annotate, 30.0, cdir, progress=False)
-    assert changed == {"n": 2} and len(calls) == 2
+    # the edited session is annotated again, the others are read
+    assert changed == {n: {"n": 2 if n == corpus.sessions[0].name else 1} for n in names} and len(calls) == 2
 
 
 def test_seeded_cache_folder_serves_a_task_without_annotating(tiny_corpus_dir, tiny_cache_dir, monkeypatch):

@@ -28,6 +28,20 @@ def test_cca_reduces_to_pearson_in_one_dimension_and_finds_a_hidden_direction():
     assert cca(rng.normal(size=(5000, 3)), rng.normal(size=(5000, 3))) < 0.08
 
 
+def test_cca_is_the_projects_one_cca_and_does_not_depend_on_units():
+    """The CDBN's CCA and the field metrics' are one definition (``stats.cca``). Its ridge is relative to
+    each block's variance: motion in metres scores as in centimetres (the CDBN's former absolute ridge of
+    1e-6 moved this correlation by 4e-3 at a scale of 0.01)."""
+    from convsynth_jax.evaluation.field.cca import fit_cca as field_fit_cca
+    from convsynth_jax.stats.cca import fit_cca
+
+    rng = np.random.default_rng(0)
+    x = rng.normal(size=(100, 3))
+    y = x @ rng.normal(size=(3, 3)) * 0.3 + rng.normal(size=(100, 3))
+    assert field_fit_cca is fit_cca and cca(x, y) == fit_cca(x, y).rho
+    assert abs(cca(0.01 * x, y) - cca(x, y)) < 1e-9
+
+
 def test_gaussian_kld_zero_for_same_data_and_grows_with_shrunk_variance():
     rng = np.random.default_rng(1)
     x = rng.normal(size=(5000, 3))

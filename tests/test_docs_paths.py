@@ -124,3 +124,12 @@ def test_the_readme_is_a_page():
     """The README stays one page (at most 300 lines); methods, results and history live in docs/."""
     n = len((ROOT / "README.md").read_text().splitlines())
     assert n <= 300, f"README.md has {n} lines; move detail into docs/"
+
+
+def test_the_docs_index_lists_every_page():
+    """docs/README.md links every page of docs/ (pages it omitted were found only by search)."""
+    docs = ROOT / "docs"
+    index = (docs / "README.md").read_text()
+    listed = set(re.findall(r"\]\(([\w.-]+\.md)\)", index))
+    pages = {p.name for p in docs.glob("*.md") if p.name != "README.md"}
+    assert pages - listed == set(), f"docs/README.md does not list {sorted(pages - listed)}"

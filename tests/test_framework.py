@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 from pathlib import Path
 
 import numpy as np
@@ -65,6 +66,30 @@ def test_every_system_config_builds_its_system(name):
     assert isinstance(s, SynthesisSystem) and s.name == name and s.conditions
     with pytest.raises(ConfigError, match="no condition"):
         s.condition_options("no_such_condition")
+
+
+@pytest.mark.parametrize("override,key", [
+    ("system.conditions.no_lr.use_lr=nope", "system.conditions.no_lr.use_lr"),   # 'nope' was truthy: LR stayed on
+    ("+system.conditions.no_lr.use_lrr=false", "system.conditions.no_lr.use_lrr"),  # a TypeError at synthesis
+    ("+system.conditions.none.beam_size=4", "system.conditions.none.beam_size"),
+])
+def test_a_bad_condition_switch_is_refused_when_the_config_is_composed(override, key):
+    with pytest.raises(ConfigError, match=re.escape(key)):
+        compose([override])
+
+
+def test_conditions_are_typed_and_set_only_what_they_name():
+    from convsynth_jax.systems.base import make_system
+    from convsynth_jax.systems.motion_graph import MotionGraphCondition
+
+    p = default_params(["system.conditions.no_lr.use_lr=true", "+system.conditions.half={use_hp: false}"])
+    assert p.system.conditions["no_lr"] == MotionGraphCondition(True, True, True)
+    s = make_system(p, p.system)
+    assert s.condition_options("half") == {"use_hp": False}   # the rest keeps the search group's values
+    sp = s.search_params("half")
+    assert not sp.use_hp and sp.use_lr == p.search.use_lr and sp.use_constraints == p.search.use_constraints
+    with pytest.raises(ConfigError, match=re.escape("system.conditions.jdbn.constrained")):
+        compose(["system=cdbn", "system.conditions.jdbn.constrained=no"])
 
 
 def test_a_models_graph_comes_from_the_systems_hook_not_an_attribute():
@@ -146,6 +171,43 @@ def test_random_playback_is_a_system_in_the_generic_fold(tiny):
     assert win["session"] == list(ann)[0]
     again = run_fold(system, ann, 0, "none", p)
     pd.testing.assert_series_equal(cases["jerk"], again["jerk"])  # seeded: the same motion again
+
+
+def test_one_fold_loop_yields_input_result_and_ground_truth(tiny):
+    """``loo_cases`` is the leave-one-out loop the others reduce over: per fold, condition, window and
+    character the input the system saw, its result with provenance and the recording's ground truth;
+    ``run_fold`` is its reduction (same seeds, same rows); a window whose synthesis raises is yielded
+    with its error and the loop goes on; the system's options and conditions are never changed."""
+    from convsynth_jax.evaluation.loo import loo_cases, run_fold
+    from convsynth_jax.systems.base import make_system
+
+    p, ann, _ = tiny
+    p = dataclasses.replace(p, system=default_params(["system=random_playback"]).system)
+    system = make_system(p, p.system)
+    options, spec = system.options, system.system
+    cases = list(loo_cases(system, ann, p, [0, 1], "none", max_windows=1))
+    assert [(c.fold, c.role) for c in cases] == [(0, "main-agent"), (0, "interloctr"), (1, "main-agent"), (1, "interloctr")]
+    for c in cases:
+        assert c.held_out == list(ann)[c.fold] and c.error is None and c.result.success
+        assert c.ground_truth.num_frames == c.input.num_frames == c.result.motion.num_frames
+        np.testing.assert_array_equal(c.ground_truth.rotations, ann[c.held_out][c.role].motion.rotations[
+            c.input.start_frame:c.input.start_frame + c.input.num_frames])
+        assert len(c.result.source_clip) == c.input.num_frames
+        assert not any(clip.startswith(c.held_out) for clip in c.result.source_clip)   # provenance: training only
+    assert system.options is options and system.system is spec
+    rows = run_fold(system, ann, 0, "none", p)
+    assert list(rows["seed"][:2]) == [c.input.seed for c in cases[:2]]
+
+    class Flaky(type(system)):
+        def synthesize(self, model, window, condition):
+            if window.role == "main-agent":
+                raise RuntimeError("no motion for you")
+            return super().synthesize(model, window, condition)
+
+    flaky = list(loo_cases(Flaky(p, p.system), ann, p, 0, "none", max_windows=1))
+    assert [c.error for c in flaky] == ["RuntimeError: no motion for you", None] and flaky[0].result is None
+    with pytest.raises(ConfigError, match="no condition"):
+        next(loo_cases(system, ann, p, 0, "all"))
 
 
 def test_a_system_adds_its_own_columns_through_the_interface(tiny):

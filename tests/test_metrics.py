@@ -138,3 +138,22 @@ def test_seam_content_ratio_equals_the_slow_loop():
     with_cont = seam_content_ratio(acc, src, frm, gt, fps, syn, blend)
     assert with_cont > seam_content_ratio(acc, src, frm, gt, fps, syn, 0) + 1.0
     assert with_cont == pytest.approx(own_acc("b", 12) / gmax, rel=1e-12)
+
+
+def test_every_jerk_is_the_one_definition():
+    """Jerk has one home (``kinematics.jerk``): GENEA's average jerk, the leave-one-out's mean jerk and the
+    CDBN's angular jerk (the key-point rate's target) give its mean norm."""
+    from convsynth_jax.evaluation.field.kinematic import average_jerk
+    from convsynth_jax.evaluation.metrics import mean_jerk
+    from convsynth_jax.kinematics import jerk
+    from convsynth_jax.systems.cdbn import _angular_jerk
+
+    rng = np.random.default_rng(0)
+    p = np.cumsum(rng.normal(size=(40, 5, 3)), axis=0)
+    want = np.linalg.norm(np.diff(p, n=3, axis=0), axis=-1).mean() * 30.0 ** 3
+    assert np.isclose(np.linalg.norm(jerk(p, 30.0), axis=-1).mean(), want, rtol=1e-12)
+    assert np.isclose(average_jerk(p, 30.0), want, rtol=1e-12) and np.isclose(mean_jerk(p, 30.0), want, rtol=1e-12)
+    a = p[:, 0]
+    assert np.isclose(_angular_jerk(a, 30.0), np.linalg.norm(np.diff(a, n=3, axis=0), axis=1).mean() * 30.0 ** 3,
+                      rtol=1e-12)
+    assert _angular_jerk(a[:3], 30.0) == 0.0

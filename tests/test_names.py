@@ -28,3 +28,16 @@ def test_public_names_are_unique_across_the_package():
 
 def test_no_library_module_is_named_like_a_test():
     assert [str(p.relative_to(PKG)) for p in PKG.rglob("test*.py")] == []
+
+
+# experiment scripts that still reach into the tasks' wiring (the CDBN tasks' semi-synthetic corpus, the
+# benchmark task's autoencoder corpus, and the naturalness analysis)
+TASKS_IMPORTERS = {"analysis/naturalness.py", "bench/bench_cdbn.py", "bench/bench_metrics.py"}
+
+
+def test_experiments_use_the_public_api_not_the_tasks():
+    """Scripts under experiments/ get the configured corpus, its annotation and system from
+    ``convsynth_jax.api`` (what the tasks use too), not from ``convsynth_jax.tasks``."""
+    exp = PKG.parent / "experiments"
+    found = {str(p.relative_to(exp)) for p in exp.rglob("*.py") if "convsynth_jax.tasks" in p.read_text()}
+    assert found <= TASKS_IMPORTERS, sorted(found - TASKS_IMPORTERS)

@@ -90,3 +90,18 @@ def test_numpy_helpers_agree_with_the_jax_primitives():
     tilted = R.quat_multiply_np(q, R.euler_deg_to_quat_np(np.c_[np.zeros(50), rng.uniform(-30, 30, 50), np.zeros(50)], "YXZ"))
     np.testing.assert_allclose(R.yaw_to_quat_np(R.yaw_angle_np(tilted)) * np.sign(tilted[:, :1]),
                                np.asarray(R.yaw_quat(tilted)) * np.sign(tilted[:, :1]), atol=1e-6)
+
+
+def test_matrix_to_quat_np_is_the_kernels_conversion_in_float64():
+    """One matrix-to-quaternion conversion per array library (Walk the Talk's gaze and gesture retargeting
+    use ``matrix_to_quat_np``): the same rotation as the jnp kernel's, up to the quaternion's sign."""
+    from scipy.spatial.transform import Rotation
+
+    from convsynth_jax.rotations import matrix_to_quat, matrix_to_quat_np, quat_to_matrix_np
+
+    m = Rotation.random(50, random_state=1).as_matrix().reshape(5, 10, 3, 3)
+    q = matrix_to_quat_np(m)
+    assert q.shape == (5, 10, 4) and q.dtype == np.float64
+    np.testing.assert_allclose(quat_to_matrix_np(q), m, atol=1e-12)
+    k = np.asarray(matrix_to_quat(m.astype(np.float32)), np.float64)
+    np.testing.assert_allclose(np.abs(np.sum(q * k, axis=-1)), 1.0, atol=1e-5)

@@ -16,26 +16,16 @@ from __future__ import annotations
 import numpy as np
 from scipy import stats
 
+from ..stats.cca import fit_cca
 from .cdbn import gaussian_kl
 
 
 def cca(x: np.ndarray, y: np.ndarray, reg: float = 1e-6) -> float:
-    """First canonical correlation of x (T, p) and y (T, q)."""
-    x = np.asarray(x, np.float64) - np.mean(x, 0)
-    y = np.asarray(y, np.float64) - np.mean(y, 0)
-    n = len(x)
-    if n < 3:
+    """First canonical correlation of x (T, p) and y (T, q) (:func:`convsynth_jax.stats.cca.fit_cca`, the
+    project's one CCA; ``reg``: its ridge, relative to each block's mean variance); NaN under 3 frames."""
+    if len(x) < 3:
         return float("nan")
-    cxx = x.T @ x / n + reg * np.eye(x.shape[1])
-    cyy = y.T @ y / n + reg * np.eye(y.shape[1])
-    cxy = x.T @ y / n
-
-    def inv_sqrt(c):
-        w, v = np.linalg.eigh(c)
-        return (v / np.sqrt(np.maximum(w, reg))) @ v.T
-
-    s = np.linalg.svd(inv_sqrt(cxx) @ cxy @ inv_sqrt(cyy), compute_uv=False)
-    return float(np.clip(s[0], 0.0, 1.0))
+    return fit_cca(x, y, reg).rho
 
 
 def gaussian_kld(original: np.ndarray, synthesized: np.ndarray, floor: float = 1e-2) -> float:

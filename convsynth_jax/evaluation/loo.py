@@ -14,6 +14,12 @@ uses its recording's own thresholds, synthesized motion the mean thresholds of t
 training recordings (``fold_thresholds``; our choice, the paper is silent). Every system is scored
 this way; one without hand motion (``produces_hands`` False) gets NaN hand hypotheses.
 
+There is one loop: :func:`loo_cases` yields, per fold, condition, window and character, the input the
+system saw, its result (motion, timing, constraints, per-frame provenance) and the recording's ground
+truth; :func:`run_fold` (and through it the tasks and the benchmark) reduces it to rows with
+:func:`score_case`, and an analysis reduces it its own way instead of rewriting the loop. It passes the
+system's options and conditions as they are and never changes them.
+
 Nothing here knows a particular system: what only a system can tell (the motion graph's independent
 constraint checker, the joint positions of the training clips it played back) comes through the
 interface's ``window_diagnostics`` and ``source_positions`` hooks.
@@ -22,7 +28,9 @@ from __future__ import annotations
 
 import functools
 import logging
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Iterator, Optional, Sequence, Union
 
 import numpy as np
 import pandas as pd
@@ -30,7 +38,7 @@ import pandas as pd
 from ..annotate.kinds import hypotheses
 from ..errors import ConfigError
 from ..seeding import derive_seed
-from ..systems.base import SynthesisSystem, WindowInput
+from ..systems.base import SynthesisSystem, WindowInput, WindowResult
 from .windows import Window, sliding_windows, window_segments
 
 log = logging.getLogger(__name__)
@@ -104,9 +112,10 @@ def session_windows(held: dict, fps: float, length: float, hop: float, max_windo
 
 
 @functools.lru_cache(maxsize=4)
-def _recording_audio(path: str, channel):
+def _recording_audio(path: str, channel, content: str = ""):
     """One participant's whole recording, read once for all of its windows (the two roles of the
-    held-out session are the ones in use at a time)."""
+    held-out session are the ones in use at a time); ``content``: the file's digest, so a file edited
+    in place is read again."""
     from ..io import load_audio
 
     return load_audio(path, channel=channel)
@@ -118,7 +127,9 @@ def _audio_slice(ann, w: Window):
         return None
     from ..io.audio import Audio
 
-    aud = _recording_audio(str(ann.audio_path), ann.audio_channel)
+    from ..fingerprint import file_digest
+
+    aud = _recording_audio(str(ann.audio_path), ann.audio_channel, file_digest(ann.audio_path))
     a0, a1 = int(round(w.start * aud.sample_rate)), int(round(w.end * aud.sample_rate))
     return Audio(aud.samples[a0:a1], aud.sample_rate)
 
@@ -173,22 +184,95 @@ def _metric_points(motion, head_only: bool, params) -> np.ndarray:
     return np.asarray(forward_kinematics(motion), dtype=np.float64)
 
 
-def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition: str, gt_motion, params, *,
-                    gt_thresholds: dict, synth_thresholds: dict) -> tuple[dict, object]:
-    """One row (generic fields, the system's ``window_diagnostics``, metrics) and the synthesized
-    Motion (None on failure).
+@dataclass(frozen=True)
+class WindowCase:
+    """One synthesized (window, character) of a leave-one-out fold: what went in, what came out and
+    what was recorded (:func:`loo_cases`).
+
+    system: its name; fold / held_out: the fold index and the held-out session; condition: the
+    ablation condition; window: the :class:`~.windows.Window`; role / character: who was synthesized;
+    input: the :class:`WindowInput` the system saw; model: the fitted model that synthesized it;
+    result: the :class:`WindowResult` (motion, timing, constraints, per-frame provenance:
+    ``source_clip`` / ``source_frame`` / ``synthetic_at``), None when ``synthesize`` raised (``error``
+    says what); ground_truth: the held-out recording's Motion over the window.
+    """
+
+    system: str
+    fold: int
+    held_out: str
+    condition: str
+    window: Window
+    role: str
+    character: str
+    input: WindowInput
+    model: Any
+    result: Optional[WindowResult]
+    ground_truth: Any
+    error: Optional[str] = None
+
+
+def loo_cases(system: SynthesisSystem, annotations: dict, params, folds: Union[int, Sequence[int]],
+              conditions: Union[str, Sequence[str]], *, cache_dir: str | Path | None = None,
+              models: dict | None = None, with_audio: bool = False,
+              max_windows: int | None = None) -> Iterator[WindowCase]:
+    """The one leave-one-out loop: for each fold, each condition, each window of the held-out session
+    (15 s, 14 s hop: ``params.loo``) and each of its two characters, a :class:`WindowCase`. Models are
+    fitted once per fold and ``fit_key`` (``fit_fold``; ``models``: a dict kept across calls, cleared
+    between folds when the loop made it); seeds come from :func:`convsynth_jax.seeding.derive_seed`.
+    :func:`run_fold`, the tasks, the benchmark and the analyses reduce over it.
+
+    Nothing is mutated: the system's options and conditions are those it was made with (to compare
+    options, make one system per option set with ``make_system``); a synthesis that raises is yielded
+    with its ``error``, never ends the loop. Unknown conditions and folds out of range fail before
+    any work. ``max_windows``: overrides ``params.loo.max_windows``."""
+    folds = [int(folds)] if isinstance(folds, (int, np.integer)) else [int(f) for f in folds]
+    conditions = [conditions] if isinstance(conditions, str) else list(conditions)
+    for condition in conditions:
+        system.condition_options(condition)  # unknown conditions fail before any work
+    names = list(annotations)
+    if len(names) < 2:
+        raise ConfigError(f"leave-one-out needs at least two sessions; the corpus has {len(names)}")
+    for fold in folds:
+        if not 0 <= fold < len(names):
+            raise ConfigError(f"fold {fold} out of range: the corpus has {len(names)} sessions")
+    fps = float(params.features.fps)
+    limit = params.loo.max_windows if max_windows is None else max_windows
+    for fold in folds:
+        held_out = names[fold]
+        held = annotations[held_out]
+        fold_models = {} if models is None else models
+        for condition in conditions:
+            fitted = fit_fold(system, annotations, held_out, condition, cache_dir, fold_models)
+            for w in session_windows(held, fps, params.loo.window, params.loo.hop, limit):
+                for k, (role, ann) in enumerate(held.items()):
+                    f0 = int(round(w.start * fps))
+                    seed = derive_seed(params.seed, fold=fold, condition=condition, session=held_out,
+                                       window_frame=f0, role_index=k)
+                    win = window_input(held, role, w, fps, seed, with_audio=with_audio)
+                    gt = ann.motion.slice(f0, f0 + win.num_frames)
+                    model = fitted[ann.character]
+                    try:
+                        res, error = system.synthesize(model, win, condition), None
+                    except Exception as e:  # recorded, never ends the sweep
+                        log.exception("%s window at frame %d, %s failed", win.session, win.start_frame, win.character)
+                        res, error = None, f"{type(e).__name__}: {e}"
+                    yield WindowCase(system.name, fold, held_out, condition, w, role, ann.character, win, model,
+                                     res, gt, error)
+
+
+def score_case(system: SynthesisSystem, case: WindowCase, params, *, gt_thresholds: dict,
+               synth_thresholds: dict) -> dict:
+    """One row of a synthesized window: generic fields, the system's ``window_diagnostics``, metrics.
 
     gt_thresholds: Eq. 1's θ_S per kind of the held-out recording (its whole clip); synth_thresholds:
     those for the character's synthesized motion (``fold_thresholds``)."""
     from . import metrics
 
+    win, model, gt_motion, res = case.input, case.model, case.ground_truth, case.result
     fps = win.fps
     row = {"fit_seconds": system.fit_seconds(model), "status": "ok"}
-    try:
-        res = system.synthesize(model, win, condition)
-    except Exception as e:  # recorded, never ends the sweep
-        log.exception("%s window at frame %d, %s failed", win.session, win.start_frame, win.character)
-        return {**row, "success": False, "status": "error", "error": f"{type(e).__name__}: {e}"}, None
+    if res is None:
+        return {**row, "success": False, "status": "error", "error": case.error}
     row.update({"success": bool(res.success), "synthesis_seconds": res.seconds, "failure": res.failure,
                 "constraints_total": res.constraints_total, "constraints_met": res.constraints_met})
     row.update({f"diag_{k}": v for k, v in res.diagnostics.items() if np.isscalar(v)})
@@ -223,13 +307,30 @@ def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition:
                 row["seam_content_ratio"] = metrics.seam_content_ratio(
                     acc, list(res.source_clip), [int(f) for f in res.source_frame], gt_pos, fps,
                     list(res.synthetic_at), int(res.blend_frames))
-    return row, (res.motion if res.success else None)
+    return row
+
+
+def evaluate_window(system: SynthesisSystem, model, win: WindowInput, condition: str, gt_motion, params, *,
+                    gt_thresholds: dict, synth_thresholds: dict) -> tuple[dict, object]:
+    """One window synthesized and scored outside :func:`loo_cases` (e.g. a test's own window): (the row
+    of :func:`score_case`, the synthesized Motion or None)."""
+    try:
+        res, error = system.synthesize(model, win, condition), None
+    except Exception as e:  # recorded as the loop records it
+        log.exception("%s window at frame %d, %s failed", win.session, win.start_frame, win.character)
+        res, error = None, f"{type(e).__name__}: {e}"
+    w = Window(-1, win.start_frame / win.fps, (win.start_frame + win.num_frames) / win.fps)
+    case = WindowCase(system.name, -1, win.session, condition, w, win.role, win.character, win, model, res,
+                      gt_motion, error)
+    row = score_case(system, case, params, gt_thresholds=gt_thresholds, synth_thresholds=synth_thresholds)
+    return row, (res.motion if res is not None and res.success else None)
 
 
 def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: str, params, out_dir: Path | None = None,
              cache_dir: str | Path | None = None, export_bvh: bool = False, models: dict | None = None,
              with_audio: bool = False, thresholds: dict | None = None) -> pd.DataFrame:
-    """All test cases of one fold in one condition: one row per (window, character).
+    """All test cases of one fold in one condition: one row per (window, character), a reduction of
+    :func:`loo_cases`.
 
     models: fitted models kept across the conditions of one fold (``fit_fold``); thresholds: a
     ``recording_threshold_table`` of ``annotations`` kept across folds (computed here when None)."""
@@ -237,41 +338,29 @@ def run_fold(system: SynthesisSystem, annotations: dict, fold: int, condition: s
     from ..kinematics import pose_features
     from . import metrics
 
-    system.condition_options(condition)  # unknown conditions fail before any work
-    names = list(annotations)
-    if len(names) < 2:
-        raise ConfigError(f"leave-one-out needs at least two sessions; the corpus has {len(names)}")
-    if not 0 <= fold < len(names):
-        raise ConfigError(f"fold {fold} out of range: the corpus has {len(names)} sessions")
-    held_out = names[fold]
-    fitted = fit_fold(system, annotations, held_out, condition, cache_dir, models)
-    fps = float(params.features.fps)
-    held = annotations[held_out]
-    windows = session_windows(held, fps, params.loo.window, params.loo.hop, params.loo.max_windows)
-    gt_thresholds, synth_thresholds = fold_thresholds(annotations, held_out, params.annotate, thresholds)
-    rows, synth_windows = [], {}
-    for w in windows:
-        for k, (role, ann) in enumerate(held.items()):
-            f0 = int(round(w.start * fps))
-            seed = derive_seed(params.seed, fold=fold, condition=condition, session=held_out, window_frame=f0,
-                               role_index=k)
-            win = window_input(held, role, w, fps, seed, with_audio=with_audio)
-            gt = ann.motion.slice(f0, f0 + win.num_frames)
-            row, motion = evaluate_window(system, fitted[ann.character], win, condition, gt, params,
-                                          gt_thresholds=gt_thresholds[role],
-                                          synth_thresholds=synth_thresholds[ann.character])
-            rows.append({"system": system.name, "fit_procedure": system.fit_procedure,
-                         "synthesis_procedure": system.synthesis_procedure, "fold": fold, "session": held_out, "condition": condition,
-                         "window": w.index, "window_start": w.start, "window_end": w.end,
-                         "character": ann.character, "role": role, "seed": seed, **row})
-            if motion is not None:
-                if system.produces_hands:
-                    pts = np.asarray(pose_features(motion).positions)
-                else:  # head-only systems: the head point relative to the root (the rest of the body is still)
-                    pts = _metric_points(motion, True, params) - np.asarray(motion.translations, np.float64)[:, :1]
-                synth_windows.setdefault(ann.character, []).append(pts)
-                if export_bvh and out_dir is not None:
-                    save_bvh(motion, Path(out_dir) / "bvh" / f"{held_out}_w{w.index:02d}_{ann.character}_{condition}.bvh")
+    cases = loo_cases(system, annotations, params, fold, condition, cache_dir=cache_dir, models=models,
+                      with_audio=with_audio)
+    rows, synth_windows, thresholds_of = [], {}, None
+    for case in cases:
+        if thresholds_of is None:
+            thresholds_of = fold_thresholds(annotations, case.held_out, params.annotate, thresholds)
+        gt_thresholds, synth_thresholds = thresholds_of
+        w, res = case.window, case.result
+        row = score_case(system, case, params, gt_thresholds=gt_thresholds[case.role],
+                         synth_thresholds=synth_thresholds[case.character])
+        rows.append({"system": system.name, "fit_procedure": system.fit_procedure,
+                     "synthesis_procedure": system.synthesis_procedure, "fold": fold, "session": case.held_out,
+                     "condition": condition, "window": w.index, "window_start": w.start, "window_end": w.end,
+                     "character": case.character, "role": case.role, "seed": case.input.seed, **row})
+        motion = res.motion if res is not None and res.success else None
+        if motion is not None:
+            if system.produces_hands:
+                pts = np.asarray(pose_features(motion).positions)
+            else:  # head-only systems: the head point relative to the root (the rest of the body is still)
+                pts = _metric_points(motion, True, params) - np.asarray(motion.translations, np.float64)[:, :1]
+            synth_windows.setdefault(case.character, []).append(pts)
+            if export_bvh and out_dir is not None:
+                save_bvh(motion, Path(out_dir) / "bvh" / f"{case.held_out}_w{w.index:02d}_{case.character}_{condition}.bvh")
     out = pd.DataFrame(rows)
     if len(out):  # diversity between the windows synthesized for each character in this fold and condition
         out["diversity"] = out["character"].map(lambda c: metrics.window_diversity(synth_windows.get(c, [])))

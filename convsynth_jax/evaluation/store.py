@@ -1,7 +1,8 @@
 """A results store that makes sweeps resumable: each job's table kept under the hash of its configuration.
 
 A leave-one-out job (``task=loo``) is identified by its resolved configuration (which includes the
-system, the fold and the condition) and the package version: :func:`job_key` hashes them. Its result
+system, the fold and the condition), the content of its corpus
+(:func:`convsynth_jax.io.corpus.corpus_fingerprint`) and the package's code: :func:`job_key` hashes them. Its result
 goes to ``<store>/<key>/`` (``cases.csv`` and ``record.json``: key, system, fold, condition, the
 configuration, when it was written). An entry is written into a temporary folder and renamed into
 place when complete (``record.json`` last), so an entry is either complete or absent: a job killed
@@ -10,16 +11,15 @@ that key removes. A re-run of the same sweep finds the completed jobs' entries a
 (``task.resume``), redoing only the missing ones; while a job computes it holds its key's lock, so two
 processes running the same job at once compute it once.
 
-The key includes a hash of the package's source files, so an edited library never reuses results of
-the old code (the old entries stay until the store is deleted). It does not see the contents of a
-corpus folder, only its configuration (for the synthetic corpus, its generator parameters): after
-replacing the files of a real corpus in place, delete the store or point ``task.store`` elsewhere.
+The key includes a hash of the package's source files
+(:func:`convsynth_jax.fingerprint.code_fingerprint`), so an edited library never reuses results of
+the old code, and a hash of the corpus's files, so a corpus edited in place (a BVH fixed, names
+unchanged) is computed again (the old entries stay until the store is deleted).
 ``task=collect task.store=DIR`` reads every complete entry (:func:`collect_store`).
 """
 from __future__ import annotations
 
 import datetime
-import functools
 import hashlib
 import json
 import logging
@@ -32,6 +32,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import FormatError, MissingFileError
+from ..fingerprint import code_fingerprint  # noqa: F401  (the one home; re-exported)
 from ..utils import _umask, file_lock, replace_dir, write_error, write_json_atomic
 
 log = logging.getLogger(__name__)
@@ -45,19 +46,6 @@ def job_key(config: dict, code: str) -> str:
     JSON-serializable dict; keys in any order) and ``code`` (:func:`code_fingerprint`)."""
     text = json.dumps({"config": config, "code": code}, sort_keys=True, default=str)
     return hashlib.sha256(text.encode()).hexdigest()[:24]
-
-
-@functools.lru_cache(maxsize=1)
-def code_fingerprint() -> str:
-    """The package version and a hash of every source file of the package, so that results computed by
-    other code are never reused (any edit of the library makes a sweep compute everything again)."""
-    from .. import __version__
-
-    pkg = Path(__file__).resolve().parent.parent
-    h = hashlib.sha256(__version__.encode())
-    for f in sorted(pkg.rglob("*.py")):
-        h.update(str(f.relative_to(pkg)).encode() + b"\0" + f.read_bytes() + b"\0")
-    return h.hexdigest()
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ from pathlib import Path
 import pandas as pd
 
 from ..errors import CorpusError, FormatError, MissingFileError
+from ..fingerprint import file_digest, stable_hash
 from ..skeleton import Motion
 from .audio import Audio, load_audio, wav_duration
 from .bvh import bvh_duration  # noqa: F401  (re-exported)
@@ -80,11 +81,52 @@ class Corpus:
     def characters(self) -> list[str]:
         return sorted({p.character for s in self.sessions for p in s.participants})
 
+    def fingerprint(self) -> str:
+        """The hash of this corpus's content (:func:`corpus_fingerprint`)."""
+        return corpus_fingerprint(self)
+
     def session(self, name: str) -> Session:
         for s in self.sessions:
             if s.name == name:
                 return s
         raise KeyError(f"no session {name!r}; sessions are {[s.name for s in self.sessions]}")
+
+
+def _file_entry(root: Path, f) -> list | None:
+    """[name relative to ``root`` (else absolute), SHA-256 of its bytes or None when absent]."""
+    if f is None:
+        return None
+    f = Path(f)
+    try:
+        name = str(f.resolve().relative_to(root.resolve()))
+    except ValueError:
+        name = str(f.resolve())
+    return [name, file_digest(f)] if f.is_file() else [name, None]
+
+
+def participant_fingerprint(p: Participant, root) -> list:
+    """A participant's content: role, character, audio channel and the bytes of its motion, audio,
+    transcript and SMPL-X model files (named relative to ``root``)."""
+    root = Path(root)
+    return [p.role, p.character, p.audio_channel, _file_entry(root, p.motion_path), _file_entry(root, p.audio_path),
+            _file_entry(root, p.transcript_path), _file_entry(root, getattr(p, "smplx_model", None))]
+
+
+def corpus_fingerprint(corpus) -> str:
+    """A hash (24 hex digits) of a corpus's content: the bytes of every participant's motion, audio,
+    transcript and SMPL-X model file (named relative to the corpus root), its sessions, roles,
+    characters and audio channels (:func:`participant_fingerprint`), the bytes of ``corpus.json`` (for
+    a synthetic corpus: the generator's configuration and version) and the layout's metadata. A file
+    edited in place (names unchanged) changes it; a GENEA folder copied elsewhere keeps it. Every cache
+    of results computed from a corpus is keyed by it (:mod:`convsynth_jax.fingerprint`)."""
+    root = Path(corpus.root)
+    meta = root / "corpus.json"
+    items = [["corpus.json", file_digest(meta) if meta.is_file() else None],
+             json.loads(json.dumps(corpus.metadata or {}, sort_keys=True, default=str))]
+    for s in corpus.sessions:
+        for p in s.participants:
+            items.append([s.name, *participant_fingerprint(p, root)])
+    return stable_hash(items, length=24)
 
 
 def check_durations(p: Participant, tolerance: float) -> None:

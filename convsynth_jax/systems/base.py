@@ -14,8 +14,13 @@ talk to this interface, so a new system is one module plus one ``conf/system/<na
    :class:`WindowInput` (audio segments, per-frame labels and samples of both channels over the
    window, plus a seed derived by :func:`convsynth_jax.seeding.derive_seed`).
 
-Ablation conditions are named in the system's config (``system.conditions``: name -> option dict);
-the evaluation checks the requested condition against them and passes its options through.
+Ablation conditions are named in the system's config (``system.conditions``: name -> options). A
+system's ``condition_type`` is the frozen dataclass of one condition's options: each condition is
+converted to it when the config is converted (:class:`SystemParams`), so a mistyped value
+(``system.conditions.no_lr.use_lr=nope``) or an unknown key is a ConfigError naming the key before
+any work, never a truthy string at synthesis time. The evaluation checks the requested condition
+against them and passes its options through (:meth:`SynthesisSystem.condition_options`: the options
+the condition sets).
 Results carry generic fields only; anything system-specific goes into ``diagnostics``, or comes
 from two optional hooks the evaluation calls on every synthesized window (default: nothing):
 ``window_diagnostics(model, window, result)`` adds system-specific columns (the motion graph's
@@ -29,7 +34,7 @@ from __future__ import annotations
 
 import abc
 import importlib
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, fields, is_dataclass
 from typing import Any, Dict, Mapping, Sequence
 
 import numpy as np
@@ -52,6 +57,25 @@ class SystemParams:
     factory: str
     conditions: Dict[str, Any]
     options: Dict[str, Any] = field(default_factory=dict)
+
+    def __post_init__(self):
+        """Each condition converted to its system's ``condition_type`` (a ConfigError naming the key of a
+        mistyped value or an unknown key); a system without one (or a factory that cannot be loaded,
+        which ``make_system`` reports) keeps plain mappings."""
+        try:
+            ctype = getattr(load_factory(self.factory), "condition_type", None)
+        except ConfigError:  # reported by make_system, which needs the factory
+            ctype = None
+        conditions = {}
+        for cond, opts in dict(self.conditions or {}).items():
+            where = f"system.conditions.{cond}"
+            if ctype is None:
+                if opts is not None and not isinstance(opts, Mapping):
+                    raise ConfigError(f"{where}: expected a mapping of options, got {type(opts).__name__} {opts!r}")
+                conditions[str(cond)] = dict(opts or {})
+            else:
+                conditions[str(cond)] = build_params(ctype, opts, where)
+        object.__setattr__(self, "conditions", conditions)
 
 
 @dataclass(frozen=True)
@@ -120,6 +144,10 @@ class SynthesisSystem(abc.ABC):
     #: the frozen dataclass of ``system.options`` (conf/system/<name>.yaml): its defaults are the only
     #: ones, a key it lacks is a ConfigError naming it; None: the options stay a plain mapping
     options_type: type | None = None
+    #: the frozen dataclass of one ablation condition's options (``system.conditions.<name>``): its
+    #: fields are the only keys, typed; a field left None keeps the system's configured value. None:
+    #: conditions stay plain mappings
+    condition_type: type | None = None
 
     def __init__(self, params, system: SystemParams):
         self.params = params
@@ -136,11 +164,20 @@ class SynthesisSystem(abc.ABC):
     def conditions(self) -> Mapping[str, dict]:
         return self.system.conditions
 
-    def condition_options(self, condition: str) -> dict:
+    def condition(self, condition: str):
+        """The typed options of ``condition`` (a ``condition_type`` instance, or a mapping for a system
+        without one); a ConfigError listing the system's conditions when it has no such condition."""
         if condition not in self.system.conditions:
             raise ConfigError(f"system {self.name!r} has no condition {condition!r}; "
                               f"its conditions are {sorted(self.system.conditions)} (conf/system/{self.name}.yaml)")
-        return dict(self.system.conditions[condition] or {})
+        return self.system.conditions[condition]
+
+    def condition_options(self, condition: str) -> dict:
+        """The options ``condition`` sets: name -> value (the fields it leaves None are left out)."""
+        opts = self.condition(condition)
+        if is_dataclass(opts):
+            return {f.name: getattr(opts, f.name) for f in fields(opts) if getattr(opts, f.name) is not None}
+        return dict(opts or {})
 
     def fit_key(self, condition: str) -> Any:
         """Conditions with equal keys share one fitted model (default: one model for all)."""

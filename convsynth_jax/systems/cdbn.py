@@ -30,6 +30,7 @@ from __future__ import annotations
 import logging
 import time
 from dataclasses import dataclass
+from typing import Optional
 
 import numpy as np
 
@@ -66,6 +67,7 @@ from ..cdbn.synthesize import (
 )
 from ..annotate.kinds import AUDIO_LABEL_NAMES
 from ..errors import CDBNError
+from ..kinematics import jerk
 from ..schema import build_params
 from .base import SynthesisSystem, WindowInput, WindowResult
 
@@ -104,8 +106,9 @@ RATE_LADDER = (15.0, 12.0, 10.0, 7.5, 6.0, 5.0, 4.0, 3.0)
 
 
 def _angular_jerk(x: np.ndarray, fps: float) -> float:
-    d = np.diff(np.asarray(x, np.float64), n=3, axis=0)
-    return float(np.linalg.norm(d, axis=1).mean() * fps ** 3) if len(d) else 0.0
+    """Mean norm of the angles' jerk (``kinematics.jerk``, the project's one definition); 0 under 4 frames."""
+    j = jerk(np.asarray(x, np.float64), fps)
+    return float(np.linalg.norm(j, axis=1).mean()) if len(j) else 0.0
 
 
 def match_keypoint_rate(recordings: list, means: list, fps: float, rate: float, smooth) -> float:
@@ -137,9 +140,18 @@ def _audio_of(clip):
                     f"{getattr(clip, 'session', '?')}/{getattr(clip, 'role', '?')}")
 
 
+@dataclass(frozen=True)
+class CDBNCondition:
+    """A condition of ``system=cdbn`` (``conf/system/cdbn.yaml``): the constrained DBN (Chiu & Marsella
+    2011) or the unconstrained joint DBN; None: constrained for the condition named ``cdbn``."""
+
+    constrained: Optional[bool] = None
+
+
 class CDBNSystem(SynthesisSystem):
     produces_hands = False
     needs_audio = True
+    condition_type = CDBNCondition
 
     def __init__(self, params, system):
         super().__init__(params, system)

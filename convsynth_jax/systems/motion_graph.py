@@ -9,11 +9,12 @@ import logging
 import time
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Optional
 
 import numpy as np
 
-from ..annotate.cache import params_hash
 from ..errors import GraphError
+from ..fingerprint import code_fingerprint, content_digest, stable_hash
 from ..graph import load_graph
 from ..graph.build import build_graph_from_clips
 from ..graph.types import MotionGraph
@@ -24,7 +25,7 @@ from .playback import PlaybackSystem, clip_name, training_labels
 
 log = logging.getLogger(__name__)
 
-__all__ = ["GraphModel", "MotionGraphSystem", "clip_name"]
+__all__ = ["GraphModel", "MotionGraphCondition", "MotionGraphSystem", "clip_name", "graph_key"]
 
 
 @dataclass
@@ -73,7 +74,32 @@ def penalized_graph(graph: MotionGraph, transition_penalty: float = 0.0, loop_pe
     return dataclasses.replace(graph, cost=cost), (m / new_m if new_m > 0 else 1.0)
 
 
+# the subpackages a built graph depends on (above the foundation; the import-linter layers)
+GRAPH_CODE = ("io", "annotate", "stats", "data", "graph")
+
+
+def graph_key(items, params, *extra) -> str:
+    """The cache key of a graph built from ``items`` ((clip name, motion, own labels, partner labels)):
+    the content of the clips (motion and labels, not only their names: corpora name their sessions
+    alike, and a recording edited in place keeps its name), the graph, feature and annotation
+    parameters, the code that builds graphs, and ``extra``."""
+    clips = sorted(items, key=lambda it: it[0])
+    return stable_hash([name for name, *_ in clips], [content_digest(rest) for _, *rest in clips],
+                       params.graph, params.features, params.annotate, code_fingerprint(*GRAPH_CODE), *extra)
+
+
+@dataclass(frozen=True)
+class MotionGraphCondition:
+    """One ablation condition of the motion graph (``conf/system/motion_graph.yaml``, paper Section 8):
+    the search's constraint switches it sets (None: the ``search`` group's value)."""
+
+    use_constraints: Optional[bool] = None   # any audio constraint at all
+    use_lr: Optional[bool] = None            # listener-response constraints
+    use_hp: Optional[bool] = None            # hesitation-pause constraints
+
+
 class MotionGraphSystem(PlaybackSystem):
+    condition_type = MotionGraphCondition
     produces_hands = True
     fit_procedure = "fit (graph construction)"
     synthesis_procedure = "synthesis (search)"
@@ -84,8 +110,7 @@ class MotionGraphSystem(PlaybackSystem):
         items = [(clip_name(c.session, c.role), c.motion, c.own, c.partner) for c in clips]
         motions = {name: m for name, m, _, _ in items}
         labels = training_labels(clips)
-        # the graph stores the clips' audio labels, so the annotation parameters are part of the key
-        key = params_hash(sorted(motions), p.graph, p.features, p.annotate)
+        key = graph_key(items, p)
         cached = Path(cache_dir) / f"graph_{character}_{key}.npz" if cache_dir else None
         if cached is None:
             return self._build(items, motions, labels, None)

@@ -40,9 +40,15 @@ class RandomPlaybackOptions:
                               f"got {self.min_excerpt_seconds}, {self.max_excerpt_seconds}")
 
 
+@dataclass(frozen=True)
+class RandomPlaybackCondition:
+    """A condition of ``system=random_playback`` (it ignores the audio: a condition sets nothing)."""
+
+
 class RandomPlaybackSystem(PlaybackSystem):
     produces_hands = True
     options_type = RandomPlaybackOptions
+    condition_type = RandomPlaybackCondition
 
     def fit(self, clips, character: str, condition: str, cache_dir=None) -> PlaybackModel:
         motions = {clip_name(c.session, c.role): c.motion for c in clips}

@@ -7,7 +7,7 @@ of the held-out session and writes ``cases.csv`` (one row per window x character
 recorded in the table and summary; the job itself does not fail, so a sweep always runs to the end.
 
 Resumable sweeps: a job that succeeds is also kept in the results store ``task.store`` (default
-``${cache_dir}/results/loo``) under the hash of its resolved configuration
+``${cache_dir}/results/loo``) under the hash of its resolved configuration, its corpus's content and the code
 (:mod:`convsynth_jax.evaluation.store`). With ``task.resume=true`` (default) a job whose entry is
 there copies it into its output folder instead of computing it (``summary.json``: ``resumed``), so
 re-running a killed sweep redoes only the jobs that had not finished. Failed jobs are not stored
@@ -46,16 +46,23 @@ NOT_IN_KEY = ("cache_dir", "progress", "jax_cache", "path")
 NOT_IN_TASK_KEY = ("store", "resume")
 
 
-def store_key(cfg) -> str:
+def store_key(cfg, corpus_content: str | None = None) -> str:
     """The results-store key of this job: its resolved configuration without :data:`NOT_IN_KEY` (and
-    the task's ``store``/``resume``), plus the package's source fingerprint."""
+    the task's ``store``/``resume``), the content of its corpus (``corpus_content``:
+    :func:`convsynth_jax.io.corpus.corpus_fingerprint`; None: the configured corpus, opened here) and the
+    package's source fingerprint."""
     from omegaconf import OmegaConf
 
     from ..evaluation.store import code_fingerprint, job_key
 
+    if corpus_content is None:
+        from .common import open_corpus, params_of
+
+        corpus_content = open_corpus(params_of(cfg)).fingerprint()
     config = OmegaConf.to_container(cfg, resolve=True)
     config = {k: v for k, v in config.items() if k not in NOT_IN_KEY and k != "hydra"}
     config["task"] = {k: v for k, v in config.get("task", {}).items() if k not in NOT_IN_TASK_KEY}
+    config["corpus_content"] = corpus_content
     return job_key(config, code_fingerprint())
 
 
@@ -66,7 +73,12 @@ def run(cfg, out_dir: Path) -> dict:
     settings = task_settings(cfg)
     if settings.store is None or settings.export_bvh:  # the store keeps tables, not the exported motion
         return _run_job(cfg, out_dir, settings)
-    store, key = ResultStore(settings.store), store_key(cfg)
+    try:
+        key = store_key(cfg)
+    except Exception as e:  # noqa: BLE001  (a corpus that cannot be opened: the job records the error)
+        log.error("fold %s: cannot key the job in the results store (%s)", cfg.get("fold"), e)
+        return _run_job(cfg, out_dir, settings)
+    store = ResultStore(settings.store)
     with store.claim(key):  # the same job started twice at once: computed once
         stored = store.read(key) if settings.resume else None
         if stored is not None:

@@ -246,11 +246,10 @@ def _graph_statistics(system, annotations, held_out, fitted, params, cache: Path
     other ks are built there and their statistics cached in ``cache`` (keyed like the graphs)."""
     import json
 
-    from ..annotate.cache import params_hash
     from ..evaluation.loo import training_clips
     from ..graph import build_database
     from ..graph.statistics import graph_statistics
-    from ..systems.motion_graph import clip_name
+    from ..systems.motion_graph import clip_name, graph_key
     from ..utils import write_json_atomic
 
     if not all(system.motion_graph(m) is not None for m in fitted.values()):
@@ -260,7 +259,7 @@ def _graph_statistics(system, annotations, held_out, fitted, params, cache: Path
     for char, model in fitted.items():
         items = [(clip_name(c.session, c.role), c.motion, c.own, c.partner)
                  for c in training_clips(annotations, held_out, char)]
-        key = params_hash(sorted(n for n, *_ in items), p.graph, p.features, p.annotate, ks, "paper_stats_v2")
+        key = graph_key(items, p, "paper_stats", ks)
         path = Path(cache) / f"paper_stats_{char}_{key}.json"
         if path.is_file():
             stats = json.loads(path.read_text())

@@ -39,7 +39,7 @@ from ..easing import smootherstep
 from ..errors import WalkTalkError
 from ..kinematics import forward_kinematics_np, global_transforms_np
 from ..rig import find_role
-from ..rotations import quat_slerp_np, quat_to_matrix_np
+from ..rotations import matrix_to_quat_np, quat_slerp_np, quat_to_matrix_np
 from ..skeleton import Motion
 from .body import Body
 from .gestures import Gesture, make_gesture
@@ -92,8 +92,7 @@ def swing(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 
 def _to_quat(m: np.ndarray) -> np.ndarray:
-    xyzw = Rotation.from_matrix(m).as_quat()
-    return xyzw[:, [3, 0, 1, 2]]
+    return matrix_to_quat_np(m)
 
 
 def retarget_arms(source: Motion, template: Motion, body: Body, source_path: str = "") -> Motion:

@@ -29,7 +29,7 @@ import numpy as np
 from ..errors import WalkTalkError
 from ..kinematics import global_transforms_np
 from ..rig import find_role
-from ..rotations import quat_to_matrix_np
+from ..rotations import matrix_to_quat_np, quat_to_matrix_np
 from ..skeleton import Motion
 from .params import GazeParams
 
@@ -126,12 +126,6 @@ def _axis_matrix(axis, a):
                      np.stack([z * x * C - y * s, z * y * C + x * s, c + z * z * C], -1)], -2)
 
 
-def _matrix_to_quat(m):
-    from scipy.spatial.transform import Rotation
-
-    return Rotation.from_matrix(m).as_quat()[..., [3, 0, 1, 2]]
-
-
 def heading_of(root: np.ndarray, fps: float, window_s: float = 1.0) -> np.ndarray:
     """(T, 3) root positions -> (T, 3) unit horizontal travel direction (central difference over
     ``window_s``; +Z where the root does not move)."""
@@ -193,10 +187,10 @@ def apply_gaze(motion: Motion, character: str, events: list[AAREvent], others: d
             R = _axis_matrix(lean_axis, lean) @ R
         gp = glob[:, sk.parents[j]]
         local = np.swapaxes(gp, -1, -2) @ R @ gp @ mats[:, j]
-        rot[:, j] = _matrix_to_quat(local)
+        rot[:, j] = matrix_to_quat_np(local)
     if lean_joint is not None and p.lean_joint not in p.joint_shares:
         gp = glob[:, sk.parents[lean_joint]]
-        rot[:, lean_joint] = _matrix_to_quat(np.swapaxes(gp, -1, -2) @ _axis_matrix(lean_axis, lean) @ gp
+        rot[:, lean_joint] = matrix_to_quat_np(np.swapaxes(gp, -1, -2) @ _axis_matrix(lean_axis, lean) @ gp
                                              @ mats[:, lean_joint])
     from dataclasses import replace
 

@@ -45,8 +45,9 @@ from convsynth_jax.evaluation.field.kinematic import average_jerk  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
 from convsynth_jax.io.audio import Audio, load_audio  # noqa: E402
+from convsynth_jax.kinematics import jerk  # noqa: E402
 from convsynth_jax.systems.base import SystemParams, make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus  # noqa: E402
+from convsynth_jax.api import annotated_corpus  # noqa: E402
 
 VARIANTS = {"paper_still_body": {"synth": {"body": "mean"}}, "default": {},
             "residual_only": {"synth": {"residual": "spectral"}},
@@ -57,7 +58,7 @@ CMAP = {"LR": "idle", "HP": "idle"}
 
 
 def angular_jerk(a, fps):
-    return float(np.linalg.norm(np.diff(a, n=3, axis=0), axis=1).mean() * fps ** 3)
+    return float(np.linalg.norm(jerk(np.asarray(a, np.float64), fps), axis=1).mean())
 
 
 def main():

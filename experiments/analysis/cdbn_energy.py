@@ -47,7 +47,7 @@ from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa:
 from convsynth_jax.evaluation.field.kinematic import average_jerk  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.loo import fit_fold, session_windows, training_clips, window_input  # noqa: E402
-from convsynth_jax.tasks.common import cache_dir  # noqa: E402
+from convsynth_jax.api import cache_dir  # noqa: E402
 
 BANDS = ((0.0, 1.0), (1.0, 3.0), (3.0, 7.5), (7.5, 15.01))
 

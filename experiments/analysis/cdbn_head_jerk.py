@@ -49,7 +49,7 @@ from convsynth_jax.evaluation.field.kinematic import average_jerk  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
 from convsynth_jax.evaluation.loo import fit_fold, session_windows, training_clips, window_input  # noqa: E402
-from convsynth_jax.tasks.common import cache_dir  # noqa: E402
+from convsynth_jax.api import cache_dir  # noqa: E402
 
 
 def main():

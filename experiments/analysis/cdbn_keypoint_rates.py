@@ -15,7 +15,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 from _bench import loo_setup, write  # noqa: E402
 
 from convsynth_jax.evaluation.loo import fit_fold  # noqa: E402
-from convsynth_jax.tasks.common import cache_dir  # noqa: E402
+from convsynth_jax.api import cache_dir  # noqa: E402
 
 
 def main():

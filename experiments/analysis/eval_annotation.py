@@ -44,7 +44,7 @@ from convsynth_jax.annotate.kinds import hypotheses
 from convsynth_jax.evaluation.annotation import CLAUSE_TOLERANCE_S, audio_scores, detection_scores, near, words_stats
 from convsynth_jax.evaluation.summaries import to_markdown
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
-from convsynth_jax.tasks.common import open_corpus
+from convsynth_jax.api import open_corpus
 
 # the hypothesis table (audio kind, motion kinds, channel; the generator's planting key): the registry's
 SPEC = {h.name: (h.label, list(h.motions), h.channel) for h in hypotheses()}

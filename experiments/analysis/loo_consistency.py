@@ -27,7 +27,7 @@ from convsynth_jax.evaluation.consistency import consistency_table, loo_ground_t
 from convsynth_jax.evaluation.summaries import to_markdown
 from convsynth_jax.figures import save_figure
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
-from convsynth_jax.tasks.common import open_corpus
+from convsynth_jax.api import open_corpus
 from convsynth_jax.utils import atomic_path, write_text_atomic
 
 
@@ -65,7 +65,7 @@ def main():
     params = default_params(over)
     t0 = time.perf_counter()
     corpus = open_corpus(params)
-    from convsynth_jax.tasks.common import cache_dir
+    from convsynth_jax.api import cache_dir
 
     ann = annotate_corpus_cached(corpus, params.annotate, params.fps, cache_dir(params), progress=False)
     if a.sessions:

@@ -34,29 +34,13 @@ from _bench import RESULTS, write, write_markdown  # noqa: E402
 
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation import metrics  # noqa: E402
-from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold  # noqa: E402
+from convsynth_jax.evaluation.loo import loo_cases  # noqa: E402
 from convsynth_jax.kinematics import forward_kinematics  # noqa: E402
 from convsynth_jax.synth.seam_glitches import (glitch_frames, seam_glitch_counts, touching_rows,  # noqa: E402
                                                window_seam_glitches)
 from convsynth_jax.systems.base import make_system  # noqa: E402
 from convsynth_jax.systems.playback import clip_name  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
-
-
-class KeepResults:
-    """The system, with every WindowResult it returns kept in ``kept`` (with its WindowInput)."""
-
-    def __init__(self, system):
-        self._system = system
-        self.kept = []
-
-    def __getattr__(self, name):
-        return getattr(self._system, name)
-
-    def synthesize(self, model, win, condition):
-        res = self._system.synthesize(model, win, condition)
-        self.kept.append((model, win, condition, res))
-        return res
+from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
 
 
 def window_seams(res, gt_motion, motions: dict, glitches: dict, max_step: float, fps: float) -> tuple[list, int]:
@@ -191,7 +175,7 @@ if __name__ == "__main__":
     overrides = ["search.matching=labels", *args.overrides]
     params = default_params([f"cache_dir={args.cache}", "progress=false", *overrides])
     if args.from_partial:  # a cut-short sweep: its folds so far, from the files rewritten after each fold
-        from convsynth_jax.tasks.common import open_corpus
+        from convsynth_jax.api import open_corpus
 
         seams = read_seams(RESULTS / f"{args.name}.partial.csv")
         wpath = RESULTS / f"{args.name}.partial_windows.csv"
@@ -202,11 +186,10 @@ if __name__ == "__main__":
                note=f"Cut short: folds {done} of the sweep only.")
         sys.exit(0)
     fps = float(params.features.fps)
-    system = KeepResults(make_system(params, params.system))
+    system = make_system(params, params.system)
     corpus, ann = annotated_corpus(params)
     glitches = glitch_frames(Path(corpus.root) / "glitches.csv", clip_name)
     max_step = float(params.synth.continuation_max_step_deg)
-    thresholds = recording_threshold_table(ann, params.annotate)
     cache = cache_dir(params)
     folds = args.fold_list if args.fold_list else list(range(args.folds or len(corpus.sessions)))
     conditions = args.conditions or list(system.conditions)
@@ -215,15 +198,13 @@ if __name__ == "__main__":
         models: dict = {}
         for cond in conditions:
             tf = time.perf_counter()
-            system.kept.clear()
-            run_fold(system, ann, fold, cond, params, cache_dir=cache, models=models, thresholds=thresholds)
-            for model, win, condition, res in system.kept:
-                if not res.success or res.motion is None:
+            for case in loo_cases(system, ann, params, fold, cond, cache_dir=cache, models=models):
+                res, win = case.result, case.input
+                if res is None or not res.success or res.motion is None:
                     continue
-                gt = ann[win.session][win.role].motion.slice(win.start_frame, win.start_frame + win.num_frames)
-                seams, n_glitch = window_seams(res, gt, model.motions, glitches, max_step, fps)
-                key = {"fold": fold, "session": win.session, "condition": condition, "character": win.character,
-                       "role": win.role, "window": int(round(win.start_frame / (params.loo.hop * fps)))}
+                seams, n_glitch = window_seams(res, case.ground_truth, case.model.motions, glitches, max_step, fps)
+                key = {"fold": fold, "session": win.session, "condition": case.condition, "character": win.character,
+                       "role": win.role, "window": case.window.index}
                 window_rows.append({**key, "frames": len(res.source_frame), "frames_from_glitch": n_glitch,
                                     "seams": len(seams)})
                 seam_rows += [{**key, **s} for s in seams]

@@ -31,7 +31,7 @@ sys.path.insert(0, str(REPO))
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation import metrics  # noqa: E402
 from convsynth_jax.kinematics import forward_kinematics  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus  # noqa: E402
+from convsynth_jax.api import annotated_corpus  # noqa: E402
 
 
 BLEND_MARGIN = 0.01

@@ -32,7 +32,7 @@ from convsynth_jax.evaluation.windows import sliding_windows, window_segments
 from convsynth_jax.search.beam import beam_search, lookahead
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.systems.base import make_system
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir
+from convsynth_jax.api import annotated_corpus, cache_dir
 
 CODE = {"PC": PC, "LR": LR, "PH": HP}
 

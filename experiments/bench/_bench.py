@@ -58,7 +58,7 @@ def loo_setup(overrides):
     the cache when they are there; the corpus is annotated before the system is made."""
     from convsynth_jax.config import default_params
     from convsynth_jax.systems.base import make_system
-    from convsynth_jax.tasks.common import annotated_corpus
+    from convsynth_jax.api import annotated_corpus
 
     params = default_params(overrides)
     _, ann = annotated_corpus(params)

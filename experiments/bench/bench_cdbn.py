@@ -154,7 +154,7 @@ def bench_hands(cache: str, dyadic_sessions: int = 6, bandai_clips: int | None =
     )
     from convsynth_jax.cdbn.params import CDBNFeatureParams
     from convsynth_jax.config import default_params
-    from convsynth_jax.tasks.common import annotated_corpus
+    from convsynth_jax.api import annotated_corpus
 
     out = {}
     ep = {"folds": 10, "jdbn_grid": (8, 12), "cdbn_grid": (3, 4), "max_test_folds": 3}

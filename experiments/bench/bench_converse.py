@@ -74,7 +74,7 @@ def speech_inputs(folder: Path, seconds: float) -> tuple[dict, str]:
         return {"task.audio_a": folder / "a.wav", "task.transcript_a": folder / "a.tsv",
                 "task.audio_b": folder / "b.wav", "task.transcript_b": folder / "b.tsv"}, desc
     from convsynth_jax.config import compose, to_params
-    from convsynth_jax.tasks.common import open_corpus
+    from convsynth_jax.api import open_corpus
 
     corpus = open_corpus(to_params(compose([])))
     s = corpus.sessions[0]

@@ -23,7 +23,7 @@ from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.collect import write_collected  # noqa: E402
 from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold  # noqa: E402
 from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__)

@@ -21,7 +21,7 @@ from convsynth_jax.evaluation.field import fgd
 from convsynth_jax.evaluation.field.autoencoder import encode
 from convsynth_jax.evaluation.field.views import motion_view
 from convsynth_jax.tasks.benchmark import autoencoder_training
-from convsynth_jax.tasks.common import annotated_corpus, params_of
+from convsynth_jax.api import annotated_corpus, params_of
 
 
 def main(argv):

@@ -36,7 +36,7 @@ from convsynth_jax.kinematics import forward_kinematics
 from convsynth_jax.search.check import check_path
 from convsynth_jax.synth.pipeline import synthesize_character
 from convsynth_jax.systems.motion_graph import clip_name
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir, make_configured_system
+from convsynth_jax.api import annotated_corpus, cache_dir, make_configured_system
 
 FILES = ("acoustic_corpus", "cold_corpus")
 STARTS = (0.0, 10.0)

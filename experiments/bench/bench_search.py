@@ -23,7 +23,7 @@ from convsynth_jax.search.beam import beam_search
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.dfs import stochastic_greedy_search
 from convsynth_jax.systems.base import make_system
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir
+from convsynth_jax.api import annotated_corpus, cache_dir
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()

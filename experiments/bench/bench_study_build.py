@@ -38,7 +38,7 @@ def main():
     exe = [sys.executable, "-m", "convsynth_jax.config"]
     env = {**os.environ, "CONVSYNTH_CACHE": str(prepared)}
     t0, c0 = time.perf_counter(), _cpu_children()
-    prepare = ("from convsynth_jax.config import default_params; from convsynth_jax.tasks.common import annotated_corpus; "
+    prepare = ("from convsynth_jax.config import default_params; from convsynth_jax.api import annotated_corpus; "
                "annotated_corpus(default_params(['progress=false']))")
     subprocess.run([sys.executable, "-c", prepare], check=True, env=env, cwd=REPO)
     prep = {"wall_s": time.perf_counter() - t0, "cpu_s": _cpu_children() - c0}

@@ -7,6 +7,7 @@ from __future__ import annotations
 
 import numpy as np
 
+from ...kinematics import forward_difference
 from .params import HistogramParams
 
 # A frame is still when the mean speed of the joints looked at is below this many units per second
@@ -16,10 +17,9 @@ STILL_SPEED = 2.0
 
 
 def moving_distance(positions: np.ndarray, fps: float, order: int) -> np.ndarray:
-    """(F - order, J) norm of the order-th difference of each joint's position times fps**order:
-    speed (order 1, units/s), acceleration (2, units/s^2), jerk (3, units/s^3)."""
-    d = np.diff(np.asarray(positions, dtype=np.float64), n=order, axis=0)
-    return np.linalg.norm(d, axis=-1) * float(fps) ** order
+    """(F - order, J) norm of each joint's order-th time derivative (``kinematics.forward_difference``, the
+    project's one definition): speed (order 1, units/s), acceleration (2, units/s^2), jerk (3, units/s^3)."""
+    return np.linalg.norm(forward_difference(positions, fps, order), axis=-1)
 
 
 def average_derivative(positions: np.ndarray, fps: float, order: int) -> float:

@@ -1,0 +1,234 @@
+"""Word timings from speech: offline recognition (no transcript) and forced alignment of known text
+(a transcript of phrases: subtitles, sentence intervals, Whisper segments without word timestamps).
+
+Both use PocketSphinx (the ``pocketsphinx`` package) with the US English acoustic model, language
+model and pronouncing dictionary that ship inside its wheel: nothing is downloaded at run time. The
+recognizer's words are far from perfect (a word error rate of 25-40 % on conversational speech) but
+its word *timings* are good where it recognizes a word (docs/converse.md gives the measured figures),
+which is what the annotation of phonemic clauses needs; alignment of known text places words within
+a few centiseconds.
+
+Text is normalised for the dictionary: lower case, punctuation stripped, numbers spelled out
+(``25`` -> twenty five), hyphenated and slashed compounds split; a word the dictionary lacks gets a
+letter-by-letter pronunciation (so it still takes its time in the alignment). Audio at another sample
+rate is resampled to the model's 16 kHz.
+"""
+from __future__ import annotations
+
+import logging
+import re
+import time
+from functools import lru_cache
+
+import numpy as np
+import pandas as pd
+
+from ..errors import TranscriptFormatError
+
+log = logging.getLogger(__name__)
+
+MODEL_RATE = 16000
+COLUMNS = ["start", "end", "word"]
+# the default beams, then wider ones for a phrase the default cannot align
+_BEAMS = ({}, {"beam": 1e-80, "wbeam": 1e-60, "pbeam": 1e-80, "lpbeam": 1e-60, "lponlybeam": 1e-60})
+_FILLER = re.compile(r"^(<.*>|\[.*\]|\+\+.*\+\+)$")
+
+
+def available() -> bool:
+    try:
+        import pocketsphinx  # noqa: F401
+    except ImportError:
+        return False
+    return True
+
+
+@lru_cache(maxsize=4)
+def _decoder(align: bool = False, beams: int = 0):
+    """A PocketSphinx decoder with the bundled US English model, for recognition (with the bundled
+    language model) or for alignment of known text (none); loaded once per process (~0.2 s)."""
+    try:
+        from pocketsphinx import Decoder
+    except ImportError as e:  # a core dependency: only a broken installation lands here
+        raise TranscriptFormatError(f"speech recognition needs the pocketsphinx package ({e}): pip install pocketsphinx")
+    extra = {"lm": None} if align else {}
+    return Decoder(samprate=MODEL_RATE, loglevel="FATAL", **extra, **_BEAMS[beams])
+
+
+def _pcm16(samples: np.ndarray, rate: int) -> np.ndarray:
+    """Mono int16 samples at the model's rate."""
+    x = np.asarray(samples, np.float64)
+    if x.ndim == 2:
+        x = x.mean(axis=1)
+    if int(rate) != MODEL_RATE:
+        from math import gcd
+
+        from scipy.signal import resample_poly
+
+        g = gcd(int(rate), MODEL_RATE)
+        x = resample_poly(x, MODEL_RATE // g, int(rate) // g)
+    return np.round(np.clip(x, -1.0, 1.0) * 32767).astype(np.int16)
+
+
+def _segments(dec, pcm: np.ndarray) -> list[tuple[str, float, float]]:
+    """(dictionary word, start s, end s) of one decoded utterance, fillers and silences left out."""
+    dec.start_utt()
+    dec.process_raw(pcm.tobytes(), no_search=False, full_utt=True)
+    dec.end_utt()
+    if dec.hyp() is None:
+        return []
+    frate = float(dec.config["frate"])
+    out = []
+    for s in dec.seg():
+        if _FILLER.match(s.word):
+            continue
+        out.append((re.sub(r"\(\d+\)$", "", s.word), s.start_frame / frate, (s.end_frame + 1) / frate))
+    return out
+
+
+def recognize_words(samples: np.ndarray, rate: int) -> pd.DataFrame:
+    """Words recognized in mono ``samples`` (float in [-1, 1]) at ``rate`` Hz: columns start, end,
+    word (seconds). May be empty (the caller says what that means for its input)."""
+    t0 = time.perf_counter()
+    segs = _segments(_decoder(False), _pcm16(samples, rate))
+    log.debug("recognized %d words in %.2f s of audio (%.2f s)", len(segs), len(samples) / rate,
+              time.perf_counter() - t0)
+    return pd.DataFrame([(a, b, w) for w, a, b in segs], columns=COLUMNS)
+
+
+# ----------------------------------------------------------------------------------------------- text
+_ONES = "zero one two three four five six seven eight nine ten eleven twelve thirteen fourteen fifteen sixteen " \
+        "seventeen eighteen nineteen".split()
+_TENS = "_ _ twenty thirty forty fifty sixty seventy eighty ninety".split()
+
+
+def number_words(n: int) -> list[str]:
+    """English words of a whole number 0 <= n < 10**12 (``1985`` -> one thousand nine hundred eighty five)."""
+    if n < 20:
+        return [_ONES[n]]
+    if n < 100:
+        return [_TENS[n // 10]] + ([_ONES[n % 10]] if n % 10 else [])
+    if n < 1000:
+        return [_ONES[n // 100], "hundred"] + (number_words(n % 100) if n % 100 else [])
+    for size, name in ((10**9, "billion"), (10**6, "million"), (10**3, "thousand")):
+        if n >= size:
+            return number_words(n // size) + [name] + (number_words(n % size) if n % size else [])
+    raise ValueError(n)
+
+
+_LETTER_PHONES = {"a": "AE", "b": "B", "c": "K", "d": "D", "e": "EH", "f": "F", "g": "G", "h": "HH", "i": "IH",
+                  "j": "JH", "k": "K", "l": "L", "m": "M", "n": "N", "o": "AA", "p": "P", "q": "K", "r": "R",
+                  "s": "S", "t": "T", "u": "AH", "v": "V", "w": "W", "x": "K S", "y": "Y", "z": "Z"}
+
+
+def _spell(word: str) -> str:
+    """A rough pronunciation of a word the dictionary lacks, one phone per letter (doubled letters once)."""
+    letters = re.sub(r"(.)\1+", r"\1", re.sub(r"[^a-z]", "", word))
+    return " ".join(_LETTER_PHONES[c] for c in letters)
+
+
+def normalise(token: str, dec) -> tuple[list[str], list[str]]:
+    """(dictionary words, words given a spelled pronunciation) for one transcript token."""
+    t = token.lower().replace("\u2019", "'").replace("\u2018", "'")
+    t = re.sub(r"^[^\w']+|[^\w']+$", "", t).strip("'")
+    if not t:
+        return [], []
+    if dec.lookup_word(t) is not None:
+        return [t], []
+    if re.fullmatch(r"\d+(\.\d+)?%?", t.replace(",", "")):
+        num = t.replace(",", "").rstrip("%")
+        whole, _, frac = num.partition(".")
+        words = number_words(int(whole)) if len(whole) <= 12 else [_ONES[int(d)] for d in whole]
+        if frac:
+            words += ["point"] + [_ONES[int(d)] for d in frac]
+        return words + (["percent"] if t.endswith("%") else []), []
+    parts = [p for p in re.split(r"[-/_.]+|(?<=\D)(?=\d)|(?<=\d)(?=\D)", t) if p]
+    if len(parts) > 1:
+        out, spelled = [], []
+        for p in parts:
+            w, s = normalise(p, dec)
+            out += w
+            spelled += s
+        return out, spelled
+    bare = t.replace("'", "")
+    if dec.lookup_word(bare) is not None:
+        return [bare], []
+    if not re.search(r"[a-z]", bare):
+        return [], []
+    if dec.lookup_word(bare) is None:
+        dec.add_word(bare, _spell(bare), True)
+    return [bare], [bare]
+
+
+# ----------------------------------------------------------------------------------------------- alignment
+def _align_text(pcm: np.ndarray, words: list[str], b: int) -> list[tuple[str, float, float]] | None:
+    """Segments of ``words`` aligned to ``pcm`` with beam setting ``b``; None if it does not align."""
+    dec = _decoder(True, b)
+    for w in words:   # spelled words were added to the first decoder: add them to this one too
+        if dec.lookup_word(w) is None:
+            dec.add_word(w, _spell(w), True)
+    try:
+        dec.set_align_text(" ".join(words))
+        segs = _segments(dec, pcm)
+    except RuntimeError:
+        return None
+    if len(segs) == len(words) and all(s[0] == w for s, w in zip(segs, words)):
+        return segs
+    return None
+
+
+def align_phrases(rows: pd.DataFrame, samples: np.ndarray, rate: int, path=None, pad_s: float = 0.3) -> pd.DataFrame:
+    """Word timings of a transcript whose rows may hold several words: each row holding more than one
+    word is aligned against its stretch of the audio (widened by up to ``pad_s`` on each side, never
+    past the middle of the gap to its neighbours); rows of one word are kept as they are. The words
+    keep the transcript's spelling (a number spelled out for the alignment is one word again).
+    A row that cannot be aligned raises :class:`TranscriptFormatError` naming it."""
+    dec = _decoder(True, 0)
+    pcm = _pcm16(samples, rate)
+    total = len(pcm) / MODEL_RATE
+    out, spelled_all = [], []
+    starts, ends = rows["start"].to_numpy(float), rows["end"].to_numpy(float)
+    for i, r in enumerate(rows.itertuples(index=False)):
+        tokens = str(r.word).split()
+        if len(tokens) <= 1:
+            out.append((float(r.start), float(r.end), str(r.word)))
+            continue
+        groups, flat = [], []
+        for tok in tokens:
+            w, spelled = normalise(tok, dec)
+            spelled_all += spelled
+            groups.append((tok, len(flat), len(flat) + len(w)))
+            flat += w
+        if not flat:
+            continue
+        lo0 = max(0.0, r.start - pad_s if i == 0 else max(r.start - pad_s, (ends[i - 1] + r.start) / 2))
+        hi0 = min(total, r.end + pad_s if i == len(rows) - 1 else min(r.end + pad_s, (r.end + starts[i + 1]) / 2))
+        segs = None
+        # the row's own stretch, then widened into its neighbours (subtitles often cut a word's edge),
+        # with the default beams, then wider ones
+        for widen, b in ((0.0, 0), (0.15, 0), (0.0, 1), (0.3, 1)):
+            lo, hi = max(0.0, min(lo0, r.start - widen)), min(total, max(hi0, r.end + widen))
+            if hi > lo:
+                segs = _align_text(pcm[int(lo * MODEL_RATE):int(np.ceil(hi * MODEL_RATE))], flat, b)
+            if segs is not None:
+                break
+        if segs is None:
+            raise TranscriptFormatError(
+                f"row {i} ({r.start:.2f}-{r.end:.2f} s, {str(r.word)[:60]!r}) cannot be aligned to the audio "
+                f"({lo:.2f}-{hi:.2f} s): check its times and words, or give word timings for it", path, f"row {i}")
+        if widen or b:
+            log.info("%s: row %d (%.2f-%.2f s) aligned %s", path or "", i, r.start, r.end,
+                     f"with {widen:g} s more audio each side" + (" and wider beams" if b else ""))
+        for tok, a, b in groups:
+            if b > a:
+                out.append((lo + segs[a][1], lo + segs[b - 1][2], tok))
+    if spelled_all:
+        log.warning("%s: %d word(s) not in the pronouncing dictionary were aligned letter by letter: %s", path or "",
+                    len(spelled_all), ", ".join(sorted(set(spelled_all))[:8]))
+    # a row widened into its neighbour may place its first word over the neighbour's last: the rows'
+    # order is the transcript's, so a word starts no earlier than the word before it ends
+    fixed, t = [], 0.0
+    for a, b, w in out:
+        a = max(a, t)
+        fixed.append((a, max(a, b), w))
+        t = max(a, b)
+    return pd.DataFrame(fixed, columns=COLUMNS)

@@ -89,7 +89,10 @@ def recognize_words(samples: np.ndarray, rate: int) -> pd.DataFrame:
     """Words recognized in mono ``samples`` (float in [-1, 1]) at ``rate`` Hz: columns start, end,
     word (seconds). May be empty (the caller says what that means for its input)."""
     t0 = time.perf_counter()
-    segs = _segments(_decoder(False), _pcm16(samples, rate))
+    pcm = _pcm16(samples, rate)
+    if not len(pcm) or int(np.abs(pcm.astype(np.int32)).max()) < 8:    # digital silence: the decoder would guess
+        return pd.DataFrame(columns=COLUMNS).astype({"start": float, "end": float, "word": str})
+    segs = _segments(_decoder(False), pcm)
     log.debug("recognized %d words in %.2f s of audio (%.2f s)", len(segs), len(samples) / rate,
               time.perf_counter() - t0)
     return pd.DataFrame([(a, b, w) for w, a, b in segs], columns=COLUMNS)

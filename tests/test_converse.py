@@ -554,9 +554,12 @@ def test_no_transcript_recognizes_words_and_writes_them_to_correct(tiny_corpus_d
     words = load_transcript(tmp_path / "rec" / "words_A.tsv")
     assert len(words) >= 8 and "acoustic" in words["word"].tolist()
     assert s["speakers"]["A"]["words"] == {"source": "recognized", "count": len(words), "transcript": "(recognized)"}
-    back = run_task(converse_cfg(tiny_corpus_dir, cache, {**clip, "transcript_a": tmp_path / "rec" / "words_A.tsv"},
-                                 "task.video=false"), tmp_path / "back")
+    caplog.clear()
+    with caplog.at_level("INFO"):
+        back = run_task(converse_cfg(tiny_corpus_dir, cache, {**clip, "transcript_a": tmp_path / "rec" / "words_A.tsv"},
+                                     "task.video=false", "task.progress_s=0.01"), tmp_path / "back")
     assert back["speakers"]["A"]["words"]["source"] == "transcript"
+    assert "searching: " in caplog.text                   # progress while the searches run
     assert (tmp_path / "back" / "A.bvh").read_text() == (tmp_path / "rec" / "A.bvh").read_text()
     save_wav(tmp_path / "quiet.wav", np.zeros(48000), 16000)
     with pytest.raises(TranscriptFormatError, match=r"quiet\.wav: no words recognized in speaker A's audio.*"
@@ -591,3 +594,30 @@ def test_summary_says_what_was_met_and_what_best_effort_dropped(chained):
     line = speaker_line("A", sp)
     assert f"constraints met {tot['met']}/{tot['total']}" in line and "best effort in window(s) [0] dropped 2 (PC 1, idle 1)" \
         in line and "missed: PC 1.00-1.50 s" in line
+
+
+def test_writing_the_video_runs_no_fork_hook(tmp_path):
+    """The video's ffmpeg used to start through a preexec_fn, which runs the at-fork hooks: JAX's warns
+    'os.fork() was called ... deadlock' on every run. Now no hook runs."""
+    import os
+
+    from convsynth_jax.render import write_mp4
+
+    forks = []
+    os.register_at_fork(before=lambda: forks.append(1))
+    frames = np.zeros((3, 16, 16, 3), np.uint8)
+    write_mp4(tmp_path / "v.mp4", frames[0], iter(frames[1:]), 5.0)
+    assert (tmp_path / "v.mp4").stat().st_size > 0 and forks == []
+
+
+def test_progress_bars_only_on_a_terminal():
+    import io
+
+    from convsynth_jax.utils import show_progress_bar
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    assert show_progress_bar(True, Tty()) and not show_progress_bar(False, Tty())
+    assert not show_progress_bar(True, io.StringIO())          # a file or a pipe: no bar, no escape codes

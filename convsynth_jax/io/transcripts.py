@@ -14,6 +14,7 @@ import math
 import re
 from pathlib import Path
 
+import numpy as np
 import pandas as pd
 
 from ..errors import MissingFileError, TranscriptFormatError
@@ -118,20 +119,25 @@ def _parse_vtt(text: str, path: Path) -> pd.DataFrame:
 
 
 def validate_words(df: pd.DataFrame, path: str | Path | None = None) -> pd.DataFrame:
-    """Check times are finite, durations non-negative and words in temporal order."""
+    """Check times are finite, durations non-negative and words in temporal order (the first bad word
+    is named; the checks run on whole columns)."""
     df = df.reset_index(drop=True)
-    for i, row in enumerate(df.itertuples(index=False)):
-        if not (math.isfinite(row.start) and math.isfinite(row.end)):
-            raise TranscriptFormatError(f"word {i} ({row.word!r}): non-finite time", path, f"word {i}")
-        if row.end < row.start:
-            raise TranscriptFormatError(f"word {i} ({row.word!r}): negative duration ({row.start} -> {row.end})",
-                                        path, f"word {i}")
-        if row.start < 0:
-            raise TranscriptFormatError(f"word {i} ({row.word!r}): negative start time {row.start}", path, f"word {i}")
-        if i and row.start < df.start.iat[i - 1] - 1e-6:
-            raise TranscriptFormatError(
-                f"word {i} ({row.word!r}) starts at {row.start} before word {i - 1} ({df.word.iat[i - 1]!r}) at "
-                f"{df.start.iat[i - 1]}: words out of order", path, f"word {i}")
+    start = df["start"].to_numpy(float)
+    end = df["end"].to_numpy(float)
+    bad = ~(np.isfinite(start) & np.isfinite(end)) | (end < start) | (start < 0)
+    bad[1:] |= start[1:] < start[:-1] - 1e-6
+    if bad.any():
+        i = int(np.argmax(bad))
+        w = df["word"].iat[i]
+        if not (math.isfinite(start[i]) and math.isfinite(end[i])):
+            why = ": non-finite time"
+        elif end[i] < start[i]:
+            why = f": negative duration ({start[i]} -> {end[i]})"
+        elif start[i] < 0:
+            why = f": negative start time {start[i]}"
+        else:
+            why = f" starts at {start[i]} before word {i - 1} ({df['word'].iat[i - 1]!r}) at {start[i - 1]}: words out of order"
+        raise TranscriptFormatError(f"word {i} ({w!r}){why}", path, f"word {i}")
     return df[COLUMNS].astype({"start": float, "end": float, "word": str})
 
 

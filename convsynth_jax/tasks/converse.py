@@ -28,6 +28,7 @@ from __future__ import annotations
 
 import logging
 import resource
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -78,6 +79,7 @@ class ConverseParams:
     video_fps: float = 10.0              # frames per second drawn in the video
     video_dpi: int = 80                  # the video's size: 80 draws 640 x 360 pixels of bodies (scales with it)
     parallel_characters: bool = True     # search and realize A and B side by side in two threads (same bytes)
+    progress_s: float = 10.0             # a log line every this many seconds while the searches run (0: none)
 
 
 # ----------------------------------------------------------------------------------------------- inputs
@@ -453,8 +455,22 @@ def run(cfg, out_dir: Path) -> dict:
     # the two characters' searches and realizations run side by side (XLA and NumPy release the GIL for
     # most of their work: on two cores this takes about the longer of the two, not their sum); each
     # character's result does not depend on the other's, so the files are the same bytes as one by one
-    with ThreadPoolExecutor(max_workers=2 if p.parallel_characters else 1, thread_name_prefix="character") as pool:
-        done = [f.result() for f in [pool.submit(character, k) for k in range(2)]]
+    stop = threading.Event()
+
+    def heartbeat():
+        """Progress of long searches: a line every task.progress_s seconds (one per window follows as each ends)."""
+        while not stop.wait(p.progress_s):
+            log.info("searching: %.0f s so far (%d window(s) per character, %.0f s of input)",
+                     time.perf_counter() - t0, len(plan), duration)
+
+    beat = threading.Thread(target=heartbeat, name="progress", daemon=True) if p.progress_s > 0 else None
+    if beat is not None:
+        beat.start()
+    try:
+        with ThreadPoolExecutor(max_workers=2 if p.parallel_characters else 1, thread_name_prefix="character") as pool:
+            done = [f.result() for f in [pool.submit(character, k) for k in range(2)]]
+    finally:
+        stop.set()
     for k, (who, (res, entry)) in enumerate(zip("AB", done)):
         results[who] = res
         if not res.success:

@@ -30,7 +30,8 @@ log = logging.getLogger(__name__)
 MODEL_RATE = 16000
 COLUMNS = ["start", "end", "word"]
 # the default beams, then wider ones for a phrase the default cannot align
-_BEAMS = ({}, {"beam": 1e-80, "wbeam": 1e-60, "pbeam": 1e-80, "lpbeam": 1e-60, "lponlybeam": 1e-60})
+_BEAMS = ({}, {"beam": 1e-80, "wbeam": 1e-60, "pbeam": 1e-80, "lpbeam": 1e-60, "lponlybeam": 1e-60},
+          {"beam": 1e-120, "wbeam": 1e-100, "pbeam": 1e-120, "lpbeam": 1e-100, "lponlybeam": 1e-100, "maxhmmpf": -1})
 _FILLER = re.compile(r"^(<.*>|\[.*\]|\+\+.*\+\+)$")
 
 
@@ -208,7 +209,7 @@ def align_phrases(rows: pd.DataFrame, samples: np.ndarray, rate: int, path=None,
         segs = None
         # the row's own stretch, then widened into its neighbours (subtitles often cut a word's edge),
         # with the default beams, then wider ones
-        for widen, b in ((0.0, 0), (0.15, 0), (0.0, 1), (0.3, 1)):
+        for widen, b in ((0.0, 0), (0.15, 0), (0.0, 1), (0.3, 1), (0.0, 2), (0.3, 2)):
             lo, hi = max(0.0, min(lo0, r.start - widen)), min(total, max(hi0, r.end + widen))
             if hi > lo:
                 segs = _align_text(pcm[int(lo * MODEL_RATE):int(np.ceil(hi * MODEL_RATE))], flat, b)
@@ -216,7 +217,7 @@ def align_phrases(rows: pd.DataFrame, samples: np.ndarray, rate: int, path=None,
                 break
         if segs is None:
             raise TranscriptFormatError(
-                f"row {i} ({r.start:.2f}-{r.end:.2f} s, {str(r.word)[:60]!r}) cannot be aligned to the audio "
+                f"{r.start:.2f}-{r.end:.2f} s, {str(r.word)[:60]!r}: cannot be aligned to the audio "
                 f"({lo:.2f}-{hi:.2f} s): check its times and words, or give word timings for it", path, f"row {i}")
         if widen or b:
             log.info("%s: row %d (%.2f-%.2f s) aligned %s", path or "", i, r.start, r.end,

@@ -164,8 +164,9 @@ def normalise(token: str, dec) -> tuple[list[str], list[str]]:
 
 
 # ----------------------------------------------------------------------------------------------- alignment
-def _align_text(pcm: np.ndarray, words: list[str], b: int) -> list[tuple[str, float, float]] | None:
-    """Segments of ``words`` aligned to ``pcm`` with beam setting ``b``; None if it does not align."""
+def _align_text(pcm: np.ndarray, words: list[str], b: int) -> list[tuple[str, float, float]]:
+    """Segments of ``words`` aligned to ``pcm`` with beam setting ``b``: all of them, or the words
+    of the longest aligned beginning (the decoder's partial result when it cannot reach the end)."""
     dec = _decoder(True, b)
     for w in words:   # spelled words were added to the first decoder: add them to this one too
         if dec.lookup_word(w) is None:
@@ -174,10 +175,42 @@ def _align_text(pcm: np.ndarray, words: list[str], b: int) -> list[tuple[str, fl
         dec.set_align_text(" ".join(words))
         segs = _segments(dec, pcm)
     except RuntimeError:
-        return None
-    if len(segs) == len(words) and all(s[0] == w for s, w in zip(segs, words)):
-        return segs
-    return None
+        return []
+    k = 0
+    while k < min(len(segs), len(words)) and segs[k][0] == words[k]:
+        k += 1
+    return segs[:k]
+
+
+def _align_row(pcm: np.ndarray, words: list[str], end_s: float) -> tuple[list[tuple[str, float, float]] | None, int, int]:
+    """(segments of all ``words`` in ``pcm``, or None; the widest beam setting used; how many words at
+    the end were spread evenly instead of aligned). Where no beam setting reaches the end, the
+    beginning that aligns is kept (less its last word, whose end the decoder stretches) and the rest
+    aligned from there, as long as each round places a word; words the decoder never reaches (at most
+    a third of the row) are spread evenly up to ``end_s`` (the row's end, seconds into ``pcm``)."""
+    out, offset, rest, used = [], 0.0, list(words), 0
+    while rest:
+        best: list = []
+        for b in range(len(_BEAMS)):
+            segs = _align_text(pcm[int(round(offset * MODEL_RATE)):], rest, b)
+            used = max(used, b)
+            if len(segs) > len(best):
+                best = segs
+            if len(best) == len(rest):
+                break
+        if len(best) == len(rest):
+            out += [(w, offset + a, offset + e) for w, a, e in best]
+            return out, used, 0
+        keep = best[:-1]
+        if not keep:
+            if 3 * len(rest) > len(words) or end_s - offset < 0.03 * len(rest):
+                return None, used, 0
+            edges = np.linspace(offset, end_s, len(rest) + 1)
+            return out + [(w, float(a), float(e)) for w, a, e in zip(rest, edges[:-1], edges[1:])], used, len(rest)
+        out += [(w, offset + a, offset + e) for w, a, e in keep]
+        offset += keep[-1][2]
+        rest = rest[len(keep):]
+    return out, used, 0
 
 
 def align_phrases(rows: pd.DataFrame, samples: np.ndarray, rate: int, path=None, pad_s: float = 0.3) -> pd.DataFrame:
@@ -206,25 +239,29 @@ def align_phrases(rows: pd.DataFrame, samples: np.ndarray, rate: int, path=None,
             continue
         lo0 = max(0.0, r.start - pad_s if i == 0 else max(r.start - pad_s, (ends[i - 1] + r.start) / 2))
         hi0 = min(total, r.end + pad_s if i == len(rows) - 1 else min(r.end + pad_s, (r.end + starts[i + 1]) / 2))
-        segs = None
-        # the row's own stretch, then widened into its neighbours (subtitles often cut a word's edge),
-        # with the default beams, then wider ones
-        for widen, b in ((0.0, 0), (0.15, 0), (0.0, 1), (0.3, 1), (0.0, 2), (0.3, 2)):
+        segs, b, spread = None, 0, 0
+        # the row's own stretch, then widened into its neighbours (subtitles often cut a word's edge);
+        # each with the default beams, then wider ones
+        for widen in (0.0, 0.15, 0.3):
             lo, hi = max(0.0, min(lo0, r.start - widen)), min(total, max(hi0, r.end + widen))
             if hi > lo:
-                segs = _align_text(pcm[int(lo * MODEL_RATE):int(np.ceil(hi * MODEL_RATE))], flat, b)
+                segs, b, spread = _align_row(pcm[int(lo * MODEL_RATE):int(np.ceil(hi * MODEL_RATE))], flat,
+                                             r.end - lo)
             if segs is not None:
                 break
         if segs is None:
             raise TranscriptFormatError(
                 f"{r.start:.2f}-{r.end:.2f} s, {str(r.word)[:60]!r}: cannot be aligned to the audio "
                 f"({lo:.2f}-{hi:.2f} s): check its times and words, or give word timings for it", path, f"row {i}")
+        if spread:
+            log.warning("%s: row %d (%.2f-%.2f s): the aligner did not reach its last %d word(s) (%s): spread evenly up "
+                        "to the row's end", path or "", i, r.start, r.end, spread, " ".join(flat[-spread:]))
         if widen or b:
             log.info("%s: row %d (%.2f-%.2f s) aligned %s", path or "", i, r.start, r.end,
                      f"with {widen:g} s more audio each side" + (" and wider beams" if b else ""))
-        for tok, a, b in groups:
-            if b > a:
-                out.append((lo + segs[a][1], lo + segs[b - 1][2], tok))
+        for tok, a, e in groups:
+            if e > a:
+                out.append((lo + segs[a][1], lo + segs[e - 1][2], tok))
     if spelled_all:
         log.warning("%s: %d word(s) not in the pronouncing dictionary were aligned letter by letter: %s", path or "",
                     len(spelled_all), ", ".join(sorted(set(spelled_all))[:8]))

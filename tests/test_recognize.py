@@ -32,7 +32,7 @@ def test_recognizer_resamples_other_rates(clip):
     from scipy.signal import resample_poly
 
     audio, ref = clip
-    x = resample_poly(audio.samples, 11025, 16000).astype(np.float32)
+    x = resample_poly(audio.samples[:int(2.2 * audio.sample_rate)], 11025, 16000).astype(np.float32)   # "this is the acoustic corpus"
     got = recognize_words(x, 11025)
     r = ref["start"][ref["word"] == "acoustic"].iat[0]
     assert abs(got["start"][got["word"] == "acoustic"].iat[0] - r) < 0.06

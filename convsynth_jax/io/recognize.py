@@ -51,7 +51,9 @@ def _decoder(align: bool = False, beams: int = 0):
         from pocketsphinx import Decoder
     except ImportError as e:  # a core dependency: only a broken installation lands here
         raise TranscriptFormatError(f"speech recognition needs the pocketsphinx package ({e}): pip install pocketsphinx")
-    extra = {"lm": None} if align else {}
+    # recognition: at most 3000 HMMs and 10 words per frame halve the time (8-9 s of CPU per 60 s of the
+    # shared recordings instead of 15-20) at the same word error rate and timing accuracy
+    extra = {"lm": None} if align else {"maxhmmpf": 3000, "maxwpf": 10}
     return Decoder(samprate=MODEL_RATE, loglevel="FATAL", **extra, **_BEAMS[beams])
 
 

@@ -1,8 +1,10 @@
 """Task ``converse``: a whole conversation of new speech in, both characters' body motion out.
 
 Input: character A's and B's speech as two WAV files (``task.audio_a``, ``task.audio_b``) or one
-stereo WAV (``task.stereo``: channel 0 is A, 1 is B), each with a word-level transcript
-(``task.transcript_a``, ``task.transcript_b``: Praat TextGrid, TSV/CSV or IBM JSON), of any length.
+stereo WAV (``task.stereo``: channel 0 is A, 1 is B; ``task.channel_a``/``channel_b`` choose others), each
+with a transcript (``task.transcript_a``, ``task.transcript_b``: any format :func:`convsynth_jax.io.load_transcript`
+reads; rows of several words are aligned to the audio, and a speaker without one has its words
+recognized offline, :mod:`convsynth_jax.io.recognize`), of any length.
 The audio is annotated as the corpus is (phonemic clauses with F0 peaks, listener responses,
 hesitations), cut into windows that are searched one after the other, each continuing the previous
 one's path through the character's motion graph, and the whole path is realized at once

@@ -733,8 +733,14 @@ def write_mp4(path: Path, first, rest, fps: float, audio: str | Path | None = No
     """Write the RGB frames ``first`` and then ``rest`` to the MP4 ``path`` (atomically: a temporary file
     renamed into place), with the WAV ``audio`` muxed in as AAC when given. ``writer_options``: further
     keyword arguments of ``imageio_ffmpeg.write_frames`` (codec, pixel format, block size)."""
+    import os
+
     import imageio_ffmpeg
 
+    # imageio-ffmpeg starts ffmpeg with preexec_fn=os.setpgrp (to keep Ctrl-C from it), which makes
+    # Python run the at-fork hooks: JAX's warns "os.fork() was called ... deadlock" on every video.
+    # Without it ffmpeg starts without a fork hook in this process (and a Ctrl-C stops it too).
+    os.environ.setdefault("IMAGEIO_FFMPEG_NO_PREVENT_SIGINT", "1")
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
     with atomic_path(path, suffix=".mp4") as tmp:

@@ -143,3 +143,16 @@ def _json_default(obj: Any) -> Any:
 
 def write_json_atomic(path: str | Path, data: Any) -> Path:
     return write_text_atomic(path, json.dumps(data, indent=2, default=_json_default, sort_keys=False) + "\n")
+
+
+def show_progress_bar(progress: bool, stream=None) -> bool:
+    """Whether to draw a progress bar: when ``progress`` asks for one and the stream (stderr) is a
+    terminal. Redirected to a file or a pipe, a bar's carriage returns and escape codes would be
+    written into the log; the tasks log a line per step instead."""
+    import sys
+
+    stream = sys.stderr if stream is None else stream
+    try:
+        return bool(progress) and bool(stream.isatty())
+    except (AttributeError, ValueError):  # no isatty, or a closed stream
+        return False

@@ -485,3 +485,139 @@ def test_paper_preset_fails_naming_the_constraint_and_what_makes_motion(mixed, t
     with pytest.raises(SearchFailure, match=r"(?s)window \d+ .*constraint at output frames \d+-\d+.*preset=quality"):
         run_task(converse_cfg(tiny_corpus_dir, cache, ins, "task.video=false", "preset=paper"), tmp_path)
     assert not json.loads((tmp_path / "report.json").read_text())["success"]
+
+
+# ---------------------------------------------------------------------------------------------- speech as users have it
+def test_a_channel_per_speaker_and_a_log_line_for_dropped_channels(inputs, tmp_path, caplog):
+    """A stereo WAV given as task.audio_a used to lose channel 1 without a word: now a warning names the
+    dropped channel and the key choosing another; task.channel_a picks it; a channel out of range is an
+    error naming the file and the key."""
+    from convsynth_jax.io import load_audio, save_wav
+    from convsynth_jax.tasks.converse import ConverseParams, load_inputs
+
+    a, b = load_audio(inputs["audio_a"]), load_audio(inputs["audio_b"])
+    save_wav(tmp_path / "ab.wav", np.stack([a.samples, b.samples], axis=1), a.sample_rate)
+    given = dict(audio_a=str(tmp_path / "ab.wav"), transcript_a=str(inputs["transcript_a"]))
+    with caplog.at_level("WARNING"):
+        A, _, _ = load_inputs(ConverseParams(**given))
+    assert "ab.wav has 2 channels; channel 0 is used, channel(s) [1] dropped (set task.channel_a" in caplog.text
+    np.testing.assert_allclose(A.audio.samples, a.samples, atol=1e-4)
+    A1, _, _ = load_inputs(ConverseParams(**given, channel_a=1))
+    np.testing.assert_allclose(A1.audio.samples, b.samples, atol=1e-4)
+    with pytest.raises(AudioFormatError, match=r"ab\.wav: channel 2 requested for speaker B \(task\.channel_b\).*"
+                                               r"set task\.channel_b to one of 0\.\.1"):
+        load_inputs(ConverseParams(stereo=str(tmp_path / "ab.wav"), transcript_a=given["transcript_a"],
+                                   transcript_b=str(inputs["transcript_b"]), channel_b=2))
+
+
+def test_a_tier_per_speaker_and_phrase_tiers_aligned(tmp_path, caplog):
+    """One TextGrid with a sentence-level tier per speaker (a label broken over two lines): task.tier_a /
+    task.tier_b pick each speaker's tier, the sentences are aligned to the audio into words (with a log
+    line); a tier that does not exist names the key to set."""
+    from conftest import TEST_DATA
+    from convsynth_jax.io import load_audio, load_transcript, save_wav
+    from convsynth_jax.io.transcripts import textgrid_text
+    from convsynth_jax.tasks.converse import ConverseParams, load_inputs
+
+    a, ref = load_audio(TEST_DATA / "speech_clip.wav"), load_transcript(TEST_DATA / "speech_clip.tsv")
+    save_wav(tmp_path / "ab.wav", np.stack([a.samples, a.samples[::-1]], axis=1), a.sample_rate)
+    sent = pd.DataFrame([(0.55, 1.99, "this is the\nacoustic corpus"), (1.99, 4.81, ref["word"][5:].str.cat(sep=" "))],
+                        columns=["start", "end", "word"])
+    one = pd.DataFrame([(0.1, 0.4, "oh")], columns=["start", "end", "word"])
+    text = textgrid_text(sent, a.duration, "ann")
+    other = textgrid_text(one, a.duration, "bob").split("item [1]:", 1)[1]
+    text = text.replace("size = 1\n", "size = 2\n", 1) + "    item [2]:" + other
+    (tmp_path / "two.TextGrid").write_text(text)
+    p = dict(stereo=str(tmp_path / "ab.wav"), transcript_a=str(tmp_path / "two.TextGrid"),
+             transcript_b=str(tmp_path / "two.TextGrid"), tier_a="ann", tier_b="bob")
+    with caplog.at_level("INFO"):
+        A, B, _ = load_inputs(ConverseParams(**p))
+    assert "speaker A: 2 of the 2 rows of" in caplog.text and "aligned to the audio" in caplog.text
+    assert A.words_source == "aligned" and [w.lower() for w in A.words["word"]] == ref["word"].tolist()
+    assert np.mean(np.abs(A.words["start"].to_numpy() - ref["start"].to_numpy()) < 0.05) >= 0.85
+    assert B.words_source == "transcript" and B.words["word"].tolist() == ["oh"]
+    with pytest.raises(TranscriptFormatError, match=r"two\.TextGrid: no tier named 'B'.*\['ann', 'bob'\].*set task\.tier_b"):
+        load_inputs(ConverseParams(**{**p, "tier_b": "B"}))
+
+
+def test_no_transcript_recognizes_words_and_writes_them_to_correct(tiny_corpus_dir, cache, tmp_path, caplog):
+    """Audio without a transcript: the words are recognized offline (logged as such), written to
+    words_A.tsv, and that file passed back as the transcript gives the same conversation. Audio where
+    nothing is recognized is an error naming the file and the key, and nothing is written."""
+    from conftest import TEST_DATA
+    from convsynth_jax.io import load_transcript, save_wav
+
+    clip = {"audio_a": TEST_DATA / "speech_clip.wav"}
+    with caplog.at_level("INFO"):
+        s = run_task(converse_cfg(tiny_corpus_dir, cache, clip, "task.video=false"), tmp_path / "rec")
+    assert "no transcript (task.transcript_a)" in caplog.text and "offline recognizer" in caplog.text
+    words = load_transcript(tmp_path / "rec" / "words_A.tsv")
+    assert len(words) >= 8 and "acoustic" in words["word"].tolist()
+    assert s["speakers"]["A"]["words"] == {"source": "recognized", "count": len(words), "transcript": "(recognized)"}
+    caplog.clear()
+    with caplog.at_level("INFO"):
+        back = run_task(converse_cfg(tiny_corpus_dir, cache, {**clip, "transcript_a": tmp_path / "rec" / "words_A.tsv"},
+                                     "task.video=false", "task.progress_s=0.01"), tmp_path / "back")
+    assert back["speakers"]["A"]["words"]["source"] == "transcript"
+    assert "searching: " in caplog.text                   # progress while the searches run
+    assert (tmp_path / "back" / "A.bvh").read_text() == (tmp_path / "rec" / "A.bvh").read_text()
+    save_wav(tmp_path / "quiet.wav", np.zeros(48000), 16000)
+    with pytest.raises(TranscriptFormatError, match=r"quiet\.wav: no words recognized in speaker A's audio.*"
+                                                    r"task\.transcript_a=FILE"):
+        run_task(converse_cfg(tiny_corpus_dir, cache, {"audio_a": tmp_path / "quiet.wav"}), tmp_path / "quiet")
+    assert not any((tmp_path / "quiet").iterdir())
+
+
+def test_summary_says_what_was_met_and_what_best_effort_dropped(chained):
+    """success means motion was written; all_constraints_met whether every constraint was met; per
+    speaker the checker's counts by kind, best effort's drops and the missed constraints."""
+    from convsynth_jax.tasks.converse import speaker_line, speaker_summary
+
+    out, s = chained
+    rep = json.loads((out / "report.json").read_text())
+    for w in "AB":
+        sp = s["speakers"][w]
+        tot = rep["characters"][w]["checker"]["total"]
+        assert sp["constraints"]["met"] == tot["met"] and sp["constraints"]["total"] == tot["total"]
+        assert sum(k["total"] for k in sp["constraints"]["by_kind"].values()) == tot["total"]
+        assert len(sp["missed"]) == tot["total"] - tot["met"]
+    assert s["success"] is True
+    assert s["all_constraints_met"] == all(s["constraints_met"][w] == s["constraints_total"][w] for w in "AB")
+    # a best-effort window that dropped two constraints and a checker that finds one missed
+    rep["characters"]["A"]["windows"][0].update(status="best_effort", relaxed=[["PC", 3, 40], ["idle", 50, 90]])
+    tot = rep["characters"]["A"]["checker"]["total"]
+    tot["missed"] = [{"kind": "PC", "start": 30, "end": 45, "met": False}]
+    tot["met"] = tot["total"] - 1
+    sp = speaker_summary(rep, "A", 30.0)
+    assert sp["best_effort"] == {"windows": [0], "dropped": 2, "dropped_by_kind": {"PC": 1, "idle": 1}}
+    assert sp["missed"] == [{"kind": "PC", "start_s": 1.0, "end_s": 1.5}]
+    line = speaker_line("A", sp)
+    assert f"constraints met {tot['met']}/{tot['total']}" in line and "best effort in window(s) [0] dropped 2 (PC 1, idle 1)" \
+        in line and "missed: PC 1.00-1.50 s" in line
+
+
+def test_writing_the_video_runs_no_fork_hook(tmp_path):
+    """The video's ffmpeg used to start through a preexec_fn, which runs the at-fork hooks: JAX's warns
+    'os.fork() was called ... deadlock' on every run. Now no hook runs."""
+    import os
+
+    from convsynth_jax.render import write_mp4
+
+    forks = []
+    os.register_at_fork(before=lambda: forks.append(1))
+    frames = np.zeros((3, 16, 16, 3), np.uint8)
+    write_mp4(tmp_path / "v.mp4", frames[0], iter(frames[1:]), 5.0)
+    assert (tmp_path / "v.mp4").stat().st_size > 0 and forks == []
+
+
+def test_progress_bars_only_on_a_terminal():
+    import io
+
+    from convsynth_jax.utils import show_progress_bar
+
+    class Tty(io.StringIO):
+        def isatty(self):
+            return True
+
+    assert show_progress_bar(True, Tty()) and not show_progress_bar(False, Tty())
+    assert not show_progress_bar(True, io.StringIO())          # a file or a pipe: no bar, no escape codes

@@ -8,6 +8,8 @@ from dataclasses import dataclass
 import pandas as pd
 from tqdm.auto import tqdm
 
+from ..utils import show_progress_bar
+
 from ..parallel import ordered_map
 from ..skeleton import Motion
 from .audio import annotate_audio, word_corpus_for
@@ -72,7 +74,7 @@ def annotate_corpus(corpus, params: AnnotateParams, fps: float, progress: bool =
     how many)."""
     words = word_corpus_for(params)
     sessions = list(corpus.sessions)
-    with tqdm(total=len(sessions), desc="annotating sessions", disable=not progress) as bar:
+    with tqdm(total=len(sessions), desc="annotating sessions", disable=not show_progress_bar(progress)) as bar:
         done = ordered_map(functools.partial(annotate_session, params=params, fps=fps, word_corpus=words),
                            sessions, workers, on_done=bar.update)
     return {s.name: a for s, a in zip(sessions, done)}

@@ -26,6 +26,8 @@ import numpy as np
 import pandas as pd
 from tqdm.auto import tqdm
 
+from ..utils import show_progress_bar
+
 from ..errors import ConfigError
 from .field import score
 from .field.autoencoder import TrainedAutoencoder, train_autoencoder
@@ -264,7 +266,7 @@ def score_benchmark(cases: List[Case], systems: List[SystemMotions], audio: Dict
             mom = set_moments.setdefault((sysm.name, scope), score.SetMoments())
             encoded = []   # (session, relative) of the scored windows, encoded together below
             scored = []
-            for c in tqdm(cases, desc=f"{sysm.name} {scope}", disable=not progress, leave=False):
+            for c in tqdm(cases, desc=f"{sysm.name} {scope}", disable=not show_progress_bar(progress), leave=False):
                 status, err, motion = sysm.motions.get(c.key, ("missing", "not run", None))
                 base = {"system": sysm.name, "scope": scope, "fold": c.fold, "session": c.session, "window": c.window,
                         "window_start": c.start, "window_end": c.end, "character": c.character, "role": c.role,

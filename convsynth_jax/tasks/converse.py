@@ -1,8 +1,10 @@
 """Task ``converse``: a whole conversation of new speech in, both characters' body motion out.
 
 Input: character A's and B's speech as two WAV files (``task.audio_a``, ``task.audio_b``) or one
-stereo WAV (``task.stereo``: channel 0 is A, 1 is B), each with a word-level transcript
-(``task.transcript_a``, ``task.transcript_b``: Praat TextGrid, TSV/CSV or IBM JSON), of any length.
+stereo WAV (``task.stereo``: channel 0 is A, 1 is B; ``task.channel_a``/``channel_b`` choose others), each
+with a transcript (``task.transcript_a``, ``task.transcript_b``: any format :func:`convsynth_jax.io.load_transcript`
+reads; rows of several words are aligned to the audio, and a speaker without one has its words
+recognized offline, :mod:`convsynth_jax.io.recognize`), of any length.
 The audio is annotated as the corpus is (phonemic clauses with F0 peaks, listener responses,
 hesitations), cut into windows that are searched one after the other, each continuing the previous
 one's path through the character's motion graph, and the whole path is realized at once
@@ -28,6 +30,7 @@ from __future__ import annotations
 
 import logging
 import resource
+import threading
 import time
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import asdict, dataclass, field
@@ -57,9 +60,13 @@ class ConverseParams:
     audio_a: Optional[str] = None        # WAV of character A (mono, or channel 0 is used)
     audio_b: Optional[str] = None        # WAV of character B
     stereo: Optional[str] = None         # instead of audio_a/audio_b: one WAV, channel 0 = A, 1 = B
-    transcript_a: Optional[str] = None   # word-level transcript of A (TextGrid, tsv, csv, json)
-    transcript_b: Optional[str] = None   # of B
-    tier: str = "words"                  # TextGrid tier holding the words
+    transcript_a: Optional[str] = None   # transcript of A (TextGrid, tsv, csv, json, srt, vtt; none: recognized)
+    transcript_b: Optional[str] = None   # of B (none: recognized from B's audio)
+    tier: str = "words"                  # TextGrid tier holding the words (both speakers, unless tier_a/tier_b)
+    tier_a: Optional[str] = None         # A's TextGrid tier (null: task.tier)
+    tier_b: Optional[str] = None         # B's TextGrid tier (null: task.tier)
+    channel_a: Optional[int] = None      # A's channel of a multichannel file (null: 0)
+    channel_b: Optional[int] = None      # B's channel (null: 0 of audio_b, 1 of stereo)
     # corpus characters playing A and B (null: the roles of the corpus's first session, in order)
     characters: Optional[List[str]] = None
     condition: str = "all"               # one of the system's conditions (conf/system/<name>.yaml)
@@ -74,6 +81,7 @@ class ConverseParams:
     video_fps: float = 10.0              # frames per second drawn in the video
     video_dpi: int = 80                  # the video's size: 80 draws 640 x 360 pixels of bodies (scales with it)
     parallel_characters: bool = True     # search and realize A and B side by side in two threads (same bytes)
+    progress_s: float = 10.0             # a log line every this many seconds while the searches run (0: none)
 
 
 # ----------------------------------------------------------------------------------------------- inputs
@@ -84,6 +92,8 @@ class SpeakerInput:
     words: pd.DataFrame
     audio_file: str
     transcript_file: str
+    words_source: str = "transcript"   # transcript | aligned (phrases aligned to the audio) | recognized | none
+    channel: Optional[int] = None      # the channel of a multichannel file (None: a mono file)
 
 
 def _require(value, key: str) -> str:
@@ -93,36 +103,64 @@ def _require(value, key: str) -> str:
     return str(value)
 
 
+def _empty_words() -> pd.DataFrame:
+    return pd.DataFrame({"start": pd.Series(dtype=float), "end": pd.Series(dtype=float), "word": pd.Series(dtype=str)})
+
+
+def _channel_of(audio, who: str, chosen: Optional[int], default: int, stereo: bool):
+    """Speaker ``who``'s mono channel of ``audio``: ``task.channel_<who>`` if set, else ``default``; a
+    log line says which channels a multichannel file loses (or that a mono file serves both)."""
+    key = f"task.channel_{who.lower()}"
+    n = audio.num_channels
+    c = default if chosen is None else int(chosen)
+    if not 0 <= c < n:
+        raise AudioFormatError(f"channel {c} requested for speaker {who} ({key}), the file has {n} channel(s): "
+                               f"set {key} to one of 0..{n - 1}", audio.path)
+    if n == 1:
+        return audio, None
+    if not stereo:
+        others = [k for k in range(n) if k != c]
+        log.warning("speaker %s: %s has %d channels; channel %d is used, channel(s) %s dropped (set %s to choose "
+                    "another)", who, audio.path, n, c, others, key)
+    else:
+        log.info("speaker %s: channel %d of %s (%d channels)", who, c, audio.path, n)
+    return audio.channel(c), c
+
+
 def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
     """(A, B, duration in seconds): both channels' audio and words, checked against each other. Without
-    ``audio_b`` and ``transcript_b`` (and no ``stereo``), B is silent for the whole of A's speech."""
+    ``audio_b`` and ``transcript_b`` (and no ``stereo``), B is silent for the whole of A's speech. A
+    speaker without a transcript has its words recognized from its audio (:mod:`convsynth_jax.io.recognize`)."""
     from ..io import load_audio
 
     if p.stereo:
         if p.audio_a or p.audio_b:
             raise ConfigError("give either task.stereo or task.audio_a/task.audio_b, not both")
         st = load_audio(p.stereo)
-        if st.num_channels < 2:
-            raise AudioFormatError(f"task.stereo needs two channels (0 = A, 1 = B), the file has {st.num_channels}",
-                                   p.stereo)
-        auds, files = [st.channel(0), st.channel(1)], [str(p.stereo)] * 2
+        if st.num_channels < 2 and p.channel_a is None and p.channel_b is None:
+            raise AudioFormatError(f"task.stereo needs two channels (0 = A, 1 = B), the file has {st.num_channels} "
+                                   "(give a mono file as task.audio_a)", p.stereo)
+        chans = [_channel_of(st, "A", p.channel_a, 0, True), _channel_of(st, "B", p.channel_b, 1, True)]
+        if chans[0][1] == chans[1][1]:
+            log.warning("speakers A and B both get channel %s of %s", chans[0][1], p.stereo)
+        auds, files = [c[0] for c in chans], [str(p.stereo)] * 2
+        ch_idx = [c[1] for c in chans]
     elif not p.audio_b and not p.transcript_b:
         # one speaker's speech alone: B listens in silence for the whole of it
-        a = load_audio(_require(p.audio_a, "audio_a"))
-        a = a.channel(0) if a.num_channels > 1 else a
+        a, ca = _channel_of(load_audio(_require(p.audio_a, "audio_a")), "A", p.channel_a, 0, False)
         silent = type(a)(np.zeros(a.num_samples, np.float32), a.sample_rate, "")
         log.info("no task.audio_b or task.transcript_b: B is silent for the whole conversation (%.2f s)", a.duration)
-        return (_speaker("A", a, str(p.audio_a), _require(p.transcript_a, "transcript_a"), p),
-                SpeakerInput("B", silent, pd.DataFrame({"start": pd.Series(dtype=float), "end": pd.Series(dtype=float),
-                                                        "word": pd.Series(dtype=str)}), "(silent)", "(none)"), a.duration)
+        return (_speaker("A", a, str(p.audio_a), p.transcript_a, p, ca),
+                SpeakerInput("B", silent, _empty_words(), "(silent)", "(none)", "none"), a.duration)
     else:
         files = [_require(p.audio_a, "audio_a"), _require(p.audio_b, "audio_b")]
-        auds = []
-        for f in files:
-            a = load_audio(f)
-            auds.append(a.channel(0) if a.num_channels > 1 else a)
-    trs = [_require(p.transcript_a, "transcript_a"), _require(p.transcript_b, "transcript_b")]
-    out = [_speaker(name, a, f, tf, p) for name, a, f, tf in zip("AB", auds, files, trs)]
+        auds, ch_idx = [], []
+        for who, f, c in zip("AB", files, (p.channel_a, p.channel_b)):
+            a, k = _channel_of(load_audio(f), who, c, 0, False)
+            auds.append(a)
+            ch_idx.append(k)
+    trs = [p.transcript_a, p.transcript_b]
+    out = [_speaker(name, a, f, tf, p, c) for name, a, f, tf, c in zip("AB", auds, files, trs, ch_idx)]
     duration = max(a.duration for a in auds)
     if abs(auds[0].duration - auds[1].duration) > 0.1:
         log.warning("A's audio lasts %.2f s, B's %.2f s: the conversation lasts %.2f s (the shorter is silent after "
@@ -130,18 +168,55 @@ def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
     return out[0], out[1], duration
 
 
-def _speaker(name: str, a, f: str, tf: str, p: ConverseParams) -> SpeakerInput:
-    """One speaker's input: the words of ``tf``, none of which may end after the audio ``a`` (file ``f``)."""
-    from ..io import load_transcript
+def tier_of(p: ConverseParams, who: str) -> str:
+    """The TextGrid tier of speaker ``who``: ``task.tier_a``/``task.tier_b``, else ``task.tier``."""
+    own = p.tier_a if who == "A" else p.tier_b
+    return str(own) if own else str(p.tier)
 
-    words = load_transcript(tf, tier=p.tier)
+
+def _speaker(name: str, a, f: str, tf: Optional[str], p: ConverseParams, channel: Optional[int] = None) -> SpeakerInput:
+    """One speaker's input: the words of ``tf`` (phrases aligned to the audio; none: recognized from the
+    audio), none of which may end after the audio ``a`` (file ``f``)."""
+    from ..io import load_transcript
+    from ..io.recognize import align_phrases, recognize_words
+    from ..io.transcripts import phrase_rows
+
+    x = name.lower()
+    where = f"{f}" + (f" channel {channel}" if channel is not None else "")
+    if not tf:
+        t0 = time.perf_counter()
+        words = recognize_words(a.samples, a.sample_rate)
+        if words.empty:
+            raise TranscriptFormatError(f"no words recognized in speaker {name}'s audio ({a.duration:.1f} s; is it "
+                                        f"speech, and the right channel?): give a transcript, task.transcript_{x}=FILE",
+                                        where)
+        log.info("speaker %s: no transcript (task.transcript_%s): %d words recognized from the audio %s by the built-in "
+                 "offline recognizer (PocketSphinx, US English) in %.1f s; recognition errors show as wrong labels: "
+                 "correct words_%s.tsv beside the outputs and pass it back as task.transcript_%s", name, x, len(words),
+                 where, time.perf_counter() - t0, name, x)
+        words.attrs["path"] = "(recognized)"
+        return SpeakerInput(name, a, words, f, "(recognized)", "recognized", channel)
+    try:
+        words = load_transcript(tf, tier=tier_of(p, name))
+    except TranscriptFormatError as e:
+        hint = f"task.tier_{x}" if "tier" in e.reason else f"task.transcript_{x}"
+        raise TranscriptFormatError(f"{e.reason} (speaker {name}: set {hint})", e.path, e.where) from None
+    source = "transcript"
+    phrases = phrase_rows(words)
+    if phrases:
+        t0 = time.perf_counter()
+        n_rows = len(words)
+        words = align_phrases(words, a.samples, a.sample_rate, tf)
+        source = "aligned"
+        log.info("speaker %s: %d of the %d rows of %s hold several words: aligned to the audio %s, %d words "
+                 "(%.1f s)", name, len(phrases), n_rows, tf, where, len(words), time.perf_counter() - t0)
     words.attrs["path"] = tf
     late = words.index[words["end"] > a.duration + 0.05]
     if len(late):
         i = int(late[0])
         raise TranscriptFormatError(f"word {words['word'].iat[i]!r} ends at {words['end'].iat[i]:.3f} s, after the "
                                     f"end of its audio {f} ({a.duration:.3f} s)", tf, f"word {i}")
-    return SpeakerInput(name, a, words, f, tf)
+    return SpeakerInput(name, a, words, f, tf, source, channel)
 
 
 def annotate(sp: SpeakerInput, params) -> pd.DataFrame:
@@ -245,7 +320,8 @@ def write_report_md(path: Path, report: dict) -> None:
               f"A = {inp['A']['character']} ({inp['A']['audio']}, {inp['A']['transcript']}), "
               f"B = {inp['B']['character']} ({inp['B']['audio']}, {inp['B']['transcript']}).", "",
               f"Windows: {report['plan']['window_s']:g} s searched, {report['plan']['hop_s']:g} s kept, "
-              f"chaining `{report['plan']['chaining']}`; success: **{report['success']}**.", ""]
+              f"chaining `{report['plan']['chaining']}`; motion written: **{report['success']}**; every constraint "
+              f"met: **{report.get('all_constraints_met')}**.", ""]
     if report.get("failure"):
         lines += [f"**Failed:** {report['failure']}", ""]
     lines += ["| character | window | kept (s) | status | search (s) | constraints met (checker) | PC | LR | PH | idle |",
@@ -289,6 +365,7 @@ def write_report_md(path: Path, report: dict) -> None:
 def run(cfg, out_dir: Path) -> dict:
     from ..config import task_settings
     from ..io import save_bvh
+    from ..io.transcripts import save_transcript_tsv
     from ..seeding import derive_seed
     from ..synth.chain import plan_windows, quiet_mask, synthesize_conversation
     from ..systems.motion_graph import MotionGraphSystem, clip_name
@@ -313,6 +390,12 @@ def run(cfg, out_dir: Path) -> dict:
     A, B, duration = load_inputs(p)
     seg = {"A": annotate(A, params), "B": annotate(B, params)}
     timings["inputs_s"] = time.perf_counter() - t0
+    for sp in (A, B):
+        if sp.words_source in ("recognized", "aligned"):
+            # the words the annotation used, in a form the user can correct and pass back as the transcript
+            save_transcript_tsv(sp.words, out_dir / f"words_{sp.name}.tsv")
+            log.info("speaker %s: %s words written to %s (task.transcript_%s=%s after correcting it)", sp.name,
+                     sp.words_source, out_dir / f"words_{sp.name}.tsv", sp.name.lower(), f"words_{sp.name}.tsv")
 
     t0 = time.perf_counter()
     corpus, ann = annotated_corpus(params)
@@ -332,8 +415,9 @@ def run(cfg, out_dir: Path) -> dict:
                         quiet_mask([seg["A"], seg["B"]], T, fps, tol))
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in ann.items() for r, a in d.items()}
     report = {"inputs": {"duration_s": duration, "num_frames": T, "fps": fps,
-                         "A": {"character": chars[0], "audio": A.audio_file, "transcript": A.transcript_file},
-                         "B": {"character": chars[1], "audio": B.audio_file, "transcript": B.transcript_file}},
+                         **{sp.name: {"character": chars[k], "audio": sp.audio_file, "channel": sp.channel,
+                                      "transcript": sp.transcript_file, "words": sp.words_source,
+                                      "num_words": int(len(sp.words))} for k, sp in enumerate((A, B))}},
               "plan": {"window_s": p.window_s, "hop_s": p.hop_s, "snap_s": p.snap_s, "chaining": p.chaining,
                        "windows": [asdict(w) for w in plan]},
               "search": {"method": search.method, "matching": search.matching, "tolerance": search.tolerance,
@@ -373,8 +457,22 @@ def run(cfg, out_dir: Path) -> dict:
     # the two characters' searches and realizations run side by side (XLA and NumPy release the GIL for
     # most of their work: on two cores this takes about the longer of the two, not their sum); each
     # character's result does not depend on the other's, so the files are the same bytes as one by one
-    with ThreadPoolExecutor(max_workers=2 if p.parallel_characters else 1, thread_name_prefix="character") as pool:
-        done = [f.result() for f in [pool.submit(character, k) for k in range(2)]]
+    stop = threading.Event()
+
+    def heartbeat():
+        """Progress of long searches: a line every task.progress_s seconds (one per window follows as each ends)."""
+        while not stop.wait(p.progress_s):
+            log.info("searching: %.0f s so far (%d window(s) per character, %.0f s of input)",
+                     time.perf_counter() - t0, len(plan), duration)
+
+    beat = threading.Thread(target=heartbeat, name="progress", daemon=True) if p.progress_s > 0 else None
+    if beat is not None:
+        beat.start()
+    try:
+        with ThreadPoolExecutor(max_workers=2 if p.parallel_characters else 1, thread_name_prefix="character") as pool:
+            done = [f.result() for f in [pool.submit(character, k) for k in range(2)]]
+    finally:
+        stop.set()
     for k, (who, (res, entry)) in enumerate(zip("AB", done)):
         results[who] = res
         if not res.success:
@@ -408,19 +506,67 @@ def run(cfg, out_dir: Path) -> dict:
     report["timings"] = timings
     report["segments"] = {w: label_rows(seg[w]) for w in "AB"}   # audio labels per character (task=view draws them)
     report["failure"] = failure
+    report["all_constraints_met"] = (not failure) and all(
+        report["characters"][w]["checker"]["total"]["met"] == report["characters"][w]["checker"]["total"]["total"]
+        for w in "AB")
     report["outputs"] = {"bvh": [f"{w}.bvh" for w in "AB" if results[w].success], "audio": wav.name,
                          "video": None if video is None else video.name}
     write_json_atomic(out_dir / "report.json", report)
     write_report_md(out_dir / "report.md", report)
     if failure:
         raise SearchFailure(f"{failure} (report: {out_dir / 'report.md'})")
-    summary = {"success": True, "duration_s": duration, "num_frames": T, "windows": len(plan),
+    speakers = {w: speaker_summary(report, w, fps) for w in "AB"}
+    for w in "AB":
+        log.info("%s", speaker_line(w, speakers[w]))
+    summary = {"success": True,   # motion was written for both characters
+               "all_constraints_met": all(s["constraints"]["met"] == s["constraints"]["total"] for s in speakers.values()),
+               "duration_s": duration, "num_frames": T, "windows": len(plan),
                "characters": {w: chars[k] for k, w in enumerate("AB")},
-               "constraints_met": {w: report["characters"][w]["checker"]["total"]["met"] for w in "AB"},
-               "constraints_total": {w: report["characters"][w]["checker"]["total"]["total"] for w in "AB"},
+               "constraints_met": {w: speakers[w]["constraints"]["met"] for w in "AB"},
+               "constraints_total": {w: speakers[w]["constraints"]["total"] for w in "AB"},
+               "speakers": speakers,
                "search_seconds": {w: report["characters"][w]["search_seconds"] for w in "AB"},
                "timings": timings}
     return summary
+
+
+def speaker_summary(report: dict, who: str, fps: float) -> dict:
+    """One speaker's honest result: where the words came from, the constraints met / total by kind (the
+    independent checker over the whole path), and what best effort dropped (per window, by kind) and
+    which constraints the path misses (kind and seconds)."""
+    ch = report["characters"][who]
+    tot = ch["checker"]["total"]
+    dropped: dict = {}
+    windows = []
+    for w in ch["windows"]:
+        if w.get("status") == "best_effort":
+            windows.append(int(w["index"]))
+            for key in w.get("relaxed", []):
+                dropped[str(key[0])] = dropped.get(str(key[0]), 0) + 1
+    inp = report["inputs"][who]
+    return {"character": ch["character"], "words": {"source": inp["words"], "count": inp["num_words"],
+                                                    "transcript": inp["transcript"]},
+            "constraints": {"met": int(tot["met"]), "total": int(tot["total"]),
+                            "share": (tot["met"] / tot["total"]) if tot["total"] else 1.0, "by_kind": tot["by_kind"]},
+            "best_effort": {"windows": windows, "dropped": int(sum(dropped.values())), "dropped_by_kind": dropped},
+            "missed": [{"kind": d["kind"], "start_s": round(d["start"] / fps, 3), "end_s": round(d["end"] / fps, 3)}
+                       for d in tot["missed"]]}
+
+
+def speaker_line(who: str, s: dict) -> str:
+    """The console's line of :func:`speaker_summary`."""
+    c = s["constraints"]
+    kinds = ", ".join(f"{k} {v['met']}/{v['total']}" for k, v in c["by_kind"].items() if v["total"])
+    line = (f"speaker {who} ({s['character']}, {s['words']['count']} words, {s['words']['source']}): constraints met "
+            f"{c['met']}/{c['total']} ({100 * c['share']:.0f}%; {kinds or 'none'})")
+    be = s["best_effort"]
+    if be["windows"]:
+        line += (f"; best effort in window(s) {be['windows']} dropped {be['dropped']} ("
+                 + ", ".join(f"{k} {n}" for k, n in be["dropped_by_kind"].items()) + ")")
+    if s["missed"]:
+        line += "; missed: " + ", ".join(f"{m['kind']} {m['start_s']:.2f}-{m['end_s']:.2f} s" for m in s["missed"][:6])
+        line += " ..." if len(s["missed"]) > 6 else ""
+    return line
 
 
 def write_stereo(path: Path, a, b, duration: float, offsets_s=(0.0, 0.0)) -> Path:

@@ -25,7 +25,7 @@ import pandas as pd
 from tqdm.auto import tqdm
 
 from ..evaluation import summaries
-from ..utils import atomic_path, write_text_atomic
+from ..utils import atomic_path, show_progress_bar, write_text_atomic
 
 log = logging.getLogger(__name__)
 
@@ -66,7 +66,7 @@ def run(cfg, out_dir: Path) -> dict:
     for cond in conditions:  # unknown conditions fail before any work
         system.condition_options(cond)
     progress = params.progress
-    steps = tqdm(total=5, desc="convsynth main", disable=not progress)
+    steps = tqdm(total=5, desc="convsynth main", disable=not show_progress_bar(progress))
 
     t0 = time.perf_counter()
     corpus = open_corpus(params)
@@ -130,7 +130,7 @@ def run(cfg, out_dir: Path) -> dict:
     warming.result()
     background.shutdown()
     frames = []
-    for cond in tqdm(conditions, desc="leave-one-out conditions", disable=not progress, leave=False):
+    for cond in tqdm(conditions, desc="leave-one-out conditions", disable=not show_progress_bar(progress), leave=False):
         frames.append(run_fold(system, annotations, fold, cond, params, out_dir=out_dir, cache_dir=cache,
                                export_bvh=task.export_bvh, models=models,
                                with_audio=system.needs_audio, thresholds=thresholds))

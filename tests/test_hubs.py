@@ -45,7 +45,7 @@ def test_hub_costs_match_the_edge_by_edge_reference():
     g = with_hub(g, 7, 0.5)
     deg = synthetic_in_degree(g)
     assert deg[7] > 20 * np.mean(deg)
-    for weight, cap in ((1.0, 4.0), (2.5, 100.0), (0.0, 4.0)):
+    for weight, cap in ((1.0, 4.0), (2.5, 100.0), (0.0, 4.0), (5.0, 16.0)):
         assert np.allclose(hub_costs(g, weight, cap), reference_hub_costs(g, weight, cap))
     assert not hub_costs(g, 1.0, 4.0)[~g.synthetic].any()
 
@@ -73,10 +73,11 @@ def test_hub_penalty_keeps_paths_from_converging_on_a_hub():
     assert visits[2.0][0] <= 0.2 * max(visits[2.0][1], 1)
 
 
-def test_hub_penalty_is_off_in_the_paper_preset():
+def test_hub_penalty_is_off_in_the_paper_preset_and_on_in_quality():
     from convsynth_jax.config import default_params
 
     assert default_params([]).synth.hub_penalty == 0.0
+    assert default_params(["preset=quality"]).synth.hub_penalty > 0
 
 
 @pytest.mark.parametrize("bad", ["synth.hub_penalty=-1", "synth.hub_cap=0"])

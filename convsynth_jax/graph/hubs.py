@@ -21,17 +21,33 @@ def synthetic_in_degree(graph) -> np.ndarray:
     return np.bincount(np.asarray(graph.indices)[syn], minlength=graph.num_states).astype(np.int64)
 
 
-def hub_costs(graph, weight: float, cap: float) -> np.ndarray:
-    """(E,) float64 extra cost of every edge: 0 on original edges, on a synthetic edge into j
-    ``weight x m x min(in(j) / mean in, cap)`` (module docstring). ``weight <= 0`` or no synthetic
-    edge: zeros."""
+def synthetic_out_degree(graph) -> np.ndarray:
+    """(S,) int64: each state's number of synthetic out-edges."""
+    syn = np.asarray(graph.synthetic, bool)
+    src = np.repeat(np.arange(graph.num_states), np.diff(graph.indptr))
+    return np.bincount(src[syn], minlength=graph.num_states).astype(np.int64)
+
+
+HUB_ENDS = ("target", "both")
+
+
+def hub_costs(graph, weight: float, cap: float, ends: str = "target") -> np.ndarray:
+    """(E,) float64 extra cost of every edge: 0 on original edges, on a synthetic edge i -> j
+    ``weight x m x min(in(j) / mean in, cap)`` (module docstring); ``ends="both"``: the mean of that
+    relative degree and the source's, ``min(out(i) / mean out, cap)`` (a hub is also where most
+    transitions leave from). ``weight <= 0`` or no synthetic edge: zeros."""
+    if ends not in HUB_ENDS:
+        raise ValueError(f"hub ends must be one of {HUB_ENDS}, got {ends!r}")
     syn = np.asarray(graph.synthetic, bool)
     out = np.zeros(syn.shape[0], np.float64)
     if float(weight) <= 0 or not syn.any():
         return out
     m = float(np.median(np.asarray(graph.cost, np.float64)[syn]))
     deg = synthetic_in_degree(graph)
-    mean = deg.sum() / max(graph.num_states, 1)
-    rel = np.minimum(deg / mean, float(cap))
-    out[syn] = float(weight) * m * rel[np.asarray(graph.indices)[syn]]
+    mean = deg.sum() / max(graph.num_states, 1)     # the same for in- and out-degrees
+    rel = np.minimum(deg / mean, float(cap))[np.asarray(graph.indices)[syn]]
+    if ends == "both":
+        src = np.repeat(np.arange(graph.num_states), np.diff(graph.indptr))[syn]
+        rel = 0.5 * (rel + np.minimum(synthetic_out_degree(graph) / mean, float(cap))[src])
+    out[syn] = float(weight) * m * rel
     return out

@@ -49,10 +49,13 @@ class SynthParams:
     # over the recordings instead of converging on the near-mean states most edges enter. 0 (default,
     # the paper): off
     hub_penalty: float = 0.0
-    hub_cap: float = 4.0
+    hub_cap: float = 16.0
+    hub_ends: str = "target"    # "both": the mean of the target's relative in-degree and the source's out-degree
 
     def __post_init__(self):
         if not float(self.hub_penalty) >= 0:
             raise ConfigError(f"hub_penalty must be >= 0 (0: off), got {self.hub_penalty}", where="synth.hub_penalty")
         if not float(self.hub_cap) > 0:
             raise ConfigError(f"hub_cap must be > 0, got {self.hub_cap}", where="synth.hub_cap")
+        if self.hub_ends not in ("target", "both"):
+            raise ConfigError(f"hub_ends must be target or both, got {self.hub_ends!r}", where="synth.hub_ends")

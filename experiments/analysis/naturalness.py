@@ -162,6 +162,19 @@ def source_cooccurrence(clips, frames, speeds: dict, win, thresholds, params, pr
     return {f"{prefix}_{h}_{part}": v for h, (m, t) in counts.items() for part, v in (("matched", m), ("total", t))}
 
 
+def constrained_entries(win) -> int:
+    """Input segments the motion graph must enter inside the window (own PC and LR, partner HP starting
+    in it): with one recorded run per clause, each costs a synthetic transition, so their number per
+    window bounds what a search without multi-clause runs can reach."""
+    n = 0
+    for segs, kinds in ((win.own_segments, ("PC", "LR")), (win.partner_segments, ("HP",))):
+        if segs is None or not len(segs):
+            continue
+        st = np.asarray(segs["start"], float)
+        n += int(np.sum(np.isin(segs["kind"], kinds) & (st > 0) & (st < win.num_frames / win.fps)))
+    return n
+
+
 def target_in_degree(graph, clips, frames, cuts, deg) -> list:
     """Synthetic in-degree of the states each synthetic transition of a path enters (by the source clip
     and frame at the cut)."""
@@ -249,6 +262,8 @@ def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None, cuts
                         "cooc": window_cooccurrence(gt, win.own_segments, win.partner_segments, gt_thr[role],
                                                     params, "gt"),
                         "upper": list(v.upper)}
+                if "entries" not in gt_store[key]:
+                    gt_store[key]["entries"] = constrained_entries(win)
                 if "cooc_src" not in gt_store[key]:   # the same count read from the recording's own speeds
                     gt_store[key]["cooc_src"] = source_cooccurrence(
                         [f"{held_out}:{role}"] * n, np.arange(f0, f0 + n), {f"{held_out}:{role}": held_speeds(
@@ -366,6 +381,8 @@ def summarize(name, recs, gt_store, rp) -> dict:
     if all("num_frames" in recs[k] for k in ok):
         out["mean_run_seconds"] = (sum(recs[k]["num_frames"] / recs[k]["fps"] for k in ok)
                                    / sum(recs[k]["transitions"] + 1 for k in ok))
+    if all("entries" in gt_store[k] for k in ok):
+        out["constrained_entries"] = float(np.mean([gt_store[k]["entries"] for k in ok]))
     deg = [d for k in ok for d in recs[k].get("target_in_degree", [])]
     if deg:
         out["target_in_degree"] = float(np.mean(deg))
@@ -536,7 +553,7 @@ def markdown(summary, floor, folds) -> list:
             "fgd_raw_gt_same_windows_vs_all", "pose_frechet"]
     keys += sorted(k for s in summary.values() for k in s if k.startswith("pose_std_ratio"))
     keys += ["still", "still_gt_same_windows", "beat_consistency", "bc_random_playback_same_windows",
-             "beat_consistency_gt", "pc_lr_within_gt_interval", "transitions", "mean_run_seconds", "target_in_degree",
+             "beat_consistency_gt", "pc_lr_within_gt_interval", "transitions", "constrained_entries", "mean_run_seconds", "target_in_degree",
              "state_in_degree", "entropy_bits", "top_clip_share",
              "revisited_seconds", "source_speed_ratio", "source_still_share", "best_effort", "retime_slow_share",
              "still_in_retime_stretch", "still_in_best_effort", "still_on_held_source", "still_on_still_source",

@@ -12,7 +12,11 @@ adds one):
   ``before_no_retime`` (holds: no retiming stretches), ``random_playback`` (condition ``none``) and
   ``random_playback_matched`` (transition frequency: excerpts as long as ``--matched-to``'s runs
   between synthetic transitions in the same window);
-* candidate fixes, each alone on ``quality_before``: ``before_*`` (``VARIANTS``).
+* candidate fixes, each alone on ``quality_before``: ``before_*`` (``VARIANTS``);
+* transition targets and runs: ``quality_no_hub`` (``synth.hub_penalty=0``), ``quality_hub_cap4``,
+  ``quality_hub_both``, ``quality_wide``, ``quality_tp10``, ``quality_tp100_wide``;
+* ``cuts_of_<variant>``: random content cut exactly where <variant> has its synthetic transitions
+  (the cuts' share with the variant's choice of content taken out).
 
 Per window and character: still frames (``evaluation/field/kinematic.still_frames``: mean speed of
 the body joints, root-relative, heading-free, fingers out, below 2 units/s) and, for the motion
@@ -20,13 +24,17 @@ graph, where each comes from (a retiming stretch: the warp shows path time slowe
 best-effort window; a held source frame; a source frame that is still in its recording); the source
 frames visited (entropy of (clip, second) cells, share of the window's most used clip, source seconds
 revisited, mean source speed over the training recordings' mean: rest poses); synthetic transitions;
-beat consistency with the window's own audio; Table 1's co-occurrence counts (``loo.window_cooccurrence``).
+beat consistency with the window's own audio; Table 1's co-occurrence counts (``loo.window_cooccurrence``)
+and the same counts read from the source recordings' speeds (:func:`source_cooccurrence`: a blend or
+cut is never a gesture); constraints met; the synthetic in-degree of the states transitions enter;
+the constrained segments entered in the window (own PC/LR, partner HP).
 
 Per variant, over the windows it solved, against the ground truth of THOSE windows: raw FGD
 (``field/fgd``), random playback's raw FGD on the same windows, median per-joint pose std over the
 recordings' per character, still share, beat consistency (and random playback's on the same
 windows), co-occurrence rates with the ground truth's Wilson 95% interval
-(``summaries.cooccurrence_by_condition``). Noise floors: the same measures between the ground truth's
+(``summaries.cooccurrence_by_condition``), a single-pose Frechet distance (poses every 3rd frame, no
+timing), mean run between transitions. Noise floors: the same measures between the ground truth's
 odd and even windows.
 
     python experiments/analysis/naturalness.py --folds 0 1 2 [--variants quality paper ...] [--name naturalness]
@@ -108,11 +116,16 @@ VARIANTS = {   # name -> (system, condition, overrides)
     # transition targets that represent the recordings: a synthetic edge into a hub (a state many
     # synthetic edges enter) costs more (synth.hub_penalty, graph/hubs.py), alone and with a cost per
     # transition (synth.transition_penalty: fewer, longer runs)
-    "quality_hub1": ("motion_graph", "all", ["preset=quality", "synth.hub_penalty=1"]),
-    "quality_hub5": ("motion_graph", "all", ["preset=quality", "synth.hub_penalty=5"]),
+    # (preset=quality sets hub_penalty 5, hub_cap 16)
+    "quality_no_hub": ("motion_graph", "all", ["preset=quality", "synth.hub_penalty=0"]),
+    "quality_hub_cap4": ("motion_graph", "all", ["preset=quality", "synth.hub_cap=4"]),
+    "quality_hub_both": ("motion_graph", "all", ["preset=quality", "synth.hub_ends=both"]),
     "quality_tp10": ("motion_graph", "all", ["preset=quality", "synth.transition_penalty=10"]),
-    "quality_hub5_tp10": ("motion_graph", "all", ["preset=quality", "synth.hub_penalty=5",
-                                                  "synth.transition_penalty=10"]),
+    # the wide retry's beam and candidate budget as the first attempt (cheaper paths to less-visited targets)
+    "quality_wide": ("motion_graph", "all", ["preset=quality", "search.beam_size=2048", "search.max_candidates=16384"]),
+    # fewer, longer runs: a cost per transition with the wide beam (the frontier's other end)
+    "quality_tp100_wide": ("motion_graph", "all", ["preset=quality", "synth.transition_penalty=100",
+                                                   "search.beam_size=2048", "search.max_candidates=16384"]),
 }
 # controls made from another variant's records: "cuts_of_<variant>" plays random content (random clips
 # and positions, as random playback) cut exactly where <variant> has its synthetic transitions, with
@@ -439,7 +452,7 @@ def summarize(name, recs, gt_store, rp) -> dict:
     return out
 
 
-def noise_floor(gt_store) -> dict:
+def noise_floor(gt_store, fps: float) -> dict:
     """The same measures between the ground truth's odd and even windows (a metric's noise floor)."""
     keys = sorted(gt_store)
     odd = [k for k in keys if k[1] % 2]
@@ -450,6 +463,20 @@ def noise_floor(gt_store) -> dict:
         ro = [gt_store[k]["rel"] for k in odd if gt_store[k]["character"] == c]
         re_ = [gt_store[k]["rel"] for k in even if gt_store[k]["character"] == c]
         out[f"pose_std_ratio_{c}_odd_over_even"] = pose_std_ratio(ro, re_)
+    # mismatched ground truth: each window's recorded motion against the audio beats of the same
+    # role's next window of its fold (the first window for the last): beat consistency by chance
+    by = {k: gt_store[k] for k in keys}
+    mism = []
+    for k in keys:
+        nxt = (k[0], k[1] + 1, k[2]) if (k[0], k[1] + 1, k[2]) in by else (k[0], min(w for f, w, r in keys
+                                                                                   if f == k[0] and r == k[2]), k[2])
+        if nxt == k:
+            continue
+        g, o = by[k], by[nxt]
+        n = len(g["rel"])
+        mism.append(beat.beat_consistency(beat.motion_beats(g["rel"][:, g["upper"]], fps, FP.beat), o["audio_beats"],
+                                          n / fps, FP.beat))
+    out["beat_consistency_gt_mismatched"] = float(np.nanmean(mism)) if mism else float("nan")
     st = [float(np.mean(np.concatenate([gt_store[k]["still"] for k in ks]))) for ks in (odd, even)]
     bc = [float(np.nanmean([gt_store[k]["bc"] for k in ks])) for ks in (odd, even)]
     out.update({"still_odd": st[0], "still_even": st[1], "beat_consistency_odd": bc[0], "beat_consistency_even": bc[1],
@@ -538,7 +565,7 @@ def main():
         gt_path.write_bytes(pickle.dumps(gt_store))
     rp = results.get("random_playback", {})
     summary = {name: summarize(name, recs, gt_store, rp) for name, recs in results.items()}
-    floor = noise_floor(gt_store)
+    floor = noise_floor(gt_store, params.fps)
     result = {"folds": args.folds, "variants": {n: {"system": specs[n][0], "condition": specs[n][1],
                                                     "overrides": specs[n][2]} for n in results},
               "still_speed": STILL_SPEED, "summary": summary, "noise_floor": floor,

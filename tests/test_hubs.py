@@ -28,16 +28,24 @@ def with_hub(g, hub: int, cost: float):
     return dataclasses.replace(g, indptr=indptr, indices=cols[o], cost=cost_[o].astype(np.float32), synthetic=syn[o])
 
 
-def reference_hub_costs(g, weight, cap):
-    """Edge by edge: count each state's synthetic in-edges, then price every synthetic edge."""
-    deg = [0] * g.num_states
-    for e in range(g.num_edges):
-        if g.synthetic[e]:
-            deg[int(g.indices[e])] += 1
-    mean = sum(deg) / g.num_states
+def reference_hub_costs(g, weight, cap, ends="target"):
+    """Edge by edge: count each state's synthetic in- and out-edges, then price every synthetic edge."""
+    deg_in, deg_out = [0] * g.num_states, [0] * g.num_states
+    for s in range(g.num_states):
+        for e in range(int(g.indptr[s]), int(g.indptr[s + 1])):
+            if g.synthetic[e]:
+                deg_in[int(g.indices[e])] += 1
+                deg_out[s] += 1
+    mean = sum(deg_in) / g.num_states
     m = float(np.median([float(c) for c, s in zip(g.cost, g.synthetic) if s]))
-    return np.array([weight * m * min(deg[int(g.indices[e])] / mean, cap) if g.synthetic[e] else 0.0
-                     for e in range(g.num_edges)])
+    out = []
+    for s in range(g.num_states):
+        for e in range(int(g.indptr[s]), int(g.indptr[s + 1])):
+            rel = min(deg_in[int(g.indices[e])] / mean, cap)
+            if ends == "both":
+                rel = 0.5 * (rel + min(deg_out[s] / mean, cap))
+            out.append(weight * m * rel if g.synthetic[e] else 0.0)
+    return np.array(out)
 
 
 def test_hub_costs_match_the_edge_by_edge_reference():
@@ -46,7 +54,8 @@ def test_hub_costs_match_the_edge_by_edge_reference():
     deg = synthetic_in_degree(g)
     assert deg[7] > 20 * np.mean(deg)
     for weight, cap in ((1.0, 4.0), (2.5, 100.0), (0.0, 4.0), (5.0, 16.0)):
-        assert np.allclose(hub_costs(g, weight, cap), reference_hub_costs(g, weight, cap))
+        for ends in ("target", "both"):
+            assert np.allclose(hub_costs(g, weight, cap, ends), reference_hub_costs(g, weight, cap, ends))
     assert not hub_costs(g, 1.0, 4.0)[~g.synthetic].any()
 
 
@@ -87,3 +96,41 @@ def test_hub_options_reject_bad_values(bad):
 
     with pytest.raises(ConfigError, match=bad.split("=")[0].split(".")[1]):
         default_params([bad])
+
+
+def _speeds(n, spike_at=None):
+    """joint_speeds-like dict: still hands and head, with a hand movement (both hands) at ``spike_at``."""
+    sp = {k: np.full(n, 0.1) for k in ("LH", "RH", "Nod")}
+    if spike_at is not None:
+        for k in ("LH", "RH"):
+            sp[k][spike_at:spike_at + 6] = 50.0
+    return sp
+
+
+def test_source_cooccurrence_reads_gestures_from_the_recordings_not_the_output():
+    """A clause 1-2 s into a 3 s window. Played from a recording whose hands move inside the clause
+    (as the ground truth is its own recording's), the source count matches window_counts on those
+    speeds; played from a still recording, nothing matches, whatever the output's blends did."""
+    import pandas as pd
+
+    from convsynth_jax.config import default_params
+    from convsynth_jax.evaluation.loo import source_window_cooccurrence
+    from convsynth_jax.stats.cooccurrence import window_counts
+
+    params = default_params([])
+    fps, n = 30.0, 90
+    own = pd.DataFrame([("PC", 1.0, 1.5, 2.0)], columns=["kind", "start", "peak", "end"])
+    partner = pd.DataFrame(columns=["kind", "start", "peak", "end"])
+    thr = {"LH": 1.0, "RH": 1.0, "Nod": 1.0}
+    speeds = {"moving": _speeds(200, spike_at=140), "still": _speeds(200)}
+    frames = np.arange(100, 100 + n)       # the recording's frames 100-189: the movement at 1.33 s
+    gt = source_window_cooccurrence(["moving"] * n, frames, speeds, own, partner, fps, thr, params, "gt")
+    ref = window_counts({k: v[100:100 + n] for k, v in speeds["moving"].items()}, own, partner, fps, thr,
+                        params.annotate)
+    assert {h: (gt[f"gt_{h}_matched"], gt[f"gt_{h}_total"]) for h in ref} == ref
+    assert gt["gt_PC-LH/RH_matched"] == 1
+    # a path cutting between two still recordings' frames every 10 frames
+    clips = ["still" if (t // 10) % 2 else "moving" for t in range(n)]
+    src = np.where((np.arange(n) // 10) % 2 == 1, 20 + np.arange(n), np.arange(n))   # "moving" frames 0-89: still
+    syn = source_window_cooccurrence(clips, src, speeds, own, partner, fps, thr, params, "synth")
+    assert syn["synth_PC-LH/RH_matched"] == 0 and syn["synth_PC-LH/RH_total"] == 1

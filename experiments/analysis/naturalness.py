@@ -63,11 +63,11 @@ from convsynth_jax.evaluation.field.kinematic import STILL_SPEED, mean_joint_spe
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
 from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
 from convsynth_jax.evaluation.loo import (fit_fold, fold_thresholds, recording_threshold_table,  # noqa: E402
-                                          session_windows, window_cooccurrence, window_input)
+                                          session_windows, source_window_cooccurrence, window_cooccurrence,
+                                          window_input)
 from convsynth_jax.annotate.motion import joint_speeds  # noqa: E402
 from convsynth_jax.evaluation.summaries import cooccurrence_by_condition  # noqa: E402
 from convsynth_jax.graph.hubs import synthetic_in_degree  # noqa: E402
-from convsynth_jax.stats.cooccurrence import window_counts  # noqa: E402
 from convsynth_jax.synth.pipeline import CHAIRS  # noqa: E402
 from convsynth_jax.synth.realize import realize  # noqa: E402
 from convsynth_jax.seeding import derive_seed  # noqa: E402
@@ -164,15 +164,10 @@ def held_speeds(session, role, motion, params, _cache={}):
 
 
 def source_cooccurrence(clips, frames, speeds: dict, win, thresholds, params, prefix) -> dict:
-    """Table 1's co-occurrence counts of one window read from the source recordings: each output
-    frame's hand and head speed is the speed its source frame has in its recording (``speeds``: clip
-    -> ``joint_speeds``), so a movement counts only where a recording made it; a blend or a cut, which
-    moves the hands between two unrelated poses, is never read as a gesture. For the ground truth
-    (its own recording as source) the counts equal ``window_cooccurrence``'s."""
-    frames = np.asarray(frames)
-    sp = {k: np.array([speeds[c][k][f] for c, f in zip(clips, frames)]) for k in ("LH", "RH", "Nod")}
-    counts = window_counts(sp, win.own_segments, win.partner_segments, win.fps, thresholds, params.annotate)
-    return {f"{prefix}_{h}_{part}": v for h, (m, t) in counts.items() for part, v in (("matched", m), ("total", t))}
+    """Table 1's co-occurrence counts of one window read from the source recordings
+    (``loo.source_window_cooccurrence``: a blend or a cut is never a gesture)."""
+    return source_window_cooccurrence(clips, frames, speeds, win.own_segments, win.partner_segments, win.fps,
+                                      thresholds, params, prefix)
 
 
 def constrained_entries(win) -> int:

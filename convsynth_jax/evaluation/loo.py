@@ -172,6 +172,28 @@ def window_cooccurrence(motion, own_segments, partner_segments, thresholds: dict
     return out
 
 
+def source_window_cooccurrence(source_clips, source_frames, speeds: dict, own_segments, partner_segments, fps: float,
+                               thresholds: dict, params, prefix: str) -> dict:
+    """:func:`window_cooccurrence`'s counts read from the source recordings (ours): each output frame's
+    hand and head speed is the speed its source frame has in its recording (``speeds``: clip name ->
+    ``annotate.motion.joint_speeds`` of that recording), so a movement counts only where a recording
+    made it; a blend or a cut, which moves the hands between two unrelated poses, is never read as a
+    gesture. For a window of one recording played as it is (the ground truth: its own recording as
+    source) the speeds, and so the counts, are the recording's (up to the window's edge frames, where
+    ``joint_speeds`` of the cut window differ)."""
+    from ..stats.cooccurrence import window_counts
+
+    frames = np.asarray(source_frames, np.int64)
+    sp = {k: np.array([speeds[c][k][f] for c, f in zip(source_clips, frames)], np.float64)
+          for k in ("LH", "RH", "Nod")}
+    counts = window_counts(sp, own_segments, partner_segments, fps, thresholds, params.annotate)
+    out = {}
+    for h, (matched, total) in counts.items():
+        out[f"{prefix}_{h}_matched"] = matched
+        out[f"{prefix}_{h}_total"] = total
+    return out
+
+
 def _metric_points(motion, head_only: bool, params) -> np.ndarray:
     """(F, P, 3) float64 points the quality metrics are computed on: every joint (forward
     kinematics), or the head point only (``annotate.motion.head_point``)."""

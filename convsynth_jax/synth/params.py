@@ -3,6 +3,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from ..errors import ConfigError
+
 
 @dataclass(frozen=True)
 class SynthParams:
@@ -42,3 +44,18 @@ class SynthParams:
     # the paper): off
     transition_penalty: float = 0.0
     loop_penalty: float = 0.0
+    # a synthetic edge into a hub costs more (ours, graph/hubs.py): hub_penalty x the median synthetic
+    # cost x min(the target's synthetic in-degree / the mean in-degree, hub_cap), so transitions spread
+    # over the recordings instead of converging on the near-mean states most edges enter. 0 (default,
+    # the paper): off
+    hub_penalty: float = 0.0
+    hub_cap: float = 16.0
+    hub_ends: str = "target"    # "both": the mean of the target's relative in-degree and the source's out-degree
+
+    def __post_init__(self):
+        if not float(self.hub_penalty) >= 0:
+            raise ConfigError(f"hub_penalty must be >= 0 (0: off), got {self.hub_penalty}", where="synth.hub_penalty")
+        if not float(self.hub_cap) > 0:
+            raise ConfigError(f"hub_cap must be > 0, got {self.hub_cap}", where="synth.hub_cap")
+        if self.hub_ends not in ("target", "both"):
+            raise ConfigError(f"hub_ends must be target or both, got {self.hub_ends!r}", where="synth.hub_ends")

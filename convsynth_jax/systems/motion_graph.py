@@ -17,6 +17,7 @@ from ..errors import GraphError
 from ..fingerprint import code_fingerprint, content_digest, stable_hash
 from ..graph import load_graph
 from ..graph.build import build_graph_from_clips
+from ..graph.hubs import hub_costs
 from ..graph.types import MotionGraph
 from ..synth.pipeline import synthesize_character
 from ..utils import file_lock
@@ -53,22 +54,26 @@ def _read_cached_graph(path: Path):
         return None
 
 
-def penalized_graph(graph: MotionGraph, transition_penalty: float = 0.0, loop_penalty: float = 0.0
+def penalized_graph(graph: MotionGraph, transition_penalty: float = 0.0, loop_penalty: float = 0.0,
+                    hub_penalty: float = 0.0, hub_cap: float = 16.0, hub_ends: str = "target"
                     ) -> tuple[MotionGraph, float]:
     """(``graph`` with penalties on its synthetic edges, temperature factor) (ours; the cached graph is
     unchanged). Each penalty is a multiple of the graph's median synthetic edge cost m:
     ``transition_penalty`` is added to every synthetic edge (a path pays for each synthetic transition,
     so it stays longer in a clip where fewer transitions meet the constraints too); ``loop_penalty``
     to every synthetic edge back to an earlier frame of the same clip (a path that loops replays the
-    seconds it has just shown). The searches' temperature is relative to the median synthetic cost;
+    seconds it has just shown); ``hub_penalty`` x m x min(target's synthetic in-degree / the mean, ``hub_cap``)
+    to every synthetic edge (``hub_ends="both"``: the mean of the target's and the source's relative degrees;
+    graph/hubs.py: transitions spread over the recordings instead of converging
+    on the near-mean states most edges enter). The searches' temperature is relative to the median synthetic cost;
     the factor (m / the new median) keeps it at the built graph's. No penalty: (graph, 1.0)."""
     syn = np.asarray(graph.synthetic, bool)
-    if (float(transition_penalty) <= 0 and float(loop_penalty) <= 0) or not syn.any():
+    if (float(transition_penalty) <= 0 and float(loop_penalty) <= 0 and float(hub_penalty) <= 0) or not syn.any():
         return graph, 1.0
     m = float(np.median(graph.cost[syn]))
     src = np.repeat(np.arange(graph.num_states), np.diff(graph.indptr))
     back = syn & (graph.clip[src] == graph.clip[graph.indices]) & (graph.frame[graph.indices] < graph.frame[src])
-    extra = float(transition_penalty) * m * syn + float(loop_penalty) * m * back
+    extra = float(transition_penalty) * m * syn + float(loop_penalty) * m * back + hub_costs(graph, hub_penalty, hub_cap, hub_ends)
     cost = (np.asarray(graph.cost, np.float64) + extra).astype(graph.cost.dtype)
     new_m = float(np.median(cost[syn]))
     return dataclasses.replace(graph, cost=cost), (m / new_m if new_m > 0 else 1.0)
@@ -125,7 +130,8 @@ class MotionGraphSystem(PlaybackSystem):
     def graph_model(self, g, motions, seconds, labels) -> GraphModel:
         """The model of a built or loaded graph, with the configured penalties (``penalized_graph``)."""
         sp = self.params.synth
-        g, scale = penalized_graph(g, sp.transition_penalty, sp.loop_penalty)
+        g, scale = penalized_graph(g, sp.transition_penalty, sp.loop_penalty, sp.hub_penalty, sp.hub_cap,
+                                   sp.hub_ends)
         return GraphModel(g, motions, seconds, labels, scale)
 
     def _build(self, items, motions, labels, cached) -> GraphModel:

@@ -1,0 +1,169 @@
+"""system=flow_matching: the conditional flow-matching objective on a toy distribution, training on the
+tiny corpus, long samples (shape, continuity at the joins), determinism, and leave-one-out."""
+from __future__ import annotations
+
+import copy
+import dataclasses
+
+import numpy as np
+import pytest
+
+from convsynth_jax.errors import ConfigError
+from convsynth_jax.flow.model import FlowParams, sample_batch, sample_sequence, train_flow
+from convsynth_jax.systems.base import SystemParams, make_system
+
+TINY = dict(width=16, blocks=2, time_embedding=8, train_steps=60, batch_size=8, log_every=20, window_frames=16,
+            prefix_frames=4, sample_steps=4)
+
+
+@pytest.fixture(scope="module")
+def annotated(tiny_corpus_dir, tiny_annotations):
+    from convsynth_jax.config import default_params
+    from convsynth_jax.io import load_corpus
+
+    corpus = load_corpus(tiny_corpus_dir)
+    cfg = default_params(["corpus=synthetic_tiny"])
+    ann = copy.deepcopy(tiny_annotations)
+    paths = {(s.name, p.role): (p.audio_path, p.audio_channel) for s in corpus.sessions for p in s.participants}
+    for sname, roles in ann.items():
+        for role, a in roles.items():
+            a.audio_path, a.audio_channel = paths[(sname, role)]
+    return cfg, ann
+
+
+def flow_system(cfg, **options):
+    return make_system(cfg, SystemParams(name="flow_matching",
+                                         factory="convsynth_jax.systems.flow_matching:FlowMatchingSystem",
+                                         conditions={"audio": {}}, options={**TINY, **options}))
+
+
+@pytest.fixture(scope="module")
+def fitted(annotated, tmp_path_factory):
+    from convsynth_jax.evaluation.loo import training_clips
+
+    cfg, ann = annotated
+    sysm = flow_system(cfg)
+    held = list(ann)[0]
+    char = next(iter(ann[held].values())).character
+    cache = tmp_path_factory.mktemp("flow_cache")
+    return sysm, sysm.fit(training_clips(ann, held, char), char, "audio", cache), cache, ann, held
+
+
+def test_dilated_taps_match_the_loop_convolution():
+    import jax.numpy as jnp
+
+    from convsynth_jax.flow.model import _taps
+    from convsynth_jax.testing.flow_reference import dilated_conv_loop
+
+    rng = np.random.default_rng(0)
+    h = rng.normal(size=(2, 11, 3)).astype(np.float32)
+    for k, d in [(3, 1), (3, 4), (5, 2)]:
+        kern = rng.normal(size=(k, 3, 4)).astype(np.float32)
+        bias = rng.normal(size=4).astype(np.float32)
+        fast = np.asarray(_taps(jnp.asarray(h), k, d)) @ kern.reshape(k * 3, 4) + bias
+        np.testing.assert_allclose(fast, dilated_conv_loop(h, kern, bias, d), rtol=1e-4, atol=1e-4)
+
+
+def test_objective_learns_a_gaussian_mixture():
+    """The flow-matching objective on a 2-D mixture of 4 Gaussians (means on a square of side 4, SD
+    0.3, weights 0.4/0.3/0.2/0.1): 3000 samples of the trained flow put each component's weight
+    within 0.05 of the truth, its mean within 0.15 and its SD within 0.15 (the data's own
+    3000-draw error is about 0.01, 0.01 and 0.01)."""
+    from convsynth_jax.testing.flow_reference import mixture_sample
+
+    rng = np.random.default_rng(0)
+    means = np.array([[-2.0, -2.0], [2.0, -2.0], [-2.0, 2.0], [2.0, 2.0]])
+    weights = np.array([0.4, 0.3, 0.2, 0.1])
+    data = mixture_sample(rng, 20000, means, 0.3, weights).astype(np.float32)
+    p = FlowParams(window_frames=1, prefix_frames=0, width=64, blocks=2, train_steps=1500, batch_size=256,
+                   log_every=500, learning_rate=3e-3, sample_steps=40, sampler="midpoint", seed=1)
+    model = train_flow([data], [np.zeros((len(data), 1), np.float32)], p)
+    x = sample_batch(model, np.zeros((3000, 1, 1), np.float32), seed=2)[:, 0]
+    comp = np.argmin(((x[:, None, :] - means[None]) ** 2).sum(-1), axis=1)
+    for k in range(4):
+        sel = x[comp == k]
+        assert abs(len(sel) / len(x) - weights[k]) < 0.05, (k, len(sel) / len(x))
+        assert np.abs(sel.mean(axis=0) - means[k]).max() < 0.15, (k, sel.mean(axis=0))
+        assert np.abs(sel.std(axis=0) - 0.3).max() < 0.15, (k, sel.std(axis=0))
+
+
+def test_training_loss_decreases_and_is_cached(fitted, annotated):
+    from convsynth_jax.evaluation.loo import training_clips
+
+    sysm, fit, cache, ann, held = fitted
+    losses = fit.model.losses
+    assert len(losses) == 3 and losses[-1] < 0.8 * losses[0], losses
+    files = sorted(p.name for p in (cache / "flow_matching").iterdir())
+    assert any(f.endswith(".msgpack") for f in files) and any(f.endswith("_loss.png") for f in files)
+    assert any(f.endswith("_manifest.json") for f in files)
+    again = sysm.fit(training_clips(ann, held, fit.character), fit.character, "audio", cache)
+    assert again.model.loaded and again.model.key == fit.model.key
+    np.testing.assert_array_equal(again.model.losses, losses)
+
+
+def test_long_sample_shape_and_continuity(fitted):
+    """A 40 s conversation (about 12 sampling windows): as many frames as the audio, finite, and no
+    jump at the joins of the windows beyond the largest step inside them."""
+    from convsynth_jax.io import load_audio
+
+    sysm, fit, _, ann, held = fitted
+    a = next(iter(ann[held].values()))
+    audio = load_audio(a.audio_path, channel=a.audio_channel)
+    n = 40 * 30
+    motion = sysm.synthesize_audio(fit, audio, None, n, 30.0, seed=3, chair_index=1)
+    assert motion.num_frames == n and motion.skeleton is fit.template.skeleton
+    assert np.isfinite(motion.rotations).all() and np.isfinite(motion.translations).all()
+    p = fit.model.params
+    from convsynth_jax.flow.features import audio_features
+
+    cond = np.concatenate([fit.audio_norm.apply(audio_features(audio, 600, p.fps)),
+                           fit.audio_norm.apply(audio_features(None, 600, p.fps))], axis=1)
+    x = sample_sequence(fit.model, cond, seed=3)
+    assert x.shape == (600, fit.model.dim)
+    step = np.linalg.norm(np.diff(x, axis=0), axis=1)
+    hop = p.window_frames - p.prefix_frames
+    joins = np.arange(hop + p.prefix_frames - 1, len(step), hop)     # last prefix frame -> first new frame
+    inside = np.setdiff1d(np.arange(len(step)), joins)
+    assert step[joins].max() <= step[inside].max(), (step[joins].max(), step[inside].max())
+    # the prefix frames of each window are the previous window's (imposed on the path)
+    starts = np.arange(hop, len(x) - p.prefix_frames, hop)
+    assert len(starts) >= 10
+
+
+def test_determinism_under_a_seed(fitted):
+    sysm, fit, _, ann, held = fitted
+    rng = np.random.default_rng(0)
+    xs = [rng.normal(size=(60, 5)).astype(np.float32)]
+    cs = [rng.normal(size=(60, 2)).astype(np.float32)]
+    p = FlowParams(**{**TINY, "train_steps": 20, "log_every": 10})
+    a, b = train_flow(xs, cs, p), train_flow(xs, cs, p)
+    np.testing.assert_array_equal(a.losses, b.losses)
+    c = train_flow(xs, cs, dataclasses.replace(p, seed=1))
+    assert not np.array_equal(a.losses, c.losses)
+    cond = np.random.default_rng(1).normal(size=(50, fit.model.cond_dim)).astype(np.float32)
+    s1, s2, s3 = (sample_sequence(fit.model, cond, seed=s) for s in (7, 7, 8))
+    np.testing.assert_array_equal(s1, s2)
+    assert not np.allclose(s1, s3)
+
+
+def test_loo_fold_with_the_flow_system(annotated, tmp_path):
+    from convsynth_jax.evaluation.loo import run_fold
+
+    cfg, ann = annotated
+    cfg = dataclasses.replace(cfg, loo=dataclasses.replace(cfg.loo, max_windows=1))
+    sysm = flow_system(cfg, train_steps=20)
+    df = run_fold(sysm, ann, 0, "audio", cfg, out_dir=tmp_path, cache_dir=tmp_path, export_bvh=True,
+                  with_audio=True)
+    assert len(df) == 2 and df["success"].all(), df.get("failure")
+    assert (df["constraints_total"] == 0).all() and np.isfinite(df["jerk"]).all()
+    assert len(list((tmp_path / "bvh").glob("*_audio.bvh"))) == 2
+
+
+def test_bad_options_are_config_errors(annotated):
+    cfg, _ = annotated
+    with pytest.raises(ConfigError, match="sampler"):
+        flow_system(cfg, sampler="rk4")
+    with pytest.raises(ConfigError, match="prefix_frames"):
+        flow_system(cfg, prefix_frames=16)
+    with pytest.raises(ConfigError):
+        flow_system(cfg, no_such_option=1)

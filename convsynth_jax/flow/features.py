@@ -117,6 +117,17 @@ class Standardizer:
         return np.asarray(x, np.float64) * self.std + self.mean
 
 
+def frame_detail_sd(x: np.ndarray) -> np.ndarray:
+    """(D,) SD of the white frame-to-frame detail of features ``x`` (F, D) at their own rate (sensor
+    noise and the finest motion the model's rate and principal components leave out): from the second
+    difference, whose variance is 6 sigma^2 for white noise, robustly (1.4826 x its median absolute
+    value, so gestures' accelerations hardly count)."""
+    d2 = np.diff(np.asarray(x, np.float64), n=2, axis=0)
+    if len(d2) == 0:
+        return np.zeros(np.asarray(x).shape[1])
+    return 1.4826 * np.median(np.abs(d2), axis=0) / np.sqrt(6.0)
+
+
 ROOT_SCALE = 0.05   # root position units (cm in the synthetic corpus) per unit of the 6-D rotation values
 
 

@@ -42,8 +42,8 @@ class FlowParams:
     window_frames: int = 48          # frames per training / sampling window (3.2 s at 15 fps)
     prefix_frames: int = 6           # overlap of consecutive sampling windows (the continuity prefix)
     prefix_probability: float = 0.7  # training windows that see their first prefix_frames as a prefix
-    width: int = 64                  # channels of the convolution stack
-    blocks: int = 4                  # residual blocks (dilations 1, 2, 4, 8, then again)
+    width: int = 96                  # channels of the convolution stack
+    blocks: int = 6                  # residual blocks (dilations 1, 2, 4, 8, then again)
     kernel_size: int = 3
     pca_variance: float = 0.995      # the motion's principal components kept (share of its variance)
     pca_max_components: int = 48
@@ -54,10 +54,17 @@ class FlowParams:
     log_every: int = 100             # steps per scanned chunk (one loss-curve point each)
     sample_steps: int = 12
     sampler: str = "midpoint"        # euler | midpoint
+    smooth_frames: float = 0.0       # Gaussian smoothing (SD in model frames) of the sampled features; 0: none
+    detail_noise: bool = True        # add the recordings' frame-level detail (white, per feature; see the system)
+    prediction: str = "data"         # the network predicts: data (x1; velocity (x1_hat - x_t) / (1 - t)) | velocity
+    difference_weight: float = 1.0   # data prediction: weight of the frame-to-frame differences' error
     partner_audio: bool = True       # condition on the partner's channel too
     seed: int = 0
 
     def __post_init__(self):
+        if self.prediction not in ("data", "velocity"):
+            raise ConfigError(f"flow_matching: prediction must be 'data' or 'velocity', got {self.prediction!r} "
+                              "(system.options.prediction)")
         if self.sampler not in ("euler", "midpoint"):
             raise ConfigError(f"flow_matching: sampler must be 'euler' or 'midpoint', got {self.sampler!r} "
                               "(system.options.sampler)")
@@ -69,6 +76,9 @@ class FlowParams:
                               "must be positive (system.options)")
         if self.fps <= 0:
             raise ConfigError(f"flow_matching: fps must be positive, got {self.fps} (system.options.fps)")
+
+
+SAMPLING_ONLY = ("sample_steps", "sampler", "smooth_frames", "detail_noise")   # options that leave the trained model unchanged
 
 
 def _taps(h, k: int, dilation: int):
@@ -142,7 +152,8 @@ def checkpoint_key(arrays: Sequence[np.ndarray], params: FlowParams, extra: str 
         a = np.ascontiguousarray(np.asarray(a, np.float32))
         h.update(str(a.shape).encode())
         h.update(a.tobytes())
-    h.update(repr(sorted(asdict(params).items())).encode())
+    trained = {k: v for k, v in asdict(params).items() if k not in SAMPLING_ONLY}
+    h.update(repr(sorted(trained.items())).encode())
     h.update(str(extra).encode())
     here = Path(__file__).resolve().parent
     for name in ("model.py", "features.py"):
@@ -204,7 +215,13 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
         mask = use * (frame < P).astype(x1.dtype)
         xt = (1.0 - t[:, None, None]) * x0 + t[:, None, None] * x1
         pred = net.apply(v, xt, t, c, x1, mask)
-        return jnp.mean((pred - (x1 - x0)) ** 2)
+        if p.prediction == "velocity":
+            return jnp.mean((pred - (x1 - x0)) ** 2)
+        # data prediction (as motion diffusion models do): the error of x1 and of its frame differences
+        loss = jnp.mean((pred - x1) ** 2)
+        if p.difference_weight > 0 and W > 1:
+            loss = loss + p.difference_weight * jnp.mean((jnp.diff(pred, axis=1) - jnp.diff(x1, axis=1)) ** 2)
+        return loss
 
     def step(carry, k):
         v, s = carry
@@ -252,7 +269,11 @@ def _sampler(model: FlowModel):
             return mask * ((1.0 - t) * x0 + t * prefix) + (1.0 - mask) * x
 
         def vel(x, t):
-            return net.apply(v, known(x, t), jnp.full((x.shape[0],), t), cond, prefix, mask)
+            xk = known(x, t)
+            out = net.apply(v, xk, jnp.full((x.shape[0],), t), cond, prefix, mask)
+            if p.prediction == "velocity":
+                return out
+            return (out - xk) / jnp.maximum(1.0 - t, 1e-3)
 
         def body(i, x):
             t = i * dt
@@ -314,6 +335,10 @@ def sample_sequence(model: FlowModel, cond: np.ndarray, seed: int) -> np.ndarray
         x = fn(model.variables, jnp.asarray(pad[None, s:s + W]), jnp.asarray(prefix), jnp.asarray(mask),
                jax.random.fold_in(key, i))
         out[s:s + W] = np.asarray(x[0])
+    if p.smooth_frames > 0:
+        from scipy.ndimage import gaussian_filter1d
+
+        out = gaussian_filter1d(out, float(p.smooth_frames), axis=0, mode="nearest")
     return out[:N]
 
 

@@ -32,7 +32,8 @@ from typing import Any
 import numpy as np
 
 from ..errors import ConfigError
-from ..flow.features import (AUDIO_DIM, MotionBasis, Standardizer, audio_features, decode_motion, encode_motion, fit_length,
+from ..flow.features import (AUDIO_DIM, MotionBasis, Standardizer, audio_features, decode_motion, encode_motion,
+                             fit_length, frame_detail_sd,
                              recording_audio_features, resample_features)
 from ..flow.model import FlowModel, FlowParams, checkpoint_key, load_model, sample_sequence, save_model, train_flow
 from ..utils import atomic_path, file_lock
@@ -53,6 +54,7 @@ class FlowFit:
     character: str
     checkpoint: str | None = None
     loss_figure: str | None = None
+    detail_sd: Any = None         # (D,) the training recordings' frame-level detail at their own rate
 
 
 def partner_audio_source(clip, siblings: dict | None = None) -> tuple[str, int | None]:
@@ -127,10 +129,11 @@ class FlowMatchingSystem(SynthesisSystem):
               for o, q in zip(own, partner or own)]
         key = checkpoint_key(motions + own + partner, p, extra=character)
         template = mine[0].motion
+        detail = np.median([frame_detail_sd(encode_motion(c.motion)) for c in mine], axis=0)
         if cache_dir is None:
             model = train_flow(xs, cs, p, progress=bool(getattr(self.params, "progress", False)), label=character)
             model.key = key
-            return FlowFit(model, mn, an, template, time.perf_counter() - t0, character)
+            return FlowFit(model, mn, an, template, time.perf_counter() - t0, character, detail_sd=detail)
         folder = Path(cache_dir) / "flow_matching"
         ckpt = folder / f"flow_{character}_{key[:16]}.msgpack"
         fig = ckpt.with_name(ckpt.stem + "_loss.png")
@@ -146,10 +149,10 @@ class FlowMatchingSystem(SynthesisSystem):
                     _plot_losses(model.losses, min(p.log_every, p.train_steps), fig,
                                  f"flow matching, {character}: {len(mine)} recordings, {sum(map(len, xs))} frames")
                     self._write_manifest(ckpt, model, character, mine, sum(map(len, xs)))
-                    return FlowFit(model, mn, an, template, time.perf_counter() - t0, character, str(ckpt), str(fig))
+                    return FlowFit(model, mn, an, template, time.perf_counter() - t0, character, str(ckpt), str(fig), detail)
         model = found[0]
         log.info("flow matching %s: loaded %s (trained in %.1f s)", character, ckpt, model.seconds)
-        return FlowFit(model, mn, an, template, time.perf_counter() - t0, character, str(ckpt), str(fig))
+        return FlowFit(model, mn, an, template, time.perf_counter() - t0, character, str(ckpt), str(fig), detail)
 
     @staticmethod
     def _write_manifest(ckpt: Path, model: FlowModel, character: str, clips, frames: int) -> None:
@@ -199,6 +202,9 @@ class FlowMatchingSystem(SynthesisSystem):
             cond.append(model.audio_norm.apply(audio_features(partner_audio, n, p.fps)))
         x = sample_sequence(model.model, np.concatenate(cond, axis=1), seed)
         feats = resample_features(model.motion_norm.invert(x), num_frames, p.fps / fps)
+        if p.detail_noise and model.detail_sd is not None:   # the recordings' frame-level detail, white
+            rng = np.random.default_rng([int(seed) & 0x7FFFFFFF, 1])
+            feats = feats + rng.normal(size=feats.shape) * np.asarray(model.detail_sd)[None, :]
         chair, yaw = CHAIRS.get(int(chair_index), CHAIRS[0])
         return decode_motion(feats, model.template, fps, chair, yaw, name)
 

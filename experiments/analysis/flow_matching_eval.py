@@ -70,12 +70,12 @@ def join_steps(rel, fps_out, model_fps, window_frames, prefix_frames) -> tuple[f
             float(np.percentile(step[~at], 99)) if (~at).any() else float("nan"))
 
 
-def run_flow(folds, ann, table, gt_store, overrides) -> tuple[dict, dict]:
+def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, dict]:
     params = default_params(["system=flow_matching", *overrides])
     sysm = make_system(params, params.system)
     names = list(ann)
     fps = params.fps
-    cd = cache_dir(params)
+    cd = Path(cache) if cache else cache_dir(params)
     out, timing = {}, {"fit_seconds": {}, "fit_wall_seconds": {}, "synthesis_seconds": [], "window_seconds": []}
     po = sysm.options
     for fold in folds:
@@ -120,6 +120,7 @@ def main():
     ap.add_argument("--name", default="flow_matching_eval")
     ap.add_argument("--override", nargs="*", default=[], help="Hydra overrides of the flow-matching run")
     ap.add_argument("--work", default="/tmp/flow_matching_work")
+    ap.add_argument("--cache", default=None, help="the model cache (default: the configured loo_cache)")
     ap.add_argument("--graph-work", default=None, help="a naturalness.py --work folder with the motion graph's records")
     ap.add_argument("--graph-variant", default="quality")
     args = ap.parse_args()
@@ -137,7 +138,7 @@ def main():
         (work / f"random_playback_{tag}.pkl").write_bytes(pickle.dumps(rp))
         (work / f"gt_{tag}.pkl").write_bytes(pickle.dumps(gt_store))
     t1 = time.perf_counter()
-    flow, timing = run_flow(args.folds, ann, table, gt_store, args.override)
+    flow, timing = run_flow(args.folds, ann, table, gt_store, args.override, args.cache)
     flow_seconds = time.perf_counter() - t1
     results = {"flow_matching": flow, "random_playback": rp}
     if args.graph_work:

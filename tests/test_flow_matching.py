@@ -39,14 +39,16 @@ def flow_system(cfg, **options):
 
 @pytest.fixture(scope="module")
 def fitted(annotated, tmp_path_factory):
-    from convsynth_jax.evaluation.loo import training_clips
+    """Both characters' models of fold 0 (session 0 held out), trained into a fresh cache."""
+    from convsynth_jax.evaluation.loo import characters, training_clips
 
     cfg, ann = annotated
     sysm = flow_system(cfg)
     held = list(ann)[0]
-    char = next(iter(ann[held].values())).character
     cache = tmp_path_factory.mktemp("flow_cache")
-    return sysm, sysm.fit(training_clips(ann, held, char), char, "audio", cache), cache, ann, held
+    models = {c: sysm.fit(training_clips(ann, held, c), c, "audio", cache) for c in characters(ann)}
+    char = next(iter(ann[held].values())).character
+    return sysm, models[char], cache, ann, held, models
 
 
 def test_dilated_taps_match_the_loop_convolution():
@@ -64,7 +66,7 @@ def test_dilated_taps_match_the_loop_convolution():
         np.testing.assert_allclose(fast, dilated_conv_loop(h, kern, bias, d), rtol=1e-4, atol=1e-4)
 
 
-@pytest.mark.parametrize("prediction, mean_tol, sd_tol", [("velocity", 0.15, 0.1), ("data", 0.3, 0.3)])
+@pytest.mark.parametrize("prediction, mean_tol, sd_tol", [("velocity", 0.15, 0.1)])
 def test_objective_learns_a_gaussian_mixture(prediction, mean_tol, sd_tol):
     """The flow-matching objective on a 2-D mixture of 4 Gaussians (means on a square of side 4, SD
     0.3, weights 0.4/0.3/0.2/0.1): of 3000 samples of the trained flow, at most 3% lie farther than
@@ -72,7 +74,8 @@ def test_objective_learns_a_gaussian_mixture(prediction, mean_tol, sd_tol):
     its mean within ``mean_tol`` and its robust SD (1.4826 x the median absolute deviation) within
     ``sd_tol`` of 0.3. Measured (largest over components): velocity prediction (the objective as
     published) 1.3% far, 0.022, 0.078, 0.054; data prediction (the system's default, whose loss weighs
-    the last stretch of the path less) 0.9%, 0.021, 0.20, 0.21."""
+    the last stretch of the path less; not run here, to save CI time: ``("data", 0.3, 0.3)`` passes)
+    0.9%, 0.021, 0.20, 0.21."""
     from convsynth_jax.testing.flow_reference import mixture_sample
 
     rng = np.random.default_rng(0)
@@ -98,7 +101,7 @@ def test_objective_learns_a_gaussian_mixture(prediction, mean_tol, sd_tol):
 def test_training_loss_decreases_and_is_cached(fitted, annotated):
     from convsynth_jax.evaluation.loo import training_clips
 
-    sysm, fit, cache, ann, held = fitted
+    sysm, fit, cache, ann, held, _ = fitted
     losses = fit.model.losses
     assert len(losses) == 3 and losses[-1] < 0.8 * losses[0], losses
     files = sorted(p.name for p in (cache / "flow_matching").iterdir())
@@ -114,7 +117,7 @@ def test_long_sample_shape_and_continuity(fitted):
     jump at the joins of the windows beyond the largest step inside them."""
     from convsynth_jax.io import load_audio
 
-    sysm, fit, _, ann, held = fitted
+    sysm, fit, _, ann, held, _ = fitted
     a = next(iter(ann[held].values()))
     audio = load_audio(a.audio_path, channel=a.audio_channel)
     n = 40 * 30
@@ -141,7 +144,7 @@ def test_long_sample_shape_and_continuity(fitted):
 def test_determinism_under_a_seed(fitted):
     import jax
 
-    sysm, fit, _, ann, held = fitted
+    sysm, fit, _, ann, held, _ = fitted
     rng = np.random.default_rng(0)
     xs = [rng.normal(size=(60, 5)).astype(np.float32)]
     cs = [rng.normal(size=(60, 2)).astype(np.float32)]
@@ -156,14 +159,15 @@ def test_determinism_under_a_seed(fitted):
     assert not np.allclose(s1, s3)
 
 
-def test_loo_fold_with_the_flow_system(annotated, tmp_path):
+def test_loo_fold_with_the_flow_system(annotated, fitted, tmp_path):
     from convsynth_jax.evaluation.loo import run_fold
 
     cfg, ann = annotated
+    sysm, _, cache, _, _, models = fitted
     cfg = dataclasses.replace(cfg, loo=dataclasses.replace(cfg.loo, max_windows=1))
-    sysm = flow_system(cfg, train_steps=20)
-    df = run_fold(sysm, ann, 0, "audio", cfg, out_dir=tmp_path, cache_dir=tmp_path, export_bvh=True,
-                  with_audio=True)
+    memo = {(c, sysm.fit_key("audio")): m for c, m in models.items()}    # fold 0's models, trained once
+    df = run_fold(sysm, ann, 0, "audio", cfg, out_dir=tmp_path, cache_dir=cache, export_bvh=True,
+                  with_audio=True, models=memo)
     assert len(df) == 2 and df["success"].all(), df.get("failure")
     assert (df["constraints_total"] == 0).all() and np.isfinite(df["jerk"]).all()
     assert len(list((tmp_path / "bvh").glob("*_audio.bvh"))) == 2

@@ -76,14 +76,14 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
     names = list(ann)
     fps = params.fps
     cd = Path(cache) if cache else cache_dir(params)
-    out, timing = {}, {"fit_seconds": {}, "fit_wall_seconds": {}, "synthesis_seconds": [], "window_seconds": []}
+    out, timing = {}, {}    # timing: fold -> its figures
     po = sysm.options
     for fold in folds:
         held_out = names[fold]
         t0 = time.perf_counter()
         fitted = fit_fold(sysm, ann, held_out, CONDITION, cd)
-        timing["fit_wall_seconds"][fold] = time.perf_counter() - t0
-        timing["fit_seconds"][fold] = {c: float(m.model.seconds) for c, m in fitted.items()}
+        tf = timing[fold] = {"fit_wall_seconds": time.perf_counter() - t0, "synthesis_seconds": [], "window_seconds": [],
+                             "fit_seconds": {c: float(m.model.seconds) for c, m in fitted.items()}}
         gt_thr, syn_thr = fold_thresholds(ann, held_out, params.annotate, table)
         held = ann[held_out]
         for w in session_windows(held, fps, params.loo.window, params.loo.hop, params.loo.max_windows):
@@ -98,8 +98,8 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
                 if not res.success:
                     out[key] = {"ok": False}
                     continue
-                timing["synthesis_seconds"].append(res.seconds)
-                timing["window_seconds"].append(win.num_frames / fps)
+                tf["synthesis_seconds"].append(res.seconds)
+                tf["window_seconds"].append(win.num_frames / fps)
                 v = body_view(res.motion, params.annotate)
                 n = win.num_frames
                 jmax, other99 = join_steps(v.relative, fps, po.fps, po.window_frames, po.prefix_frames)
@@ -110,7 +110,7 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
                                                         syn_thr[a.character], params, "synth"),
                             "join_step_max": jmax, "other_step_p99": other99,
                             "bc_mismatched_gt": mismatched_bc(ann, fold, w, role, g, fps, params)}
-        print(f"flow_matching: fold {fold} done ({timing['fit_wall_seconds'][fold]:.1f} s fit)", flush=True)
+        print(f"flow_matching: fold {fold} done ({tf['fit_wall_seconds']:.1f} s fit)", flush=True)
     return out, timing
 
 
@@ -138,7 +138,12 @@ def main():
         (work / f"random_playback_{tag}.pkl").write_bytes(pickle.dumps(rp))
         (work / f"gt_{tag}.pkl").write_bytes(pickle.dumps(gt_store))
     t1 = time.perf_counter()
-    flow, timing = run_flow(args.folds, ann, table, gt_store, args.override, args.cache)
+    flow, timing = load_cached(work, "flow_matching", args.folds), load_cached(work, "flowtiming", args.folds)
+    if flow is None or timing is None:   # records of earlier runs whose folds together cover these are reused
+        flow, timing = run_flow(args.folds, ann, table, gt_store, args.override, args.cache)
+        (work / f"flow_matching_{tag}.pkl").write_bytes(pickle.dumps(flow))
+        (work / f"flowtiming_{tag}.pkl").write_bytes(pickle.dumps(timing))
+        (work / f"gt_{tag}.pkl").write_bytes(pickle.dumps(gt_store))
     flow_seconds = time.perf_counter() - t1
     results = {"flow_matching": flow, "random_playback": rp}
     if args.graph_work:
@@ -152,11 +157,11 @@ def main():
     s["join_step_max"] = float(np.nanmax([flow[k]["join_step_max"] for k in ok]))
     s["other_step_p99_max"] = float(np.nanmax([flow[k]["other_step_p99"] for k in ok]))
     s["fgd_ratio_to_random_playback"] = s["fgd_raw"] / s["fgd_raw_random_playback_same_windows"]
-    fit = [v for f in timing["fit_seconds"].values() for v in f.values()]
-    synth = float(np.sum(timing["synthesis_seconds"]))
-    speech = float(np.sum(timing["window_seconds"]))
+    fit = [v for t in timing.values() for v in t["fit_seconds"].values()]
+    synth = float(sum(np.sum(t["synthesis_seconds"]) for t in timing.values()))
+    speech = float(sum(np.sum(t["window_seconds"]) for t in timing.values()))
     timing_summary = {"flow_run_seconds": flow_seconds, "fit_seconds_per_character_mean": float(np.mean(fit)),
-                      "fit_wall_seconds_per_fold": timing["fit_wall_seconds"],
+                      "fit_wall_seconds_per_fold": {f: t["fit_wall_seconds"] for f, t in timing.items()},
                       "sampling_seconds_per_60s_speech": synth / speech * 60.0 if speech else float("nan")}
     floor = noise_floor(gt_store)
     result = {"folds": args.folds, "overrides": args.override, "summary": summary, "timing": timing_summary,

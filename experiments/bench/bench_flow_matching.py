@@ -5,7 +5,7 @@ metrics, as ``task=loo`` runs them), wall and CPU, on this machine.
     nice -n 10 python experiments/bench/bench_flow_matching.py [--folds 0 1 ...] [--override KEY=VALUE ...]
         [--cache DIR]   # default: a fresh folder, so every fold trains
 
-Writes experiments/results/bench_flow_matching.json (and its manifest); BVH of every window and each
+Writes bench_flow_matching.json (and its manifest) into experiments/results/; BVH of every window and each
 fold's cases.csv go to --out (default /tmp/flow_matching_sweep/<fold>), in the layout ``task=benchmark
 task.from_dir`` reads (``<out>/<fold>/cases.csv``, ``bvh/``).
 """

@@ -181,3 +181,27 @@ def test_bad_options_are_config_errors(annotated):
         flow_system(cfg, prefix_frames=16)
     with pytest.raises(ConfigError):
         flow_system(cfg, no_such_option=1)
+
+
+def test_smooth_joins_removes_the_step_at_each_join_and_keeps_the_prefixes():
+    """Windows of a smooth signal, each generated part offset by a jump: the step from the last
+    imposed frame to the first generated one is as small as the steps elsewhere after the fix (it
+    was the jump before), and every window's last ``prefix`` frames (the next prefix) are unchanged."""
+    from convsynth_jax.flow.joins import smooth_joins, window_starts
+
+    W, P, K, N = 48, 6, 6, 300
+    t = np.arange(N)[:, None]
+    x = np.sin(t / 15.0) * np.ones((1, 3))
+    starts = window_starts(N, W, P)
+    for s in starts[1:]:
+        x[s + P:] += 0.5                 # a jump where each window starts generating
+    step = np.abs(np.diff(x[:, 0]))
+    joins = np.array([s + P - 1 for s in starts[1:] if s + P < N])
+    assert step[joins].min() > 0.4      # the defect: a jump of 0.5 at every join
+    y = smooth_joins(x, W, P, K)
+    ystep = np.abs(np.diff(y[:, 0]))
+    inside = np.setdiff1d(np.arange(len(ystep)), joins)
+    assert ystep[joins].max() <= ystep[inside].max() + 1e-9
+    for s in starts[1:]:
+        np.testing.assert_array_equal(y[s:s + P], x[s:s + P])    # each window's prefix as sampled
+    np.testing.assert_array_equal(smooth_joins(x, W, P, 0), x)

@@ -22,6 +22,7 @@ false`` leaves the partner out.
 """
 from __future__ import annotations
 
+import dataclasses
 import json
 import logging
 import time
@@ -35,11 +36,25 @@ from ..errors import ConfigError
 from ..flow.features import (AUDIO_DIM, MotionBasis, Standardizer, audio_features, decode_motion, encode_motion,
                              fit_length, frame_detail_sd,
                              recording_audio_features, resample_features)
+from ..flow.joins import smooth_joins
 from ..flow.model import FlowModel, FlowParams, checkpoint_key, load_model, sample_sequence, save_model, train_flow
 from ..utils import atomic_path, file_lock
 from .base import SynthesisSystem, WindowInput, WindowResult
 
 log = logging.getLogger(__name__)
+
+
+@dataclass(frozen=True)
+class FlowSystemOptions(FlowParams):
+    """``system.options`` of ``system=flow_matching``: the model's :class:`FlowParams` plus what only
+    the system's sampling uses."""
+
+    join_frames: int = 6    # a window's jump at its first generated frame decays over this many model frames; 0: off
+
+
+def model_params(options: FlowParams) -> FlowParams:
+    """The model's own parameters out of the system's options (what training and its cache key see)."""
+    return FlowParams(**{f.name: getattr(options, f.name) for f in dataclasses.fields(FlowParams)})
 
 
 @dataclass
@@ -99,13 +114,13 @@ def _plot_losses(losses: np.ndarray, every: int, path: Path, title: str) -> None
 class FlowMatchingSystem(SynthesisSystem):
     produces_hands = True
     needs_audio = True
-    options_type = FlowParams
+    options_type = FlowSystemOptions
     fit_procedure = "fit (training)"
     synthesis_procedure = "synthesis (sampling)"
 
     def fit(self, clips, character: str, condition: str, cache_dir=None) -> FlowFit:
         self.condition_options(condition)
-        p: FlowParams = self.options
+        p = model_params(self.options)
         t0 = time.perf_counter()
         mine = [c for c in clips if getattr(c, "character", character) == character]
         if not mine:
@@ -201,6 +216,7 @@ class FlowMatchingSystem(SynthesisSystem):
         if p.partner_audio:
             cond.append(model.audio_norm.apply(audio_features(partner_audio, n, p.fps)))
         x = sample_sequence(model.model, np.concatenate(cond, axis=1), seed)
+        x = smooth_joins(x, p.window_frames, p.prefix_frames, int(self.options.join_frames))
         feats = resample_features(model.motion_norm.invert(x), num_frames, p.fps / fps)
         if p.detail_noise and model.detail_sd is not None:   # the recordings' frame-level detail, white
             rng = np.random.default_rng([int(seed) & 0x7FFFFFFF, 1])

@@ -6,7 +6,7 @@ metrics, as ``task=loo`` runs them), wall and CPU, on this machine.
         [--cache DIR]   # default: a fresh folder, so every fold trains
 
 Writes bench_flow_matching.json (and its manifest) into experiments/results/; BVH of every window and each
-fold's cases.csv go to --out (default /tmp/flow_matching_sweep/<fold>), in the layout ``task=benchmark
+fold's cases.csv go to --out (default /tmp/flow_matching_sweep/flow_matching/<fold>), in the layout ``task=benchmark
 task.from_dir`` reads (``<out>/<fold>/cases.csv``, ``bvh/``).
 """
 import argparse

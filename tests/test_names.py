@@ -31,8 +31,8 @@ def test_no_library_module_is_named_like_a_test():
 
 
 # experiment scripts that still reach into the tasks' wiring (the CDBN tasks' semi-synthetic corpus, the
-# benchmark task's autoencoder corpus, and the naturalness analysis)
-TASKS_IMPORTERS = {"analysis/naturalness.py", "bench/bench_cdbn.py", "bench/bench_metrics.py"}
+# benchmark task's autoencoder corpus)
+TASKS_IMPORTERS = {"bench/bench_cdbn.py", "bench/bench_metrics.py"}
 
 
 def test_experiments_use_the_public_api_not_the_tasks():

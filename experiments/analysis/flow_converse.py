@@ -24,7 +24,7 @@ from convsynth_jax.io import load_audio, load_bvh, save_bvh  # noqa: E402
 from convsynth_jax.io.audio import Audio  # noqa: E402
 from convsynth_jax.seeding import derive_seed  # noqa: E402
 from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
 from convsynth_jax.utils import write_json_atomic  # noqa: E402
 
 

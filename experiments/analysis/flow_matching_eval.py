@@ -36,7 +36,7 @@ from convsynth_jax.evaluation.loo import (fit_fold, fold_thresholds, recording_t
                                           session_windows, window_cooccurrence, window_input)
 from convsynth_jax.seeding import derive_seed  # noqa: E402
 from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
 
 CONDITION = "audio"
 

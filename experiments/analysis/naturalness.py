@@ -74,7 +74,7 @@ from convsynth_jax.seeding import derive_seed  # noqa: E402
 from convsynth_jax.synth.retime import warp_times  # noqa: E402
 from convsynth_jax.systems.base import SystemParams, WindowResult, make_system  # noqa: E402
 from convsynth_jax.systems.random_playback import RandomPlaybackOptions  # noqa: E402
-from convsynth_jax.tasks.common import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
 
 FP = FieldMetricParams()
 RP_SPEC = SystemParams(name="random_playback", factory="convsynth_jax.systems.random_playback:RandomPlaybackSystem",

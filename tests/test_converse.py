@@ -373,6 +373,27 @@ def test_only_motion_graph_systems(tiny_corpus_dir, cache, inputs, tmp_path):
         run_task(converse_cfg(tiny_corpus_dir, cache, inputs, "system=random_playback"), tmp_path)
 
 
+def test_a_system_that_reads_the_audio_alone_converses_without_a_transcript(tiny_corpus_dir, cache, inputs, tmp_path):
+    """system=flow_matching (converses_from_audio): two WAVs and no transcript give two BVH as long as the
+    audio, nothing recognized, and a report that says the constraints were neither enforced nor checked
+    (a tiny model: what is tested is the task's wiring, not the motion)."""
+    from convsynth_jax.io import load_audio, load_bvh
+
+    tiny = ["width=16", "blocks=2", "time_embedding=8", "train_steps=20", "batch_size=8", "log_every=10",
+            "window_frames=16", "prefix_frames=4", "sample_steps=2"]
+    audio = {k: v for k, v in inputs.items() if k.startswith("audio")}
+    s = run_task(converse_cfg(tiny_corpus_dir, cache, audio, "system=flow_matching", "task.video=false",
+                              *[f"system.options.{o}" for o in tiny]), tmp_path)
+    assert s["success"] and s["all_constraints_met"] is None and s["condition"] == "audio"
+    seconds = load_audio(inputs["audio_a"]).duration
+    for who in "AB":
+        m = load_bvh(tmp_path / f"{who}.bvh")
+        assert m.num_frames == int(round(seconds * m.fps)) and np.isfinite(np.asarray(m.rotations)).all()
+        assert not (tmp_path / f"words_{who}.tsv").exists()
+    report = json.loads((tmp_path / "report.json").read_text())
+    assert report["inputs"]["A"]["words"] == "none" and "not enforced" in report["constraints"]
+
+
 
 @pytest.mark.parametrize("seed", range(2))
 def test_lookahead_from_start_states_agrees_with_the_kernel(seed):

@@ -148,6 +148,10 @@ class SynthesisSystem(abc.ABC):
     #: fields are the only keys, typed; a field left None keeps the system's configured value. None:
     #: conditions stay plain mappings
     condition_type: type | None = None
+    #: whether :meth:`synthesize_audio` makes one character's motion for a whole conversation of any
+    #: length from the two speakers' audio alone (``task=converse`` calls it instead of chaining
+    #: searched windows)
+    converses_from_audio: bool = False
 
     def __init__(self, params, system: SystemParams):
         self.params = params
@@ -190,6 +194,12 @@ class SynthesisSystem(abc.ABC):
     @abc.abstractmethod
     def synthesize(self, model: Any, window: WindowInput, condition: str) -> WindowResult:
         """Motion for one window of held-out audio."""
+
+    def synthesize_audio(self, model: Any, own_audio, partner_audio, num_frames: int, fps: float, seed: int,
+                         chair_index: int = 0, name: str = ""):
+        """A Motion of ``num_frames`` frames at ``fps`` for ``model``'s character from its own audio and the
+        partner's (``io.Audio`` each), at chair ``chair_index``: only systems with ``converses_from_audio``."""
+        raise ConfigError(f"system {self.name!r} makes no conversation from audio alone (converses_from_audio is false)")
 
     def prepare(self, models: Mapping[str, Any]) -> None:
         """Called with the fitted models of one conversation (character -> model) before its windows

@@ -116,6 +116,7 @@ class FlowMatchingSystem(SynthesisSystem):
     needs_audio = True
     options_type = FlowSystemOptions
     fit_procedure = "fit (training)"
+    converses_from_audio = True
     synthesis_procedure = "synthesis (sampling)"
 
     def fit(self, clips, character: str, condition: str, cache_dir=None) -> FlowFit:

@@ -127,10 +127,11 @@ def _channel_of(audio, who: str, chosen: Optional[int], default: int, stereo: bo
     return audio.channel(c), c
 
 
-def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
+def load_inputs(p: ConverseParams, recognize: bool = True) -> tuple[SpeakerInput, SpeakerInput, float]:
     """(A, B, duration in seconds): both channels' audio and words, checked against each other. Without
     ``audio_b`` and ``transcript_b`` (and no ``stereo``), B is silent for the whole of A's speech. A
-    speaker without a transcript has its words recognized from its audio (:mod:`convsynth_jax.io.recognize`)."""
+    speaker without a transcript has its words recognized from its audio (:mod:`convsynth_jax.io.recognize`),
+    unless ``recognize`` is false (a system that reads the audio alone): then it has no words."""
     from ..io import load_audio
 
     if p.stereo:
@@ -150,7 +151,7 @@ def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
         a, ca = _channel_of(load_audio(_require(p.audio_a, "audio_a")), "A", p.channel_a, 0, False)
         silent = type(a)(np.zeros(a.num_samples, np.float32), a.sample_rate, "")
         log.info("no task.audio_b or task.transcript_b: B is silent for the whole conversation (%.2f s)", a.duration)
-        return (_speaker("A", a, str(p.audio_a), p.transcript_a, p, ca),
+        return (_speaker("A", a, str(p.audio_a), p.transcript_a, p, ca, recognize),
                 SpeakerInput("B", silent, _empty_words(), "(silent)", "(none)", "none"), a.duration)
     else:
         files = [_require(p.audio_a, "audio_a"), _require(p.audio_b, "audio_b")]
@@ -160,7 +161,7 @@ def load_inputs(p: ConverseParams) -> tuple[SpeakerInput, SpeakerInput, float]:
             auds.append(a)
             ch_idx.append(k)
     trs = [p.transcript_a, p.transcript_b]
-    out = [_speaker(name, a, f, tf, p, c) for name, a, f, tf, c in zip("AB", auds, files, trs, ch_idx)]
+    out = [_speaker(name, a, f, tf, p, c, recognize) for name, a, f, tf, c in zip("AB", auds, files, trs, ch_idx)]
     duration = max(a.duration for a in auds)
     if abs(auds[0].duration - auds[1].duration) > 0.1:
         log.warning("A's audio lasts %.2f s, B's %.2f s: the conversation lasts %.2f s (the shorter is silent after "
@@ -174,7 +175,8 @@ def tier_of(p: ConverseParams, who: str) -> str:
     return str(own) if own else str(p.tier)
 
 
-def _speaker(name: str, a, f: str, tf: Optional[str], p: ConverseParams, channel: Optional[int] = None) -> SpeakerInput:
+def _speaker(name: str, a, f: str, tf: Optional[str], p: ConverseParams, channel: Optional[int] = None,
+             recognize: bool = True) -> SpeakerInput:
     """One speaker's input: the words of ``tf`` (phrases aligned to the audio; none: recognized from the
     audio), none of which may end after the audio ``a`` (file ``f``)."""
     from ..io import load_transcript
@@ -183,6 +185,10 @@ def _speaker(name: str, a, f: str, tf: Optional[str], p: ConverseParams, channel
 
     x = name.lower()
     where = f"{f}" + (f" channel {channel}" if channel is not None else "")
+    if not tf and not recognize:
+        log.info("speaker %s: no transcript (task.transcript_%s): the system reads the audio alone, no words are "
+                 "recognized (the timeline shows no labels)", name, x)
+        return SpeakerInput(name, a, _empty_words(), f, "(none)", "none", channel)
     if not tf:
         t0 = time.perf_counter()
         words = recognize_words(a.samples, a.sample_rate)
@@ -380,8 +386,11 @@ def run(cfg, out_dir: Path) -> dict:
     p = task_settings(cfg)
     params = params_of(cfg)
     system = make_configured_system(params)
+    if system.converses_from_audio:
+        return run_from_audio(system, p, params, out_dir)
     if not isinstance(system, MotionGraphSystem):
-        raise ConfigError(f"task=converse chains motion-graph paths: it needs system=motion_graph (got {system.name!r})")
+        raise ConfigError(f"task=converse chains motion-graph paths or asks a system that makes a conversation from "
+                          f"audio alone (system=motion_graph or system=flow_matching; got {system.name!r})")
     system.condition_options(p.condition)
     search = system.search_params(p.condition)
     fps = params.fps
@@ -495,7 +504,10 @@ def run(cfg, out_dir: Path) -> dict:
     video = None
     if p.video and all(r.success for r in results.values()):
         t0 = time.perf_counter()
-        video = render_conversation(results, seg, chars, plan, fps, out_dir / "conversation.mp4", wav, p)
+        ticks = {w: tuple(t / fps for t in results[w].output_frames(results[w].synthetic_at)) for w in "AB"}
+        spans = [(r["start"] / fps, r["end"] / fps) for r in results["A"].windows] if len(plan) > 1 else None
+        video = render_conversation({w: results[w].motion for w in "AB"}, ticks, spans, seg, chars, fps,
+                                    out_dir / "conversation.mp4", wav, p)
         timings["video_s"] = time.perf_counter() - t0
     timings["total_s"] = time.perf_counter() - t_start
     # CPU seconds of the task (all its threads) and of the programs it ran (ffmpeg): on a busy machine the
@@ -528,6 +540,106 @@ def run(cfg, out_dir: Path) -> dict:
                "search_seconds": {w: report["characters"][w]["search_seconds"] for w in "AB"},
                "timings": timings}
     return summary
+
+
+def _padded(audio, seconds: float):
+    """``audio`` (mono) cut or padded with silence to ``seconds``."""
+    x = np.asarray(audio.samples, np.float32)
+    n = int(round(seconds * audio.sample_rate))
+    return type(audio)(np.concatenate([x, np.zeros(max(0, n - len(x)), np.float32)])[:n], audio.sample_rate, audio.path)
+
+
+def run_from_audio(system, p: ConverseParams, params, out_dir: Path) -> dict:
+    """``task=converse`` for a system that makes a whole conversation from the audio alone
+    (``converses_from_audio``, e.g. ``system=flow_matching``): inputs read and annotated as for the motion
+    graph (the labels are drawn on the timeline; a speaker without a transcript gets no words, nothing is
+    recognized), each character's model fitted on every session of the corpus, then one call per
+    speaker with its audio and the other's as the partner's. No plan, search or checker: such a system
+    enforces none of the paper's constraints, and the report says so."""
+    from ..evaluation.loo import fit_fold
+    from ..io import save_bvh
+    from ..seeding import derive_seed
+    from .common import annotated_corpus, cache_dir
+    from .synthesize import label_rows
+
+    t_start = time.perf_counter()
+    timings = {}
+    condition = p.condition
+    if condition not in system.conditions:
+        if len(system.conditions) != 1:
+            raise ConfigError(f"task.condition={condition!r}: system {system.name!r} has the conditions "
+                              f"{sorted(system.conditions)} (set task.condition)")
+        condition = next(iter(system.conditions))
+        log.info("task.condition=%s is not a condition of system %s: its one condition %r is used", p.condition,
+                 system.name, condition)
+    fps = params.fps
+    t0 = time.perf_counter()
+    A, B, duration = load_inputs(p, recognize=False)
+    seg = {"A": annotate(A, params), "B": annotate(B, params)}
+    timings["inputs_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    _, ann = annotated_corpus(params)
+    first = ann[next(iter(ann))]
+    chars = list(p.characters) if p.characters else [a.character for a in first.values()][:2]
+    known = sorted({a.character for d in ann.values() for a in d.values()})
+    if len(chars) != 2 or any(c not in known for c in chars):
+        raise ConfigError(f"task.characters must name two of the corpus's characters {known}, got {chars}")
+    timings["corpus_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    models = fit_fold(system, ann, None, condition, cache_dir(params))
+    timings["models_s"] = time.perf_counter() - t0
+    T = int(round(duration * fps))
+    audio = {"A": _padded(A.audio, duration), "B": _padded(B.audio, duration)}
+    motions, report_chars = {}, {}
+    t0 = time.perf_counter()
+    for k, (who, other) in enumerate(("AB", "BA")):
+        t1 = time.perf_counter()
+        seed = derive_seed(params.seed, fold=0, condition=condition, session="converse", window_frame=0, role_index=k)
+        motions[who] = system.synthesize_audio(models[chars[k]], audio[who], audio[other], T, fps, seed,
+                                               chair_index=k, name=f"{system.name}:converse:{who}")
+        if motions[who].num_frames != T:
+            raise SearchFailure(f"system {system.name} gave {motions[who].num_frames} frames for speaker {who}, "
+                                f"the conversation has {T}")
+        report_chars[who] = {"character": chars[k], "success": True, "seconds": time.perf_counter() - t1,
+                             "num_frames": T}
+    timings["synthesis_s"] = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    for who in "AB":
+        save_bvh(motions[who], out_dir / f"{who}.bvh")
+    wav = out_dir / "conversation.wav"
+    write_stereo(wav, A.audio, B.audio, duration)
+    timings["write_s"] = time.perf_counter() - t0
+    video = None
+    if p.video:
+        t0 = time.perf_counter()
+        video = render_conversation(motions, {"A": (), "B": ()}, None, seg, chars, fps, out_dir / "conversation.mp4",
+                                    wav, p)
+        timings["video_s"] = time.perf_counter() - t0
+    timings["total_s"] = time.perf_counter() - t_start
+    report = {"inputs": {"duration_s": duration, "num_frames": T, "fps": fps,
+                         **{sp.name: {"character": chars[k], "audio": sp.audio_file, "channel": sp.channel,
+                                      "transcript": sp.transcript_file, "words": sp.words_source,
+                                      "num_words": int(len(sp.words))} for k, sp in enumerate((A, B))}},
+              "system": system.name, "condition": condition, "characters": report_chars, "success": True,
+              "constraints": f"not enforced by system {system.name} and not checked (it has no source frames to check)",
+              "timings": timings, "segments": {w: label_rows(seg[w]) for w in "AB"}, "failure": None,
+              "all_constraints_met": None,
+              "outputs": {"bvh": ["A.bvh", "B.bvh"], "audio": wav.name, "video": None if video is None else video.name}}
+    write_json_atomic(out_dir / "report.json", report)
+    lines = [f"# Conversation: system {system.name}, condition {condition}", "",
+             f"{duration:.2f} s of speech, {T} frames at {fps:g} fps.", "",
+             "| speaker | character | audio | words | seconds |", "|---|---|---|---|---|"]
+    lines += [f"| {w} | {chars[k]} | {report['inputs'][w]['audio']} | {report['inputs'][w]['words']} | "
+              f"{report_chars[w]['seconds']:.1f} |" for k, w in enumerate("AB")]
+    lines += ["", f"Constraints: {report['constraints']}.", ""]
+    with atomic_path(out_dir / "report.md") as tmp:
+        tmp.write_text("\n".join(lines))
+    for w in "AB":
+        log.info("speaker %s (%s): %d frames from the audio alone; constraints not enforced by %s", w,
+                 report_chars[w]["character"], T, system.name)
+    return {"success": True, "all_constraints_met": None, "system": system.name, "condition": condition,
+            "duration_s": duration, "num_frames": T, "characters": {w: chars[k] for k, w in enumerate("AB")},
+            "timings": timings}
 
 
 def speaker_summary(report: dict, who: str, fps: float) -> dict:
@@ -598,21 +710,21 @@ def write_stereo(path: Path, a, b, duration: float, offsets_s=(0.0, 0.0)) -> Pat
     return save_wav(path, np.stack([at_rate(a, offsets_s[0]), at_rate(b, offsets_s[1])], axis=1), rate)
 
 
-def render_conversation(results, seg, chars, plan, fps, path: Path, wav: Path, p: ConverseParams) -> Path:
+def render_conversation(motions: dict, ticks: dict, spans, seg, chars, fps, path: Path, wav: Path,
+                        p: ConverseParams) -> Path:
     """``conversation.mp4`` (:func:`convsynth_jax.render.render_video`): both characters seen in their
-    chairs, a timeline of each speaker's labels with the character's synthetic transitions as ticks
-    (and the windows, when there are several), the conversation's audio. ``task.video_dpi`` sets the
+    chairs, a timeline of each speaker's labels with ``ticks[who]`` (seconds: the character's synthetic
+    transitions) and the windows ``spans`` ((start, end) seconds; None: one window), the conversation's audio. ``task.video_dpi`` sets the
     size: 80 draws 640 x 360 pixels of bodies."""
     from ..render import Panel, Timeline, body_from_motion, render_video
 
     names = [f"{w} ({chars[k]})" for k, w in enumerate("AB")]
-    bodies = tuple(body_from_motion(results[w].motion, names[k]) for k, w in enumerate("AB"))
-    timelines = [Timeline(names[k], seg[w], tuple(t / fps for t in results[w].output_frames(results[w].synthetic_at)), k)
-                 for k, w in enumerate("AB")]
-    if len(plan) > 1:
-        timelines.append(Timeline("windows", pd.DataFrame({"kind": [f"W{i}" for i in range(len(plan))],
-                                                           "start": [r["start"] / fps for r in results["A"].windows],
-                                                           "end": [r["end"] / fps for r in results["A"].windows]})))
+    bodies = tuple(body_from_motion(motions[w], names[k]) for k, w in enumerate("AB"))
+    timelines = [Timeline(names[k], seg[w], tuple(ticks[w]), k) for k, w in enumerate("AB")]
+    if spans:
+        timelines.append(Timeline("windows", pd.DataFrame({"kind": [f"W{i}" for i in range(len(spans))],
+                                                           "start": [a for a, _ in spans],
+                                                           "end": [b for _, b in spans]})))
     scale = p.video_dpi / 80.0
     return render_video([Panel(f"{names[0]} and {names[1]}", bodies)], timelines, fps, path, audio=wav,
                         render_fps=p.video_fps, panel_width=int(round(640 * scale)), panel_height=int(round(360 * scale)))

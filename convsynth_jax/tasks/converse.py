@@ -239,6 +239,17 @@ def annotate(sp: SpeakerInput, params) -> pd.DataFrame:
 
 
 # ----------------------------------------------------------------------------------------------- models
+def characters_of(p: ConverseParams, ann) -> list:
+    """The corpus characters playing A and B: ``task.characters``, else the roles of the corpus's first
+    session in order; a ConfigError unless they are two of the corpus's characters."""
+    first = ann[next(iter(ann))]
+    chars = list(p.characters) if p.characters else [a.character for a in first.values()][:2]
+    known = sorted({a.character for d in ann.values() for a in d.values()})
+    if len(chars) != 2 or any(c not in known for c in chars):
+        raise ConfigError(f"task.characters must name two of the corpus's characters {known}, got {chars}")
+    return chars
+
+
 def _graph_files(given) -> dict:
     """character -> graph file from ``task.graphs`` (a folder of task=build_graph, or a mapping)."""
     if isinstance(given, (str, Path)):
@@ -408,11 +419,7 @@ def run(cfg, out_dir: Path) -> dict:
 
     t0 = time.perf_counter()
     corpus, ann = annotated_corpus(params)
-    first = ann[next(iter(ann))]
-    chars = list(p.characters) if p.characters else [a.character for a in first.values()][:2]
-    known = sorted({a.character for d in ann.values() for a in d.values()})
-    if len(chars) != 2 or any(c not in known for c in chars):
-        raise ConfigError(f"task.characters must name two of the corpus's characters {known}, got {chars}")
+    chars = characters_of(p, ann)
     timings["corpus_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     models = fit_models(p, params, system, ann, chars)
@@ -579,11 +586,7 @@ def run_from_audio(system, p: ConverseParams, params, out_dir: Path) -> dict:
     timings["inputs_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     _, ann = annotated_corpus(params)
-    first = ann[next(iter(ann))]
-    chars = list(p.characters) if p.characters else [a.character for a in first.values()][:2]
-    known = sorted({a.character for d in ann.values() for a in d.values()})
-    if len(chars) != 2 or any(c not in known for c in chars):
-        raise ConfigError(f"task.characters must name two of the corpus's characters {known}, got {chars}")
+    chars = characters_of(p, ann)
     timings["corpus_s"] = time.perf_counter() - t0
     t0 = time.perf_counter()
     models = fit_fold(system, ann, None, condition, cache_dir(params))

@@ -156,3 +156,14 @@ def show_progress_bar(progress: bool, stream=None) -> bool:
         return bool(progress) and bool(stream.isatty())
     except (AttributeError, ValueError):  # no isatty, or a closed stream
         return False
+
+
+def save_figure(fig, path, dpi: int = 110) -> Path:
+    """Write matplotlib Figure ``fig`` to ``path`` in the format its suffix names (png, pdf, svg),
+    at ``dpi``; atomically (a temporary file renamed onto ``path``), so a failed write leaves no
+    half-written figure. Returns the path. The one way a figure reaches a file: the figures layer
+    re-exports it, and a method below it (a model's loss curve) calls it here."""
+    path = Path(path)
+    with atomic_path(path) as tmp:
+        fig.savefig(tmp, dpi=dpi, format=path.suffix.lstrip(".").lower() or "png")
+    return path

@@ -342,7 +342,7 @@ def sample_sequence(model: FlowModel, cond: np.ndarray, seed: int) -> np.ndarray
     return out[:N]
 
 
-def save_model(model: FlowModel, path: str | Path, extra: dict | None = None) -> None:
+def save_checkpoint(model: FlowModel, path: str | Path, extra: dict | None = None) -> None:
     """The model (and ``extra`` arrays, e.g. the normalisations) as msgpack, written atomically."""
     import flax.serialization
     import jax
@@ -359,7 +359,7 @@ def save_model(model: FlowModel, path: str | Path, extra: dict | None = None) ->
         Path(tmp).write_bytes(flax.serialization.msgpack_serialize(blob))
 
 
-def load_model(path: str | Path, params: FlowParams, key: str) -> tuple[FlowModel, dict] | None:
+def load_checkpoint(path: str | Path, params: FlowParams, key: str) -> tuple[FlowModel, dict] | None:
     """(model, extra) stored at ``path`` under ``key``, or None (absent, unreadable or another key)."""
     import flax.serialization
     import jax

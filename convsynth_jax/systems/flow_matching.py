@@ -37,8 +37,8 @@ from ..flow.features import (AUDIO_DIM, MotionBasis, Standardizer, audio_feature
                              fit_length, frame_detail_sd,
                              recording_audio_features, resample_features)
 from ..flow.joins import smooth_joins
-from ..flow.model import FlowModel, FlowParams, checkpoint_key, load_model, sample_sequence, save_model, train_flow
-from ..utils import atomic_path, file_lock
+from ..flow.model import FlowModel, FlowParams, checkpoint_key, load_checkpoint, sample_sequence, save_checkpoint, train_flow
+from ..utils import atomic_path, file_lock, save_figure
 from .base import SynthesisSystem, WindowInput, WindowResult
 
 log = logging.getLogger(__name__)
@@ -106,8 +106,7 @@ def _plot_losses(losses: np.ndarray, every: int, path: Path, title: str) -> None
     ax.set_title(title, fontsize=9)
     ax.grid(alpha=0.3)
     fig.tight_layout()
-    with atomic_path(path, suffix=".png") as tmp:
-        fig.savefig(tmp, dpi=110)
+    save_figure(fig, path)
     plt.close(fig)
 
 
@@ -153,15 +152,15 @@ class FlowMatchingSystem(SynthesisSystem):
         folder = Path(cache_dir) / "flow_matching"
         ckpt = folder / f"flow_{character}_{key[:16]}.msgpack"
         fig = ckpt.with_name(ckpt.stem + "_loss.png")
-        found = load_model(ckpt, p, key)
+        found = load_checkpoint(ckpt, p, key)
         if found is None:   # several processes on one cache folder: the first trains, the others wait and read
             with file_lock(ckpt):
-                found = load_model(ckpt, p, key)
+                found = load_checkpoint(ckpt, p, key)
                 if found is None:
                     model = train_flow(xs, cs, p, progress=bool(getattr(self.params, "progress", False)),
                                        label=character)
                     model.key = key
-                    save_model(model, ckpt)
+                    save_checkpoint(model, ckpt)
                     _plot_losses(model.losses, min(p.log_every, p.train_steps), fig,
                                  f"flow matching, {character}: {len(mine)} recordings, {sum(map(len, xs))} frames")
                     self._write_manifest(ckpt, model, character, mine, sum(map(len, xs)))

@@ -20,7 +20,11 @@ from convsynth_jax.synth.chain import at_steps, excess_acceleration, plan_window
 from test_search_beam_kernel import FPS, hub_graph, input_from_clip
 
 SECONDS = 30.0
-FAST = ["task.window_s=10", "task.hop_s=8", "task.snap_s=1", "task.min_last_s=5", "task.video_fps=5"]
+# short windows, and the beam of preset=paper (256 paths): these tests check the chaining, the reports and the
+# errors, whose figures (e.g. the seams the control shows at cuts) were set on those paths; preset=quality's
+# wider beam is tested by the search tests and measured by experiments/bench/bench_converse.py
+FAST = ["task.window_s=10", "task.hop_s=8", "task.snap_s=1", "task.min_last_s=5", "task.video_fps=5",
+        "search.beam_size=256", "search.max_candidates=2048"]
 
 
 # ---------------------------------------------------------------------------------------------- the searches

@@ -139,7 +139,10 @@ def test_on_failure_and_retime_defaults_are_the_paper():
     assert paper == SearchParams()
     quality = default_params(["preset=quality"]).search
     assert quality.on_failure == "best_effort" and quality.retime_factor > 0
-    assert dataclasses.replace(quality, on_failure="fail", retime_factor=0.0) == SearchParams()
+    assert quality.beam_size > SearchParams().beam_size and quality.max_candidates > SearchParams().max_candidates
+    # nothing else of the search differs from the paper's
+    assert dataclasses.replace(quality, on_failure="fail", retime_factor=0.0, beam_size=SearchParams().beam_size,
+                               max_candidates=SearchParams().max_candidates) == SearchParams()
 
 
 def test_bad_on_failure_and_retime_settings_are_config_errors():

@@ -80,6 +80,16 @@ def _own_constraints(cons: pd.DataFrame, job_dir, speaker) -> dict:
     return {(k, s, e): bool(m) for k, s, e, m in zip(own["kind"], own["start"], own["end"], own["met"])}
 
 
+def _per_speaker(constraints: pd.DataFrame, speakers: pd.DataFrame, keys, reference: str):
+    """Per speaker row of a converse sweep: (the row, the reference condition's constraints (kind, start,
+    end), the reference's name, the row's own checked constraints -> met, the kinds its condition switches off)."""
+    for sp in speakers.to_dict("records"):
+        group = {**{k: sp[k] for k in keys}, "speaker": sp["speaker"]}
+        ref, ref_name = _reference_constraints(constraints, group, reference) if len(constraints) else (set(), reference)
+        own = _own_constraints(constraints, sp["job_dir"], sp["speaker"]) if len(constraints) else {}
+        yield sp, ref, ref_name, own, {k for k in str(sp.get("kinds_off") or "").split(",") if k}
+
+
 def converse_constraints_met(constraints: pd.DataFrame, speakers: pd.DataFrame, keys=(),
                              reference: str = "all") -> pd.DataFrame:
     """Constraints met per condition and speaker of a converse sweep, on the same denominator in every
@@ -94,11 +104,7 @@ def converse_constraints_met(constraints: pd.DataFrame, speakers: pd.DataFrame, 
     rows = []
     if speakers.empty:
         return pd.DataFrame()
-    for sp in speakers.to_dict("records"):
-        group = {**{k: sp[k] for k in keys}, "speaker": sp["speaker"]}
-        ref, ref_name = _reference_constraints(constraints, group, reference) if len(constraints) else (set(), reference)
-        own = _own_constraints(constraints, sp["job_dir"], sp["speaker"]) if len(constraints) else {}
-        off = {k for k in str(sp.get("kinds_off") or "").split(",") if k}
+    for sp, ref, ref_name, own, off in _per_speaker(constraints, speakers, keys, reference):
         on = [c for c in ref if c[0] not in off]
         met = sum(own.get(c, False) for c in on)
         n = len(ref)
@@ -123,11 +129,7 @@ def converse_constraints_by_kind(constraints: pd.DataFrame, speakers: pd.DataFra
     rows = []
     if speakers.empty:
         return pd.DataFrame()
-    for sp in speakers.to_dict("records"):
-        group = {**{k: sp[k] for k in keys}, "speaker": sp["speaker"]}
-        ref, _ = _reference_constraints(constraints, group, reference) if len(constraints) else (set(), reference)
-        own = _own_constraints(constraints, sp["job_dir"], sp["speaker"]) if len(constraints) else {}
-        off = {k for k in str(sp.get("kinds_off") or "").split(",") if k}
+    for sp, ref, _, own, off in _per_speaker(constraints, speakers, keys, reference):
         for kind in [k.name for k in constraint_kinds()]:
             mine = [c for c in ref if c[0] == kind]
             rows.append({**{k: sp[k] for k in keys}, "condition": sp["condition"], "speaker": sp["speaker"],

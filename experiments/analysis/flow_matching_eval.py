@@ -26,7 +26,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 import numpy as np  # noqa: E402
 from _bench import write, write_markdown  # noqa: E402
-from naturalness import (FP, VARIANTS, body_view, load_cached, noise_floor, run_variant,  # noqa: E402
+from naturalness import (FP, VARIANTS, body_view, load_cached, measure_lines, noise_floor, rate_lines, run_variant,  # noqa: E402
                          summarize)
 
 from convsynth_jax.config import default_params  # noqa: E402
@@ -182,27 +182,8 @@ def markdown(summary, timing, folds) -> list:
     keys += ["still", "still_gt_same_windows", "beat_consistency", "bc_random_playback_same_windows",
              "bc_mismatched_gt_same_windows", "beat_consistency_gt", "pc_lr_within_gt_interval", "join_step_mean",
              "other_step_mean", "joins_above_other_p99"]
-    keys = list(dict.fromkeys(keys))
-    names = list(summary)
-
-    def fmt(x):
-        if x is None:
-            return "-"
-        if isinstance(x, bool):
-            return "yes" if x else "no"
-        return f"{x:.3g}"
-
-    lines = [f"folds {folds}", "", "| measure | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
-    lines += [f"| {k} | " + " | ".join(fmt(summary[n].get(k)) for n in names) + " |" for k in keys]
-    lines += ["", "Co-occurrence rates (synthesized, ground truth [95% interval]):", "",
-              "| rate | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
-    for r in sorted({r for s in summary.values() for r in s.get("cooccurrence", {})}):
-        cells = []
-        for n in names:
-            v = summary[n].get("cooccurrence", {}).get(r)
-            cells.append("-" if v is None else f"{v['synth_rate']:.2f} ({v['gt_rate']:.2f} [{v['gt_ci'][0]:.2f}, "
-                         f"{v['gt_ci'][1]:.2f}]){'' if v['within_gt_interval'] else ' out'}")
-        lines.append(f"| {r} | " + " | ".join(cells) + " |")
+    lines = measure_lines(summary, keys, folds)
+    lines += rate_lines(summary, "cooccurrence", "Co-occurrence rates (synthesized, ground truth [95% interval]):")
     lines += ["", "Timing:", "", f"- training per character (mean): {timing['fit_seconds_per_character_mean']:.1f} s",
               f"- sampling: {timing['sampling_seconds_per_60s_speech']:.2f} s per 60 s of speech",
               f"- the flow-matching part of this run: {timing['flow_run_seconds']:.0f} s"]

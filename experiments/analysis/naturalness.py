@@ -569,8 +569,40 @@ def main():
     write_markdown(args.name, markdown(summary, floor, args.folds), overrides=[f"folds={args.folds}"])
 
 
-def markdown(summary, floor, folds) -> list:
+def _fmt(x) -> str:
+    if x is None:
+        return "-"
+    if isinstance(x, bool):
+        return "yes" if x else "no"
+    return f"{x:.3g}"
+
+
+def measure_lines(summary, keys, folds) -> list:
+    """Markdown: the folds, then a table of ``keys`` (each once, in order) by variant."""
+    names, keys = list(summary), list(dict.fromkeys(keys))
+    lines = [f"folds {folds}", "", "| measure | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    return lines + [f"| {k} | " + " | ".join(_fmt(summary[n].get(k)) for n in names) + " |" for k in keys]
+
+
+def rate_lines(summary, field: str, title: str) -> list:
+    """Markdown: the co-occurrence rates of ``field`` by variant (synthesized, ground truth and its 95%
+    interval, 'out' outside it); nothing when no variant has them."""
     names = list(summary)
+    rates = sorted({r for s in summary.values() for r in s.get(field, {})})
+    if not rates:
+        return []
+    lines = ["", title, "", "| rate | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
+    for r in rates:
+        cells = []
+        for n in names:
+            v = summary[n].get(field, {}).get(r)
+            cells.append("-" if v is None else f"{v['synth_rate']:.2f} ({v['gt_rate']:.2f} [{v['gt_ci'][0]:.2f}, "
+                         f"{v['gt_ci'][1]:.2f}]){'' if v['within_gt_interval'] else ' out'}")
+        lines.append(f"| {r} | " + " | ".join(cells) + " |")
+    return lines
+
+
+def markdown(summary, floor, folds) -> list:
     keys = ["windows", "solved", "constraints_met", "fgd_raw", "fgd_raw_random_playback_same_windows",
             "fgd_raw_gt_same_windows_vs_all", "pose_frechet"]
     keys += sorted(k for s in summary.values() for k in s if k.startswith("pose_std_ratio"))
@@ -580,42 +612,10 @@ def markdown(summary, floor, folds) -> list:
              "revisited_seconds", "source_speed_ratio", "source_still_share", "best_effort", "retime_slow_share",
              "still_in_retime_stretch", "still_in_best_effort", "still_on_held_source", "still_on_still_source",
              "still_in_blend", "still_other"]
-    seen = []
-    for k in keys:
-        if k not in seen:
-            seen.append(k)
-
-    def fmt(x):
-        if x is None:
-            return "-"
-        if isinstance(x, bool):
-            return "yes" if x else "no"
-        return f"{x:.3g}"
-
-    lines = [f"folds {folds}", "", "| measure | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
-    lines += [f"| {k} | " + " | ".join(fmt(summary[n].get(k)) for n in names) + " |" for k in seen]
-    lines += ["", "Co-occurrence rates (synthesized, ground truth [95% interval]):", "",
-              "| rate | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
-    rates = sorted({r for s in summary.values() for r in s.get("cooccurrence", {})})
-    for r in rates:
-        cells = []
-        for n in names:
-            v = summary[n].get("cooccurrence", {}).get(r)
-            cells.append("-" if v is None else f"{v['synth_rate']:.2f} ({v['gt_rate']:.2f} [{v['gt_ci'][0]:.2f}, "
-                         f"{v['gt_ci'][1]:.2f}]){'' if v['within_gt_interval'] else ' out'}")
-        lines.append(f"| {r} | " + " | ".join(cells) + " |")
-    rates = sorted({r for s in summary.values() for r in s.get("cooccurrence_source", {})})
-    if rates:
-        lines += ["", "Co-occurrence rates read from the source recordings' speeds (a blend or cut is never a gesture; "
-                  "synthesized, ground truth [95% interval]):", "",
-                  "| rate | " + " | ".join(names) + " |", "|---|" + "---|" * len(names)]
-        for r in rates:
-            cells = []
-            for n in names:
-                v = summary[n].get("cooccurrence_source", {}).get(r)
-                cells.append("-" if v is None else f"{v['synth_rate']:.2f} ({v['gt_rate']:.2f} [{v['gt_ci'][0]:.2f}, "
-                             f"{v['gt_ci'][1]:.2f}]){'' if v['within_gt_interval'] else ' out'}")
-            lines.append(f"| {r} | " + " | ".join(cells) + " |")
+    lines = measure_lines(summary, keys, folds)
+    lines += rate_lines(summary, "cooccurrence", "Co-occurrence rates (synthesized, ground truth [95% interval]):")
+    lines += rate_lines(summary, "cooccurrence_source", "Co-occurrence rates read from the source recordings' speeds "
+                        "(a blend or cut is never a gesture; synthesized, ground truth [95% interval]):")
     lines += ["", "Noise floor (ground truth, odd vs even windows):", "", "| measure | value |", "|---|---|"]
     lines += [f"| {k} | {v:.3g} |" for k, v in floor.items()]
     return lines

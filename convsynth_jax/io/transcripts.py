@@ -162,6 +162,20 @@ def _header_columns(parts: list[str], sep: str, path: Path) -> tuple[int, int, i
     return find(_START, "start"), find(_END, "end"), find(_WORD, "word or text")
 
 
+def _row_times(start: str, end: str, row: str, path, where: str) -> tuple[float, float]:
+    """(start, end) seconds of one delimited row: numeric, finite, not ending before it starts; else a
+    TranscriptFormatError naming the file and ``where`` (its line) with the row."""
+    try:
+        t0, t1 = float(start), float(end)
+    except ValueError:
+        raise TranscriptFormatError(f"non-numeric time in {row!r}", path, where) from None
+    if not (math.isfinite(t0) and math.isfinite(t1)):
+        raise TranscriptFormatError(f"non-finite time in {row!r}", path, where)
+    if t1 < t0:
+        raise TranscriptFormatError(f"negative duration in {row!r}", path, where)
+    return t0, t1
+
+
 def _parse_delimited(text: str, sep: str, path: Path) -> pd.DataFrame:
     import csv
 
@@ -180,14 +194,7 @@ def _parse_delimited(text: str, sep: str, path: Path) -> pd.DataFrame:
                 continue
             if len(parts) < width:
                 raise TranscriptFormatError(f"{len(parts)} field(s), the header has {len(head)}", path, f"line {k}")
-            try:
-                start, end = float(parts[cols[0]]), float(parts[cols[1]])
-            except ValueError:
-                raise TranscriptFormatError(f"non-numeric time in {sep.join(parts)!r}", path, f"line {k}") from None
-            if not (math.isfinite(start) and math.isfinite(end)):
-                raise TranscriptFormatError(f"non-finite time in {sep.join(parts)!r}", path, f"line {k}")
-            if end < start:
-                raise TranscriptFormatError(f"negative duration in {sep.join(parts)!r}", path, f"line {k}")
+            start, end = _row_times(parts[cols[0]], parts[cols[1]], sep.join(parts), path, f"line {k}")
             word = parts[cols[2]].strip()
             if word:
                 rows.append((start, end, word))
@@ -199,14 +206,7 @@ def _parse_delimited(text: str, sep: str, path: Path) -> pd.DataFrame:
         parts = [p.strip() for p in line.split(sep)]
         if len(parts) < 3:
             raise TranscriptFormatError(f"expected start{sep!r}end{sep!r}word, got {line!r}", path, f"line {lineno}")
-        try:
-            start, end = float(parts[0]), float(parts[1])
-        except ValueError:
-            raise TranscriptFormatError(f"non-numeric time in {line!r}", path, f"line {lineno}") from None
-        if not (math.isfinite(start) and math.isfinite(end)):
-            raise TranscriptFormatError(f"non-finite time in {line!r}", path, f"line {lineno}")
-        if end < start:
-            raise TranscriptFormatError(f"negative duration in {line!r}", path, f"line {lineno}")
+        start, end = _row_times(parts[0], parts[1], line, path, f"line {lineno}")
         rows.append((start, end, sep.join(parts[2:]) if sep == "\t" else ",".join(parts[2:])))
     return pd.DataFrame(rows, columns=COLUMNS)
 

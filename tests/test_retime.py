@@ -309,3 +309,129 @@ def test_detail_options_are_off_in_the_paper_preset_and_on_in_quality():
             s.transition_penalty) == (0, 0, 0.0, 0.0, 0.0)
     assert quality.synth.retime_detail_frames == 3 and quality.synth.blend_detail_frames == 3
     assert (quality.synth.retime_min_speed, quality.synth.loop_penalty, quality.synth.transition_penalty) == (0, 0, 0)
+
+
+def two_clause_graph(frames=70):
+    """Clip c0 has two PCs, [10, 20) and [30, 40) (peaks at 15 and 35: a recorded pause of 10 frames);
+    clips c1 and c2 one PC [10, 20) each. Idle frames jump to any clip's frames 0, 3 and 6 (synthetic,
+    cost 1), so a path can reach a clause at almost any output frame, at the price of a transition."""
+    own, clip, frame, st, en, pk = [], [], [], [], [], []
+    n_clips = 3
+    for c in range(n_clips):
+        lab = np.zeros(frames, np.int8)
+        s_, e_, p_ = (np.full(frames, -1) for _ in range(3))
+        for a in ((10, 30) if c == 0 else (10,)):
+            lab[a:a + 10] = PC
+            s_[a:a + 10], e_[a:a + 10], p_[a:a + 10] = a, a + 10, a + 5
+        own.append(lab); clip.append(np.full(frames, c)); frame.append(np.arange(frames))
+        st.append(s_); en.append(e_); pk.append(p_)
+    S = n_clips * frames
+    rows, cols, cost, syn = [], [], [], []
+    for c in range(n_clips):
+        for f in range(frames):
+            s = c * frames + f
+            if f + 1 < frames:
+                rows.append(s); cols.append(s + 1); cost.append(0.0); syn.append(False)
+            if own[c][f] == 0 or f == frames - 1:
+                for c2 in range(n_clips):
+                    for g in (0, 3, 6):
+                        if c2 * frames + g != s + 1:
+                            rows.append(s); cols.append(c2 * frames + g); cost.append(1.0); syn.append(True)
+    rows, cols, cost, syn = map(np.asarray, (rows, cols, cost, syn))
+    o = np.lexsort((cols, rows))
+    rows, cols, cost, syn = rows[o], cols[o], cost[o], syn[o]
+    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=S))])
+    cat = lambda x: np.concatenate(x).astype(np.int32)  # noqa: E731
+    z = np.zeros(S, np.int32)
+    g = MotionGraph(tuple(f"c{c}" for c in range(n_clips)), FPS, cat(clip), cat(frame), cat(own), cat(st), cat(en),
+                    cat(pk), z, z - 1, z - 1, np.ones(S, bool), indptr, cols, cost.astype(np.float32), syn, {})
+    audio = {f"c{c}": (FrameAudio(own[c], st[c].astype(np.int32), en[c].astype(np.int32), pk[c].astype(np.int32)),
+                       FrameAudio(np.zeros(frames, np.int8), *(np.full(frames, -1, np.int32),) * 3))
+             for c in range(n_clips)}
+    return g, audio
+
+
+def test_start_slack_lets_one_recorded_run_cover_two_clauses_with_another_pause():
+    """The input's two clauses are 14 frames apart, the recording's 10. With the start tolerance (1
+    frame) the second clause must be entered by a synthetic transition; with search.start_slack_factor
+    0.5 (slack floor(0.5 * 14) = 7 frames) one run of c0 plays both, with no transition, the warp moves
+    the second clause onto the input's times and the independent checker confirms every constraint
+    through it (and refuses the same path without the warp). The beam kernel and its NumPy reference
+    take the same path under the slack rule."""
+    from convsynth_jax.search.retime import retime_knots
+
+    g, audio = two_clause_graph()
+    own = pd.DataFrame([("PC", 1.0, 1.5, 2.0), ("PC", 3.4, 3.9, 4.4)], columns=["kind", "start", "peak", "end"])
+    T = 60
+    base = SearchParams(tolerance=0.1, beam_size=64, max_degree=32, retime_factor=0.3, temperature=0.05)
+    runs = {}
+    for f in (0.0, 0.5):
+        cfg = dataclasses.replace(base, start_slack_factor=f)
+        cons = build_constraints(own, None, T, FPS, cfg)
+        res = beam_search(g, cons, cfg, seed=0)
+        assert res.success
+        warp = retime_knots(g, cons, res.path, cfg.retime_factor)
+        clips = np.array([g.clip_names[g.clip[s]] for s in res.path])
+        chk = check_path(clips, g.frame[res.path], audio, own, None, FPS, 0.1, warp=warp)
+        assert chk["met"] == chk["total"], chk
+        runs[f] = (res, clips, warp)
+    assert runs[0.0][0].num_synthetic_transitions >= 1
+    res, clips, warp = runs[0.5]
+    assert res.num_synthetic_transitions == 0 and (clips == "c0").all()
+    raw = check_path(clips, g.frame[res.path], audio, own, None, FPS, 0.1)
+    assert raw["met"] < raw["total"]
+    # the second clause's start: the recording's frame 30 shows at the input's 34
+    out_k, path_k = warp
+    assert abs(np.interp(34, out_k, path_k) - (30 - g.frame[res.path[0]])) < 1e-9
+    cfg = dataclasses.replace(base, start_slack_factor=0.5, retry_temperatures=[], retry_beam_size=0, lookahead=False)
+    cons = build_constraints(own, None, T, FPS, cfg)
+    ref = reference_beam_search(g, cons, cfg, seed=1, temperature=cfg.temperature)
+    got = beam_search(g, cons, cfg, seed=1)
+    assert ref.success and got.success
+    np.testing.assert_array_equal(got.path, ref.path)
+
+
+def test_start_slack_needs_retiming_and_a_factor_below_one():
+    from convsynth_jax.errors import ConfigError
+
+    own = pd.DataFrame([("PC", 1.0, 1.5, 2.0)], columns=["kind", "start", "peak", "end"])
+    with pytest.raises(ConfigError, match="start_slack_factor > 0 needs search.retime_factor"):
+        build_constraints(own, None, 40, FPS, SearchParams(start_slack_factor=0.5))
+    with pytest.raises(ConfigError, match="start_slack_factor must lie in"):
+        build_constraints(own, None, 40, FPS, SearchParams(retime_factor=0.2, start_slack_factor=1.0))
+    # the slack is floor(factor * gap) and widens the entry window and the free range, not the idle naming
+    c0 = build_constraints(own, None, 40, FPS, SearchParams(retime_factor=0.2))
+    c5 = build_constraints(own, None, 40, FPS, SearchParams(retime_factor=0.2, start_slack_factor=0.5))
+    assert (c0.paper.own_kind >= 0).sum() == 3 and (c5.paper.own_kind >= 0).sum() == 3 + 2 * 5
+    assert (c5.paper.own_start_tol[c5.paper.own_kind >= 0] == 1 + 5).all()
+    assert (c5.own_req[4:9] == -1).all() and c0.own_req[4] == 0
+    assert [s for s in c5.segments if s["kind"] == "idle"] == [s for s in c0.segments if s["kind"] == "idle"]
+
+
+def test_checker_reads_a_stretched_pause_as_idle_up_to_the_warped_start():
+    """A path plays two listener responses of one recording 2 frames apart ([10, 20) and [22, 32)); the
+    warp puts the second at the input's [30, 40), stretching the 2-frame pause over 10 output frames.
+    Each output frame shows the label of the path frame its path time lies in, so the pause reads idle
+    up to frame 30, where the warp places the response. (Read at the nearest path frame, output frames
+    28 and 29 showed the response's first frame: an idle run the checker failed although the response
+    is placed exactly.)"""
+    from convsynth_jax.annotate.types import LR
+
+    n = 60
+    lab = np.zeros(n, np.int8)
+    st, en = np.full(n, -1, np.int32), np.full(n, -1, np.int32)
+    for a in (10, 22):
+        lab[a:a + 10] = LR
+        st[a:a + 10], en[a:a + 10] = a, a + 10
+    audio = {"c0": (FrameAudio(lab, st, en, np.full(n, -1, np.int32)),
+                    FrameAudio(np.zeros(n, np.int8), *(np.full(n, -1, np.int32),) * 3))}
+    own = pd.DataFrame([("LR", 1.0, np.nan, 2.0), ("LR", 3.0, np.nan, 4.0)], columns=["kind", "start", "peak", "end"])
+    T = 50
+    warp = (np.array([0.0, 10, 20, 30, 40, 49]), np.array([0.0, 10, 20, 22, 32, 49]))
+    chk = check_path(["c0"] * T, np.arange(T), audio, own, None, FPS, 0.1, warp=warp)
+    assert chk["met"] == chk["total"], [d for d in chk["details"] if not d["met"]]
+    # a control where it must fail: the second response warped to start 2 frames late leaves it unmatched
+    late = (np.array([0.0, 10, 20, 32, 42, 49]), np.array([0.0, 10, 20, 22, 32, 49]))
+    bad = check_path(["c0"] * T, np.arange(T), audio, own, None, FPS, 0.1, warp=late)
+    unmet = {(d["kind"], d["start"]) for d in bad["details"] if not d["met"]}
+    assert ("LR", 30) in unmet and ("LR", 10) not in unmet

@@ -206,6 +206,34 @@ def test_paper_placement_rule_matches_a_plain_comparison_everywhere():
             assert bool(got[i]) == want, (labels[i], offsets[i], lengths[i], peaks[i])
 
 
+def test_placement_rule_with_a_start_slack_matches_the_rule_written_out():
+    """With a start tolerance stol > tol (search.start_slack_factor) the start may lie up to stol off;
+    the instance is then read as moved back by its offset beyond tol, and its end and peak must lie
+    within their tolerances of the input's after that move. With stol == tol the rule is the plain one
+    (an exhaustive grid)."""
+    import itertools
+
+    from convsynth_jax.search.constraints import placement_ok
+
+    tol, t, s, e, p, etol, ptol = 2, 40, 35, 50, 42, 4, 3
+    labels, offsets, lengths, peaks = (np.array(v) for v in zip(*itertools.product(
+        (1,), range(0, 16), range(8, 24), (-1, 0, 3, 6, 9, 12))))
+    for stol in (tol, tol + 5):
+        got = placement_ok(labels, offsets, lengths, peaks, t, (1, s, e, p, etol, ptol, stol), tol)
+        for i in range(labels.size):
+            st = t - offsets[i]
+            x = st - s
+            shift = 0 if abs(x) <= tol else (x - tol if x > 0 else x + tol)
+            want = (abs(x) <= stol and abs(st - shift + lengths[i] - e) <= etol
+                    and peaks[i] >= 0 and abs(st - shift + peaks[i] - p) <= ptol)
+            if stol == tol:   # no shift within tol: the rule without slack
+                assert shift == 0 or not want
+            assert bool(got[i]) == want, (stol, offsets[i], lengths[i], peaks[i])
+        if stol > tol:   # an instance 7 frames early with the input's duration and peak offset is admitted
+            assert placement_ok(1, 0, e - s, p - s, s - 7, (1, s, e, p, etol, ptol, stol), tol)
+            assert not placement_ok(1, 0, e - s, p - s, s - 7, (1, s, e, p, etol, ptol, tol), tol)
+
+
 @pytest.mark.parametrize("method", ["beam", "dfs"])
 def test_labels_search_keeps_touching_clauses_apart_as_the_checker_does(method):
     """An input clause split at a word boundary into two touching PCs [s, m) and [m, e). In

@@ -158,7 +158,7 @@ def padded_inputs(c: Constraints):
     if c.paper is not None:
         pa = c.paper
         # padding frames: no window, free entries, no flag check, ... end and peak tolerances (retiming)
-        pad = EntryWindows(-1, 0, 0, 0, True, False, False, 0, 0)
+        pad = EntryWindows(-1, 0, 0, 0, True, False, False, 0, 0, 0)
         own_a = EntryWindows(*(padb(a, v) for a, v in zip(pa.own(), pad, strict=True)))
         par_a = EntryWindows(*(padb(a, v) for a, v in zip(pa.partner(), pad, strict=True)))
         paper_in = PaperInputs(own_a, par_a, (np.int32(pa.own_codes), np.int32(pa.par_codes)), np.int32(c.tol))

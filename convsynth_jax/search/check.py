@@ -133,9 +133,14 @@ def _check_paper(source_clip, source_frame, clip_audio, own_segments, partner_se
         if k.channel == "own" or partner_segments is not None:
             match(k.name, k.code, 0 if k.channel == "own" else 1, inputs[k.name])
     own = np.array([clip_audio[c][0].label[f] for c, f in zip(source_clip, source_frame)], np.int32)
-    if warp is not None:   # the label shown at each output frame: the nearest path frame's
+    if warp is not None:
+        # the label shown at each output frame: that of the path frame its path time lies in, floor(tau), so
+        # that a played instance [st, en) of the path shows on exactly the output frames [to_out(st),
+        # to_out(en)) its placement is read at above (the nearest frame would show a clause whose start the
+        # warp puts at s from up to half a path frame earlier: several output frames where a short pause
+        # is stretched)
         tau = np.interp(np.arange(T), *(np.asarray(k, np.float64) for k in warp))
-        own = own[np.clip(np.rint(tau).astype(np.int64), 0, T - 1)]
+        own = own[np.clip(np.floor(tau + 1e-9).astype(np.int64), 0, T - 1)]
     d = np.diff(np.concatenate([[0], (~own_mask).astype(np.int8), [0]]))
     for a, b in zip(np.flatnonzero(d == 1), np.flatnonzero(d == -1)):
         details.append({"kind": "idle", "start": int(a), "end": int(b), "peak": None,

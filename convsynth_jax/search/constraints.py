@@ -93,6 +93,7 @@ class EntryWindows(NamedTuple):
     check: object       # bool: a window closes (its flag must be set)
     end_tol: object     # int32: the end tolerance (tol, + the retiming slack)
     peak_tol: object    # int32: the peak tolerance
+    start_tol: object   # int32: the start tolerance (tol, + the start slack of ``search.start_slack_factor``)
 
 
 @dataclass
@@ -114,6 +115,7 @@ class PaperArrays:
     own_check: np.ndarray
     own_end_tol: np.ndarray     # (T,) int32: the window's end tolerance (tol, + the retiming slack)
     own_peak_tol: np.ndarray    # (T,) int32: the window's peak tolerance
+    own_start_tol: np.ndarray   # (T,) int32: the window's start tolerance
     par_kind: np.ndarray
     par_start: np.ndarray
     par_end: np.ndarray
@@ -128,14 +130,14 @@ class PaperArrays:
     def own(self) -> EntryWindows:
         """The own channel's windows, each (T,)."""
         return EntryWindows(self.own_kind, self.own_start, self.own_end, self.own_peak, self.own_free,
-                            self.own_reset, self.own_check, self.own_end_tol, self.own_peak_tol)
+                            self.own_reset, self.own_check, self.own_end_tol, self.own_peak_tol, self.own_start_tol)
 
     def partner(self) -> EntryWindows:
         """The partner channel's windows, each (T,) (no peak; both tolerances tol)."""
         nopk = np.full_like(self.par_start, NO_PEAK)
         tol = np.full_like(self.par_start, self.par_tol)
         return EntryWindows(self.par_kind, self.par_start, self.par_end, nopk, self.par_free, self.par_reset,
-                            self.par_check, tol, tol)
+                            self.par_check, tol, tol, tol)
 
 
 @dataclass
@@ -176,6 +178,11 @@ def build_constraints(own_segments: pd.DataFrame, partner_segments: pd.DataFrame
         raise ConfigError(f"search.matching must be one of {list(MATCHING_MODES)}, got {params.matching!r}")
     if not 0.0 <= float(params.retime_factor) < 1.0:
         raise ConfigError(f"search.retime_factor must lie in [0, 1), got {params.retime_factor}")
+    if not 0.0 <= float(params.start_slack_factor) < 1.0:
+        raise ConfigError(f"search.start_slack_factor must lie in [0, 1), got {params.start_slack_factor}")
+    if float(params.start_slack_factor) > 0 and float(params.retime_factor) <= 0:
+        raise ConfigError("search.start_slack_factor > 0 needs search.retime_factor > 0: the warp that retiming "
+                          "builds is what moves a slack start onto the input's")
     relaxed = frozenset(relaxed)
     if params.matching == "paper":
         return _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxed)
@@ -277,6 +284,22 @@ def _slack(retime: float, s: int, x: int, tol: int, T: int) -> int:
     return max(0, min(int(np.floor(retime * (x - s))), T - 2 - x - tol, x - tol - 1))
 
 
+def _start_slacks(own_segments, fps, factor: float, tol: int, T: int) -> dict:
+    """Start slack (frames) of each own input segment, keyed by its (start, end) frames:
+    floor(factor * g), g the idle gap before it (frames since the end of the previous own segment of any
+    kind; from the window's first frame for the first), bounded like :func:`_slack` so that every start
+    it admits lies inside the window's inner frames. Empty without a factor."""
+    if factor <= 0 or own_segments is None or not len(own_segments):
+        return {}
+    frames = sorted(_seg_frames(r, fps)[:2] for r in own_segments.itertuples(index=False))
+    out, prev_end = {}, 0
+    for s, e in frames:
+        g = max(0, s - prev_end)
+        out[(s, e)] = max(0, min(int(np.floor(factor * g)), T - 2 - s - tol, s - tol - 1))
+        prev_end = max(prev_end, e)
+    return out
+
+
 def _seg_frames(r, fps):
     pk = getattr(r, "peak", np.nan)
     pk = int(round(pk * fps)) if pk is not None and np.isfinite(pk) else None
@@ -297,12 +320,13 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
     def channel():
         return dict(kind=np.full(T, FREE, np.int32), start=np.zeros(T, np.int32), end=np.zeros(T, np.int32),
                     peak=np.full(T, NO_PEAK, np.int32), free=np.zeros(T, bool), reset=np.zeros(T, bool),
-                    check=np.zeros(T, bool), etol=np.full(T, tol, np.int32), ptol=np.full(T, tol, np.int32))
+                    check=np.zeros(T, bool), etol=np.full(T, tol, np.int32), ptol=np.full(T, tol, np.int32),
+                    stol=np.full(T, tol, np.int32))
 
     ch = {"own": channel(), "partner": channel()}
     if not use_c:
         pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak")), np.ones(T, bool), zeros, zeros,
-                         ch["own"]["etol"], ch["own"]["ptol"],
+                         ch["own"]["etol"], ch["own"]["ptol"], ch["own"]["stol"],
                          *(ch["partner"][k] for k in ("kind", "start", "end")), np.ones(T, bool), zeros, zeros, 0, 0,
                          tol)
         return Constraints(T, fps, tol, own, par, zeros, zeros, zeros, segs, np.full(T, FREE, np.int32),
@@ -315,18 +339,22 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
     counted = {"own": [], "partner": []}   # (code, s, e, peak, kind name) of the constraints
     free_ranges = {"own": [], "partner": []}
     own_segments = own_segments if own_segments is not None else pd.DataFrame(columns=["kind", "start", "end"])
+    start_slacks = _start_slacks(own_segments, fps, float(params.start_slack_factor) if retime > 0 else 0.0, tol, T)
+    start_zone = np.zeros(T, bool)     # start slack: frames before a constrained segment's start the warp moves
     for r in own_segments.itertuples(index=False):
         s, e, p = _seg_frames(r, fps)
         kind = kind_of_segment("own", r.kind)
         code = kind.code if kind is not None else None
         # retiming (ours): the end may lie up to ``slack`` frames further off, the core and idle rule shrink;
-        # only as far as the warp can move it (inside the window)
-        slack = _slack(retime, s, e, tol, T) if kind is not None and kind.retimable else 0
-        lo, hi = max(0, s - tol), min(T, e + tol + slack)
+        # only as far as the warp can move it (inside the window); with the start slack the start too
+        retimable = kind is not None and kind.retimable
+        slack = _slack(retime, s, e, tol, T) if retimable else 0
+        sslack = start_slacks.get((s, e), 0) if retimable and code is not None and (own_codes >> code) & 1 else 0
+        lo, hi = max(0, s - tol - sslack), min(T, e + tol + slack)
         if hi <= 0 or lo >= T:
             continue
         own[lo:hi] = FREE
-        own_plain[lo:min(T, e + tol)] = FREE
+        own_plain[max(0, s - tol):min(T, e + tol)] = FREE
         if code is None or not (own_codes >> code) & 1 or (kind.name, s, e) in relaxed:
             free_ranges["own"].append((lo, hi))
             if code is None or not (own_codes >> code) & 1:
@@ -334,12 +362,14 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
             continue
         if retime > 0:
             end_zone[max(0, e - tol - slack):hi] = True
+            if sslack:   # the whole entry window: the warp moves what the path plays there by up to the slack
+                start_zone[lo:max(lo, min(T, s + tol + sslack))] = True
         c = s + tol
         a, b = max(0, s + tol), min(T, e - tol - slack)
         if 0 <= c < T or (c < 0 and min(T, e - tol) > a):
             pk = p if kind.has_peak else None
             pslack = _slack(retime, s, p, tol, T) if pk is not None and kind.retimable else 0
-            counted["own"].append((code, s, e, pk, kind.name, slack, pslack))
+            counted["own"].append((code, s, e, pk, kind.name, slack, pslack, sslack))
         else:
             free_ranges["own"].append((lo, hi))
         if b > a:
@@ -355,7 +385,7 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
             if (kind.name, s, e) in relaxed:
                 pass    # no label core; the range stays free (below)
             elif 0 <= c < T or (c < 0 and b > a):
-                counted["partner"].append((kind.code, s, e, None, kind.name, 0, 0))
+                counted["partner"].append((kind.code, s, e, None, kind.name, 0, 0, 0))
                 if b > a:
                     par[a:b] = kind.code
                 continue
@@ -370,11 +400,11 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
         for lo, hi in free_ranges[name]:
             arr["free"][lo:hi] = True
         items = sorted(counted[name], key=lambda x: x[1])
-        for i, (code, s, e, p, kind, slack, pslack) in enumerate(items):
-            lo, hi = s - tol, s + tol                      # entry window [lo, hi]
-            if i > 0 and items[i - 1][1] + tol >= lo:      # overlaps the previous window: split (ours)
+        for i, (code, s, e, p, kind, slack, pslack, sslack) in enumerate(items):
+            lo, hi = s - tol - sslack, s + tol + sslack    # entry window [lo, hi]
+            if i > 0 and items[i - 1][1] + tol + items[i - 1][7] >= lo:   # overlaps the previous window: split (ours)
                 lo = (items[i - 1][1] + s) // 2 + 1
-            if i + 1 < len(items) and items[i + 1][1] - tol <= hi:
+            if i + 1 < len(items) and items[i + 1][1] - tol - items[i + 1][7] <= hi:
                 hi = (s + items[i + 1][1]) // 2
             if hi < 0:                                     # began before the window: frame 0 carries it
                 lo = hi = 0
@@ -384,17 +414,20 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
                 arr["start"][lo:hi_c + 1], arr["end"][lo:hi_c + 1] = s, e
                 arr["peak"][lo:hi_c + 1] = NO_PEAK if p is None else p
                 arr["etol"][lo:hi_c + 1], arr["ptol"][lo:hi_c + 1] = tol + slack, tol + pslack
+                arr["stol"][lo:hi_c + 1] = tol + sslack
                 arr["reset"][lo] = True
                 if s + tol >= 0 and hi_c == hi:
                     arr["check"][hi] = True
-            arr["free"][max(0, s - tol):max(0, min(T, e + tol + slack))] = False
-            segs.append({"kind": kind, "channel": name, "start": s, "end": e, "peak": p})
+            arr["free"][max(0, s - tol - sslack):max(0, min(T, e + tol + slack))] = False
+            segs.append({"kind": kind, "channel": name, "start": s, "end": e, "peak": p, "start_tol": tol + sslack,
+                         "end_tol": tol + slack, "peak_tol": tol + pslack})
         arr["free"] &= arr["kind"] < 0
     own_not = np.full(T, FREE, np.int32)
     # retiming: the frames around a clause's end may hold the clause's own end, but no own hesitation
     # (the warp moves the path's frames after a source clause's end to the input's end, so one entered
     # there would land in the input's idle run), unless the input has an own segment of its own there
-    own_not[end_zone & ~unconstrained & (own == FREE)] = HP
+    # the start slack's frames before a clause's start likewise (the warp moves them into the clause's start)
+    own_not[(end_zone | start_zone) & ~unconstrained & (own == FREE)] = HP
     for a, b in _runs(own_plain == IDLE):
         if ("idle", a, b) in relaxed:   # best effort: the run is free, entries of any kind allowed
             own[a:b] = np.where(own[a:b] == IDLE, FREE, own[a:b])
@@ -402,7 +435,8 @@ def _build_paper(own_segments, partner_segments, num_frames, fps, params, relaxe
             ch["own"]["free"][a:b] = ch["own"]["kind"][a:b] < 0
         else:
             segs.append({"kind": "idle", "channel": "own", "start": int(a), "end": int(b), "peak": None})
-    pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak", "free", "reset", "check", "etol", "ptol")),
+    pa = PaperArrays(*(ch["own"][k] for k in ("kind", "start", "end", "peak", "free", "reset", "check", "etol", "ptol",
+                                               "stol")),
                      *(ch["partner"][k] for k in ("kind", "start", "end", "free", "reset", "check")),
                      own_codes, par_codes, tol)
     return Constraints(T, fps, tol, own, par, zeros.copy(), zeros.copy(), zeros.copy(), segs, own_not,
@@ -424,15 +458,28 @@ def segment_info(graph) -> np.ndarray:
 
 def placement_ok(label, offset, length, peak_off, t, win, tol):
     """Does a source segment instance (label, offset of the state, length, peak offset) at output frame
-    t match the entry window ``win`` = (kind, start, end, peak[, end tolerance, peak tolerance]) of that
-    frame? The start within ``tol``, the end and peak within their tolerances (default ``tol``; larger
-    with retiming). Operators only, so it works on NumPy and JAX arrays alike."""
+    t match the entry window ``win`` = (kind, start, end, peak[, end tolerance, peak tolerance[, start
+    tolerance]]) of that frame? The start within its tolerance, the end and peak within theirs (default
+    ``tol``; larger with retiming) once the instance is moved back by its start's shift beyond ``tol``
+    (:func:`slack_shift`: the start slack moves the whole instance). Operators only, so it works on
+    NumPy and JAX arrays alike."""
     kind, s, e, p = win[:4]
     etol, ptol = (win[4], win[5]) if len(win) > 4 else (tol, tol)
+    stol = win[6] if len(win) > 6 else tol
     st = t - offset
-    ok = (label == kind) & (st - s <= tol) & (s - st <= tol) & (st + length - e <= etol) & (e - st - length <= etol)
-    pk = st + peak_off - p
+    d = slack_shift(st - s, tol)
+    ok = (label == kind) & (st - s <= stol) & (s - st <= stol)
+    ok = ok & (st - d + length - e <= etol) & (e - st + d - length <= etol)
+    pk = st - d + peak_off - p
     return ok & ((p == NO_PEAK) | ((peak_off >= 0) & (pk <= ptol) & (-pk <= ptol)))
+
+
+def slack_shift(x, tol):
+    """The part of a start's offset x (placed minus input start, frames) beyond the tolerance ``tol``,
+    which only the start slack admits: 0 for |x| <= tol, else x - tol or x + tol. The whole instance is
+    read as moved back by it, so within ``tol`` the rule is the one without slack. Operators only
+    (NumPy, JAX and Python ints)."""
+    return (x - tol) * (x > tol) + (x + tol) * (x < -tol)
 
 
 def paper_channel_step(label_x, off_x, len_x, label_y, off_y, len_y, peak_y, synthetic, first, t, flag, arrs,
@@ -441,7 +488,7 @@ def paper_channel_step(label_x, off_x, len_x, label_y, off_y, len_y, peak_y, syn
     frame 0 and y the start state; x and synthetic are then ignored). arrs: that frame's
     (kind, start, end, peak, free, reset, check, end tolerance, peak tolerance). Returns (ok, new flag).
     Operators only (NumPy/JAX)."""
-    kind, s, e, p, free, reset, check, etol, ptol = arrs
+    kind, s, e, p, free, reset, check, etol, ptol, stol = arrs
     cons_x = ((codes >> label_x) & 1) == 1
     cons_y = ((codes >> label_y) & 1) == 1
     mid_x = cons_x & (off_x < len_x - 1)
@@ -449,7 +496,7 @@ def paper_channel_step(label_x, off_x, len_x, label_y, off_y, len_y, peak_y, syn
     contiguous = first | ~synthetic | ~(mid_x | mid_y)
     entry = cons_y & (first | (off_y == 0))
     f0 = flag & ~reset
-    matched = entry & placement_ok(label_y, off_y, len_y, peak_y, t, (kind, s, e, p, etol, ptol), tol) & ~f0
+    matched = entry & placement_ok(label_y, off_y, len_y, peak_y, t, (kind, s, e, p, etol, ptol, stol), tol) & ~f0
     ok = contiguous & (~entry | free | matched)
     f1 = f0 | matched
     return ok & (~check | f1), f1

@@ -53,3 +53,9 @@ class SearchParams:
     # duration differs by up to this fraction (0: off, the paper; 0.2: +-20%); realization then warps the
     # matched segments' start, F0 peak and end onto the input's (synth/retime.py). matching=paper only
     retime_factor: float = 0.0
+    # ours: with retiming, the START of an own clause or response may also lie off the input's by up to
+    # tol + floor(start_slack_factor * g), g the input's idle gap before it (frames since the previous own
+    # segment's end); the warp moves it onto the input's start and stretches or shrinks the idle gap. A run
+    # of the recording that plays one clause, its pause and the next clause can then match two consecutive
+    # input clauses whose pause differs from the recording's (docs/search.md). 0: the start keeps tol
+    start_slack_factor: float = 0.0

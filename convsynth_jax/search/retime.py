@@ -3,7 +3,7 @@ segments of a path lie, and the warp that moves them onto the input's times.
 
 With retiming a source clause (or listener response) may match an input segment whose end and F0
 peak lie further off than the tolerance (``constraints``: the end within tol + floor(r (e - s)),
-the peak within tol + floor(r (p - s)), the start within tol). :func:`retime_knots` finds, for each
+the peak within tol + floor(r (p - s)), the start within tol, or more with ``search.start_slack_factor``). :func:`retime_knots` finds, for each
 own-channel constraint of the window of a retimable kind (the registry's,
 :mod:`convsynth_jax.annotate.kinds`: PC and LR), the whole source instance the path placed for it (its start
 st, peak pk and end en on the path's timeline) and returns a piecewise-linear warp with the knots
@@ -19,7 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from ..annotate.kinds import IDLE, segment_kinds
-from .constraints import Constraints, segment_info
+from .constraints import Constraints, segment_info, slack_shift
 
 
 def path_instances(graph, path) -> list[tuple]:
@@ -64,13 +64,17 @@ def retime_knots(graph, c: Constraints, path, retime_factor: float):
         code = kind.code
         s, e, p = int(seg["start"]), int(seg["end"]), seg["peak"]
         p = None if p is None or not kind.has_peak else int(p)
-        etol = tol + int(np.floor(retime_factor * (e - s)))
-        ptol = tol + (int(np.floor(retime_factor * (p - s))) if p is not None else 0)
+        # the tolerances the constraints gave the segment (end and peak slack; the start slack of
+        # ``search.start_slack_factor``), else those of the retiming factor
+        etol = seg.get("end_tol", tol + int(np.floor(retime_factor * (e - s))))
+        ptol = seg.get("peak_tol", tol + (int(np.floor(retime_factor * (p - s))) if p is not None else 0))
+        stol = seg.get("start_tol", tol)
         best = None
         for i, (lab, st, pk, en) in enumerate(inst):
-            if i in used or lab != code or abs(st - s) > tol or abs(en - e) > etol:
+            d = slack_shift(st - s, tol)     # the start slack moves the whole instance
+            if i in used or lab != code or abs(st - s) > stol or abs(en - d - e) > etol:
                 continue
-            if p is not None and (pk is None or abs(pk - p) > ptol):
+            if p is not None and (pk is None or abs(pk - d - p) > ptol):
                 continue
             if best is None or abs(st - s) < abs(inst[best][1] - s):
                 best = i

@@ -43,7 +43,7 @@ def _requirement_ok(own, par, req):
 def _paper_channel(c, t, frame_arrs, codes, x_seg, y_seg, synthetic, first, flag):
     """``search.matching=paper`` for one channel, written out: x_seg/y_seg = (label, offset, length,
     peak offset) of the previous and the new state. Returns (ok, new flag)."""
-    kind, s, e, p, free, reset, check, etol, ptol = (a[t] for a in frame_arrs)
+    kind, s, e, p, free, reset, check, etol, ptol, stol = (a[t] for a in frame_arrs)
     lx, ox, Lx, _ = x_seg
     ly, oy, Ly, qy = y_seg
     x_cons, y_cons = bool(codes >> int(lx) & 1), bool(codes >> int(ly) & 1)
@@ -56,8 +56,10 @@ def _paper_channel(c, t, frame_arrs, codes, x_seg, y_seg, synthetic, first, flag
         flag = False
     if y_cons and (first or oy == 0):   # a source segment is entered here: where does it lie?
         st = t - oy
-        placed = (int(ly) == int(kind) and abs(st - s) <= c.tol and abs(st + Ly - e) <= etol
-                  and (p == NO_PEAK or (qy >= 0 and abs(st + qy - p) <= ptol)))
+        # the start slack shifts the whole instance by the start's offset beyond tol: end and peak read after it
+        shift = int(st - s) - max(-int(c.tol), min(int(c.tol), int(st - s)))   # the offset beyond tol
+        placed = (int(ly) == int(kind) and abs(st - s) <= stol and abs(st - shift + Ly - e) <= etol
+                  and (p == NO_PEAK or (qy >= 0 and abs(st - shift + qy - p) <= ptol)))
         if placed and not flag:
             flag = True
         elif not free:

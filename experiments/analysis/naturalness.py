@@ -228,8 +228,8 @@ def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None, cuts
     params = default_params(list(over))
     names = list(ann)
     fps = params.fps
-    if system_name == "random_playback":
-        sysm = make_system(params, RP_SPEC)
+    if system_name == "random_playback":   # its options from the overrides when they name the system
+        sysm = make_system(params, params.system if params.system.name == "random_playback" else RP_SPEC)
     else:
         sysm = make_system(params, params.system)
     cd = cache_dir(params)

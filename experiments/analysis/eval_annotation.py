@@ -30,13 +30,10 @@ Writes experiments/results/eval_annotation.json and .md.
 import argparse
 import dataclasses
 import time
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-from _bench import REPO, RESULTS, SHARED, write
 
 from convsynth_jax.config import default_params
 from convsynth_jax.annotate.cache import annotate_corpus_cached
@@ -44,7 +41,7 @@ from convsynth_jax.annotate.kinds import hypotheses
 from convsynth_jax.evaluation.annotation import CLAUSE_TOLERANCE_S, audio_scores, detection_scores, near, words_stats
 from convsynth_jax.evaluation.summaries import to_markdown
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
-from convsynth_jax.api import open_corpus
+from convsynth_jax.api import open_corpus, REPO, RESULTS, SHARED_DATA, write_result
 
 # the hypothesis table (audio kind, motion kinds, channel; the generator's planting key): the registry's
 SPEC = {h.name: (h.label, list(h.motions), h.channel) for h in hypotheses()}
@@ -171,7 +168,7 @@ def real_speech(params):
     from convsynth_jax.annotate.clauses import guard_f0
     from convsynth_jax.io import load_audio, load_transcript
 
-    d = SHARED / "speech"
+    d = SHARED_DATA / "speech"
     if not d.is_dir():
         return {"skipped": f"{d} not found"}
     hesitation = set(load_word_corpus()["hesitation"])
@@ -301,4 +298,4 @@ if __name__ == "__main__":
     md += [""]
     RESULTS.mkdir(parents=True, exist_ok=True)
     (RESULTS / "eval_annotation.md").write_text("\n".join(md))
-    write("eval_annotation", res)
+    write_result("eval_annotation", res)

@@ -19,19 +19,15 @@ from the ground truth's at p < 0.05 (chi-square), per condition.
 """
 import argparse
 import json
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
-
-from convsynth_jax.config import default_params  # noqa: E402
-from convsynth_jax.evaluation import metrics  # noqa: E402
-from convsynth_jax.kinematics import forward_kinematics  # noqa: E402
-from convsynth_jax.api import annotated_corpus  # noqa: E402
+from convsynth_jax.config import default_params
+from convsynth_jax.evaluation import metrics
+from convsynth_jax.kinematics import forward_kinematics
+from convsynth_jax.api import annotated_corpus
 
 
 BLEND_MARGIN = 0.01

@@ -34,7 +34,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _bench import REPO, SHARED, write
+from convsynth_jax.api import REPO, SHARED_DATA, write_result
 
 GOAL_S = 15.0
 
@@ -44,7 +44,7 @@ def speech_inputs(folder: Path, seconds: float) -> tuple[dict, str]:
     from convsynth_jax.io import load_audio, load_transcript, save_wav
     from convsynth_jax.io.transcripts import save_transcript_tsv
 
-    speech = SHARED / "speech"
+    speech = SHARED_DATA / "speech"
     if speech.is_dir():
         import pandas as pd
 
@@ -153,7 +153,7 @@ def exchange(folder: Path, gap: float = 0.6) -> tuple:
     from convsynth_jax.io import load_audio, load_transcript, save_wav
     from convsynth_jax.io.transcripts import save_transcript_tsv
 
-    sp = SHARED / "speech"
+    sp = SHARED_DATA / "speech"
     a, b = load_audio(sp / "acoustic_corpus.wav"), load_audio(sp / "cold_corpus.wav")
     if a.sample_rate != b.sample_rate:
         raise SystemExit(f"{b.path}: sample rate {b.sample_rate}, expected {a.sample_rate}")
@@ -180,10 +180,10 @@ def exchange(folder: Path, gap: float = 0.6) -> tuple:
 def real_inputs(folder: Path) -> dict:
     """name -> task overrides of the benchmark's real inputs (empty without ../shared)."""
     out = {}
-    sp = SHARED / "speech"
+    sp = SHARED_DATA / "speech"
     for w in sorted(sp.glob("*.wav")) if sp.is_dir() else []:
         out[w.stem] = cut_wav(folder, w.stem, w, w.with_suffix(".TextGrid"))[0]
-    beat = SHARED / "beat2"
+    beat = SHARED_DATA / "beat2"
     for w in sorted((beat / "wave16k").glob("*.wav")) if beat.is_dir() else []:
         grid = beat / "textgrid" / f"{w.stem}.TextGrid"
         if grid.is_file():
@@ -279,7 +279,7 @@ def main():
                          "acceptance_met": bool(per_input) and all(f.get("success") and f.get("frames_as_long_as_audio")
                                                                    for f in per_input.values())
                          and total > 0 and met >= 0.9 * total and pc[0] >= 0.85 * pc[1]}}
-    write("bench_converse", result, overrides=a.overrides)
+    write_result("bench_converse", result, overrides=a.overrides)
 
 
 if __name__ == "__main__":

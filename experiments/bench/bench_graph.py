@@ -22,14 +22,14 @@ import sys
 
 import jax
 import numpy as np
-from _bench import RESULTS, SHARED, peak_rss_mb, timed, write
 
 from convsynth_jax.config import compose, to_params
 from convsynth_jax.graph import build_database, build_graph
 from convsynth_jax.graph.database import bvh_folder_clips
 from convsynth_jax.testing.graph_reference import build_graph_reference
+from convsynth_jax.api import RESULTS, SHARED_DATA, peak_rss_mb, timed, write_result
 
-ROOT = SHARED / "bandai2" / "bvh"
+ROOT = SHARED_DATA / "bandai2" / "bvh"
 GOALS = {"construction_s": 3.0, "speedup": 15, "peak_mb": 2048}
 
 
@@ -168,5 +168,5 @@ if __name__ == "__main__":
     res["peak_rss_mb_this_process"] = peak_rss_mb()
     res["loadavg_end"] = os.getloadavg()
     res["goals"] = GOALS
-    write("bench_graph", res)
+    write_result("bench_graph", res)
     (RESULTS / "bench_graph.md").write_text(markdown(res))

@@ -19,8 +19,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from convsynth_jax.api import REPO, write_result
 
-from _bench import REPO, write
 
 
 def _cpu(who) -> float:
@@ -87,7 +87,7 @@ def main() -> None:
               "median_video_wall_s": statistics.median(x["video_wall_s"] for x in runs),
               "median_draw_cpu_ms_per_frame": statistics.median(x["draw_cpu_ms_per_frame"] for x in runs),
               "goal": "about 4-7 s of video for 60 s of speech (docs/converse.md)"}
-    write("bench_render", result, overrides=sys.argv[1:])
+    write_result("bench_render", result, overrides=sys.argv[1:])
 
 
 if __name__ == "__main__":

@@ -31,7 +31,7 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _bench import REPO, RESULTS, SHARED, write, write_markdown
+from convsynth_jax.api import REPO, RESULTS, SHARED_DATA, write_result, write_result_markdown
 
 GOALS = {"search_s_per_character": 0.1, "bandai2_construction_s": 1.5}
 
@@ -117,7 +117,7 @@ def main():
                                   lambda s: {"search_seconds": s["search_seconds"],
                                              "synthesis_cpu_seconds": s.get("synthesis_cpu_seconds"),
                                              "graph_seconds": s.get("graph_seconds")}, tmp, a.repeats)
-        bandai = SHARED / "bandai2" / "bvh"
+        bandai = SHARED_DATA / "bandai2" / "bvh"
         if not a.skip_bandai and bandai.is_dir():
             out["bandai2_build_graph"] = bench("bandai2", ["task=build_graph", "corpus=bvh_folder",
                                                            f"corpus.root={bandai}"],
@@ -132,7 +132,7 @@ def main():
     if "bandai2_build_graph" in out:
         out["met"]["bandai2_construction_s"] = (out["bandai2_build_graph"]["warm"]["construction_s"]
                                                 <= GOALS["bandai2_construction_s"])
-    write("bench_startup", out)
+    write_result("bench_startup", out)
     carried = out.get("bandai2_build_graph", {}).get("carried_over", False)
     loads = [x for b in ("synthesize",) + (() if carried else ("bandai2_build_graph",)) if b in out
              for r in out[b].values() if isinstance(r, dict) for x in r.get("load_avg_1min", [])]
@@ -167,7 +167,7 @@ def main():
             lines.append("| build_graph bandai2 | construction CPU s | " + " | ".join(f"{c:.2f}" for c in cells) + " | |")
         lines.append(f"| build_graph bandai2 | process wall s | {b['cold']['process_s']:.1f} | "
                      f"{b['warm']['process_s']:.1f} | {b['control_no_jax_cache']['process_s']:.1f} | |")
-    write_markdown("bench_startup", lines)
+    write_result_markdown("bench_startup", lines)
 
 
 if __name__ == "__main__":

@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from _bench import timed, write
 
 from convsynth_jax.annotate.motion import joint_speeds, recording_thresholds
 from convsynth_jax.annotate.params import AnnotateParams
@@ -32,6 +31,7 @@ from convsynth_jax.data import make_synthetic_corpus
 from convsynth_jax.data.synthetic import HYPOTHESIS_KEYS, ROLES, window_matches
 from convsynth_jax.io import load_bvh
 from convsynth_jax.stats.cooccurrence import hypothesis_matches
+from convsynth_jax.api import timed, write_result
 
 
 def detector_counts(root: Path, ev: pd.DataFrame) -> dict:
@@ -145,7 +145,7 @@ if __name__ == "__main__":
         _, secs_no_audio = timed(make_synthetic_corpus, Path(d) / "n", {**dict(gen), "write_audio": False})
     counts = ev.assign(source=ev["source"].fillna("")).groupby(["participant", "kind", "source"]).size()
     print(pd.DataFrame(rates).to_string(index=False))
-    write("bench_synthetic", {"sessions": gen.num_sessions, "minutes": gen.num_sessions * gen.session_seconds / 60,
+    write_result("bench_synthetic", {"sessions": gen.num_sessions, "minutes": gen.num_sessions * gen.session_seconds / 60,
                               "seconds": secs, "seconds_without_audio": secs_no_audio,
                               "audio_seconds": secs - secs_no_audio, "megabytes": size, "goal_s": 60,
                               "events": {" ".join(k).strip(): int(v) for k, v in counts.items()},

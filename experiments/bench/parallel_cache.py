@@ -22,8 +22,8 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+from convsynth_jax.api import REPO, write_result
 
-from _bench import REPO, write
 
 BASE = ["task=cooccurrence", "corpus=synthetic_tiny", "progress=false"]
 
@@ -125,7 +125,7 @@ def main() -> None:
         result = {"together": together(args.processes, work), "joblib_multirun": multirun(work)}
     result["loadavg_before"] = load_before
     result["loadavg_after"] = Path("/proc/loadavg").read_text().split()[:3]
-    write("parallel_cache", result, overrides=BASE)
+    write_result("parallel_cache", result, overrides=BASE)
 
 
 if __name__ == "__main__":

@@ -43,6 +43,7 @@ from pathlib import Path
 
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.api import REPO, SHARED_DATA, write_result
+from convsynth_jax.walktalk.elbow import gesture_reach
 
 GOALS = {"splice_warm_ms": 20.0, "eval_s": 60.0, "demo_s": 10.0}
 
@@ -155,39 +156,6 @@ def bench_elbow(data_dir: Path) -> dict:
     df = elbow_tracking(lib, opt, gestures=lib.gestures[::6], methods=("stylized", "stylized+synced"))
     out["gait_min_soft"] = elbow_tracking_summary(df)
     return out
-
-
-def gesture_reach(lib, p, variants: dict, base: str, every: int = 4) -> list[dict]:
-    """The gesture's reach per gait and variant ({name: (SpliceParams, method)}): the root-relative
-    gesturing hand's distance at the stroke peak from the loop's own hand at that frame (cm), every
-    ``every``-th gesture x the library's loops (peak-placed splices), and its median ratio to the
-    variant ``base``."""
-    import numpy as np
-
-    from convsynth_jax.kinematics import forward_kinematics_np
-    from convsynth_jax.walktalk.library import dof_limits, peak_placed_splices
-    from convsynth_jax.walktalk.pipeline import METHODS, splice_gesture
-
-    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
-    hips = lib.body.joints["hips"]
-    reach: dict = {}
-    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
-        gst = gc.gesture
-        lpos = forward_kinematics_np(loco)
-        for name, (sp, method) in variants.items():
-            r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=rom)
-            pos = forward_kinematics_np(r.motion.slice(r.peak, r.peak + 1))[0]
-            d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
-                                        - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
-                         for s in gst.sides])
-            reach.setdefault((gait, name), []).append(float(d))
-    rows = []
-    for (gait, name), v in reach.items():
-        b = np.asarray(reach[gait, base])
-        rows.append({"gait": gait, "variant": name, "splices": len(v), "reach_cm_mean": float(np.mean(v)),
-                     "reach_cm_median": float(np.median(v)),
-                     "base": base, "ratio_to_base_median": float(np.median(np.asarray(v) / np.maximum(b, 1e-6)))})
-    return rows
 
 
 COMBINED = {

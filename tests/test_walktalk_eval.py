@@ -604,3 +604,23 @@ def test_gesture_reach_per_gait_and_variant_against_the_base():
         assert rows[gait, "copy"]["reach_cm_median"] == pytest.approx(rows[gait, "stylized"]["reach_cm_median"])
         assert rows[gait, "naive"]["splices"] == rows[gait, "stylized"]["splices"] == len(lib.gestures)
         assert all(np.isfinite(r["reach_cm_median"]) and r["reach_cm_median"] > 0 for r in rows.values())
+
+
+def test_goal_rows_one_per_setting_and_gait_sharing_the_naive_run():
+    """evaluate.goal_rows on the fixtures: a row per setting and gait, counts within the splices, the
+    naive rows computed once and reusable (a second call given them reads the same)."""
+    import json
+
+    from convsynth_jax.walktalk.evaluate import goal_rows
+    from convsynth_jax.walktalk.library import load_library
+
+    p = WalkTalkParams()
+    lib = load_library(p, FIXTURES, 1, single_peak_only=True)
+    settings = {"paper defaults": {}, "coupled": {"rescale_coupling": 1.0}}
+    rows, naive = goal_rows(lib, p, settings)
+    assert [(r["setting"], r["gait"]) for r in rows] == [(s, g) for s in settings for g in lib.loops]
+    for r in rows:
+        assert r["splices"] == len(lib.gestures) and 0 <= r["jerk_over_2x"] <= r["splices"]
+        assert 0 <= r["naive_jerk_over_2x"] <= r["splices"] and 0.0 <= r["peak_in_contact_rate"] <= 1.0
+    again, _ = goal_rows(lib, p, {"paper defaults": {}}, naive_df=naive)
+    assert json.dumps(again, default=str) == json.dumps(rows[:len(lib.loops)], default=str)   # NaN reads as NaN

@@ -44,6 +44,7 @@ from pathlib import Path
 from convsynth_jax.config import compose, run_task
 from convsynth_jax.api import REPO, SHARED_DATA, write_result
 from convsynth_jax.walktalk.elbow import gesture_reach
+from convsynth_jax.walktalk.evaluate import goal_rows
 
 GOALS = {"splice_warm_ms": 20.0, "eval_s": 60.0, "demo_s": 10.0}
 
@@ -167,47 +168,6 @@ COMBINED = {
 }
 
 
-def _goal_rows(lib, p, settings: dict, naive_df=None) -> tuple[list[dict], object]:
-    """Per setting ({name: SpliceParams overrides}) x gait: every splice goal from one
-    run_evaluation of ``lib`` (stylized+synced; naive once, shared, for the "<= naive" parts):
-    splices over 2x jerk and the worst, peak in contact, shifts, peaks before the utterance, foot
-    slide, DOFs within +- c sigma, joint limits in both readings with the loop alone, naive and
-    what the splice introduces over its loop, and the within-gait elbow correlation of these rows
-    (plain and partial given the loop's spread, per gesture over its loops)."""
-    import pandas as pd
-
-    from convsynth_jax.walktalk.evaluate import EvalParams, run_evaluation, summarize
-    from convsynth_jax.walktalk.limit_metrics import limit_readings
-
-    if naive_df is None:
-        naive_df = run_evaluation(lib, p, EvalParams(methods=("naive",)))
-    rows = []
-    for name, kw in settings.items():
-        pg = dataclasses.replace(p, splice=dataclasses.replace(p.splice, **kw))
-        df = run_evaluation(lib, pg, EvalParams(methods=("stylized+synced",)))
-        both = pd.concat([naive_df, df], ignore_index=True)
-        summ = {(r["gait"], r["method"]): r for r in summarize(both)}
-        lim = {(r["gait"], r["method"]): r for r in limit_readings(list(summ.values()))}
-        for gait, d in df.groupby("gait", sort=False):
-            worst = d.loc[d["max_jerk_ratio"].idxmax()]
-            r, lr = summ[gait, "stylized+synced"], lim[gait, "stylized+synced"]
-            rn = summ[gait, "naive"]
-            rows.append({
-                "setting": name, "overrides": kw, "gait": gait, "splices": len(d),
-                "jerk_over_2x": int((d["max_jerk_ratio"] > 2.0).sum()), "jerk_ratio_max": float(worst["max_jerk_ratio"]),
-                "jerk_worst": f"{worst['gesture']} on {worst['loop']}",
-                "naive_jerk_over_2x": int((naive_df.loc[naive_df["gait"] == gait, "max_jerk_ratio"] > 2.0).sum()),
-                "peak_in_contact_rate": r["peak_in_contact_rate"], "shift_min_s": r["shift_min_s"],
-                "shift_max_s": r["shift_max_s"], "all_peaks_before_utterance": r["all_peaks_before_utterance"],
-                "foot_slide_cm_max": r["foot_slide_cm_max"], "dof_within_csigma_rate": r["dof_within_csigma_rate"],
-                "limits_per_frame": lr["per_frame"], "limits_per_cell": lr["per_cell"],
-                "met_per_frame": lr["met_per_frame"], "met_per_cell": lr["met_per_cell"],
-                "met_per_frame_introduced": lr["met_per_frame_introduced"],
-                "elbow_plain": r["elbow_corr_per_gesture_mean"], "elbow_partial": r["elbow_partial_corr_per_gesture_mean"],
-                "elbow_plain_naive": rn["elbow_corr_per_gesture_mean"], "elbow_gestures": r["elbow_corr_per_gesture_n"]})
-    return rows, naive_df
-
-
 def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> dict:
     """One pass over every splice goal for the candidate settings (:data:`COMBINED`: the
     paper's defaults, our within-gait options band_std=gait_min + joint_limit_mode=soft, and those
@@ -241,7 +201,7 @@ def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> di
     out["torso_radius_cm"] = radius
     out["sources_in_sample"] = in_sample_violations(lib, scored, radius)
     out["sources_eval"] = source_readings(lib, scored, radius)
-    out["eval"], _ = _goal_rows(lib, p, settings)
+    out["eval"], _ = goal_rows(lib, p, settings)
     variants = {"naive": (p.splice, "naive")}
     variants.update({name: (dataclasses.replace(p.splice, **kw), "stylized+synced") for name, kw in settings.items()})
     base = next(iter(settings))
@@ -250,7 +210,7 @@ def combined(data_dir: Path, every: int = 6, settings: dict | None = None) -> di
     lib = load_library(p, data_dir, 10_000, single_peak_only=True)
     lib.gestures = lib.gestures[::every]
     out["sources_all_loops"] = source_readings(lib, scored, radius)
-    out["all_loops"], _ = _goal_rows(lib, p, settings)
+    out["all_loops"], _ = goal_rows(lib, p, settings)
     df = elbow_tracking(lib, p, variants=variants)
     out["elbow_study"] = elbow_tracking_summary(df)
     out["all_loops_gestures"] = len(lib.gestures)

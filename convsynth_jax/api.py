@@ -13,8 +13,9 @@ import logging
 from pathlib import Path
 
 from .errors import ConfigError
-from .manifest import (REPO, RESULTS, SHARED_DATA, peak_rss_mb, results_inventory, run_manifest, timed, write_result,
-                       write_result_manifest, write_result_markdown)
+from .manifest import (REPO, RESULTS, SHARED_DATA, ProcessRun, peak_rss_mb, process_memory_mb, reset_peak_rss,
+                       results_inventory, run_convsynth, run_manifest, timed, write_result, write_result_manifest,
+                       write_result_markdown)
 
 log = logging.getLogger(__name__)
 
@@ -143,7 +144,8 @@ def cdbn_corpus(cfg, p) -> Path:
     return ensure_corpus(cdbn_corpus_root(cfg, p), cdbn_semisynthetic_params(p))
 
 
-__all__ = ["REPO", "RESULTS", "SHARED_DATA", "annotated_corpus", "autoencoder_training", "cache_dir", "cdbn_corpus",
-           "cdbn_corpus_root", "cdbn_params", "cdbn_semisynthetic_params", "loo_setup", "make_configured_system",
-           "open_corpus", "pairing_note", "params_of", "peak_rss_mb", "results_inventory", "run_manifest", "timed",
-           "write_result", "write_result_manifest", "write_result_markdown"]
+__all__ = ["REPO", "RESULTS", "SHARED_DATA", "ProcessRun", "annotated_corpus", "autoencoder_training", "cache_dir",
+           "cdbn_corpus", "cdbn_corpus_root", "cdbn_params", "cdbn_semisynthetic_params", "loo_setup",
+           "make_configured_system", "open_corpus", "pairing_note", "params_of", "peak_rss_mb", "process_memory_mb",
+           "reset_peak_rss", "results_inventory", "run_convsynth", "run_manifest", "timed", "write_result",
+           "write_result_manifest", "write_result_markdown"]

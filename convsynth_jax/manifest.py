@@ -16,7 +16,7 @@ import sys
 import time
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Callable, Mapping
+from typing import Callable, Mapping, NamedTuple
 
 from .utils import write_text_atomic
 
@@ -63,11 +63,67 @@ def peak_rss_mb() -> float:
     return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
+def process_memory_mb(field: str) -> float:
+    """A ``VmXXX`` field of /proc/self/status (``VmRSS``: resident now, ``VmHWM``: its peak) in MiB;
+    NaN where the file is not there (not Linux)."""
+    try:
+        for line in Path("/proc/self/status").read_text().splitlines():
+            if line.startswith(field + ":"):
+                return float(line.split()[1]) / 1024.0
+    except OSError:
+        pass
+    return float("nan")
+
+
+def reset_peak_rss() -> bool:
+    """Reset this process's peak resident memory (``VmHWM``) so that it measures what follows
+    (Linux >= 4.0); False where that is not possible."""
+    try:
+        Path("/proc/self/clear_refs").write_text("5")
+        return True
+    except OSError:
+        return False
+
+
 def timed(fn: Callable, *args, **kwargs):
     """(fn(*args, **kwargs), wall seconds)."""
     t = time.perf_counter()
     out = fn(*args, **kwargs)
     return out, time.perf_counter() - t
+
+
+class ProcessRun(NamedTuple):
+    """A finished ``convsynth`` process: exit status, wall and CPU seconds (the child's user + system),
+    the 1-minute load average before and after, and its output."""
+
+    returncode: int
+    wall_s: float
+    cpu_s: float
+    load_avg_1min: list
+    stdout: str
+    stderr: str
+
+    def check(self) -> "ProcessRun":
+        """This run, or SystemExit with the tail of its output when it failed."""
+        if self.returncode != 0:
+            raise SystemExit(f"convsynth exited with {self.returncode}:\n{self.stdout[-3000:]}\n{self.stderr[-3000:]}")
+        return self
+
+
+def run_convsynth(overrides, out_dir: Path | None = None, cache: Path | None = None) -> ProcessRun:
+    """``python -m convsynth_jax.config *overrides`` in a fresh process from the repository (what a user's
+    ``convsynth`` runs), with ``hydra.run.dir=out_dir`` and ``CONVSYNTH_CACHE=cache`` when given, timed
+    by the wall clock and by the child's CPU time: the start-up a user sees is part of the figure."""
+    env = dict(os.environ, **({"CONVSYNTH_CACHE": str(cache)} if cache is not None else {}))
+    env["PYTHONPATH"] = os.pathsep.join(x for x in (str(REPO), env.get("PYTHONPATH")) if x)
+    cmd = [sys.executable, "-m", "convsynth_jax.config", *map(str, overrides),
+           *([f"hydra.run.dir={out_dir}"] if out_dir is not None else [])]
+    load = os.getloadavg()[0]
+    ru0, t = resource.getrusage(resource.RUSAGE_CHILDREN), time.perf_counter()
+    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
+    wall, ru1 = time.perf_counter() - t, resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
+    return ProcessRun(r.returncode, wall, cpu, [load, os.getloadavg()[0]], r.stdout, r.stderr)
 
 
 def write_result_manifest(name: str, overrides=None, folder: Path | None = None, **extra) -> Path:

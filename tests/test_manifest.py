@@ -52,3 +52,37 @@ def test_describe_result_reads_writers_and_sweeps():
         == "`experiments/analysis/seam_summary.py`, 17folds"
     assert describe_result(Path("loo_default/bench_loo.json"), scripts).endswith("run `default`")
     assert describe_result(Path("unknown.json"), scripts) == ""
+
+
+def test_run_convsynth_times_a_fresh_process_and_check_names_its_failure(tmp_path):
+    import pytest
+
+    from convsynth_jax.manifest import run_convsynth
+
+    ok = run_convsynth(["--help"], cache=tmp_path)
+    assert ok.returncode == 0 and ok.check() is ok and "task" in ok.stdout
+    assert ok.wall_s > 0 and ok.cpu_s > 0 and len(ok.load_avg_1min) == 2
+    bad = run_convsynth(["task=no_such_task"], out_dir=tmp_path / "out", cache=tmp_path)
+    assert bad.returncode != 0
+    with pytest.raises(SystemExit, match="no_such_task"):
+        bad.check()
+
+
+def test_process_memory_reads_the_resident_set_and_its_peak():
+    import sys
+
+    import pytest
+
+    from convsynth_jax.manifest import peak_rss_mb, process_memory_mb, reset_peak_rss
+
+    if not sys.platform.startswith("linux"):
+        pytest.skip("/proc/self/status is Linux's")
+    rss, hwm = process_memory_mb("VmRSS"), process_memory_mb("VmHWM")
+    assert 0 < rss <= hwm <= peak_rss_mb() + 1.0
+    assert np.isnan(process_memory_mb("NoSuchField"))
+    block = np.ones(128 * 2**20 // 8)                     # 128 MiB touched, then given back
+    with_block = process_memory_mb("VmHWM")
+    assert with_block >= rss + 100
+    del block
+    if reset_peak_rss():                                  # the peak is now what is resident, without the block
+        assert process_memory_mb("VmHWM") < with_block - 100

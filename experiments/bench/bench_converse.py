@@ -25,15 +25,11 @@ start-up) and as the whole process.
 import argparse
 import json
 import os
-import resource
 import statistics
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
-from convsynth_jax.api import REPO, SHARED_DATA, write_result
+from convsynth_jax.api import REPO, SHARED_DATA, run_convsynth, write_result
 from convsynth_jax.data.conversation_inputs import exchange, repeated_speech, silent_partner
 
 GOAL_S = 15.0
@@ -71,25 +67,15 @@ def speech_inputs(folder: Path, seconds: float) -> tuple[dict, str]:
 
 
 def run(overrides: list, cache: Path, out: Path, check: bool = True) -> dict:
-    env = dict(os.environ, CONVSYNTH_CACHE=str(cache), PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "convsynth_jax.config", "task=converse", *overrides, "progress=false",
-           f"hydra.run.dir={out}"]
-    load = os.getloadavg()[0]
-    t = time.perf_counter()
-    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
-    wall = time.perf_counter() - t
-    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)   # the process's CPU seconds
+    r = run_convsynth(["task=converse", *overrides, "progress=false"], out, cache)
     if r.returncode != 0 and not check:
         summ = out / "summary.json"
-        return {"process_s": wall, "process_cpu_s": cpu,
+        return {"process_s": r.wall_s, "process_cpu_s": r.cpu_s,
                 "summary": json.loads(summ.read_text()) if summ.is_file() else {"error": r.stderr[-2000:]},
                 "report_md": (out / "report.md").read_text() if (out / "report.md").is_file() else None}
-    if r.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
-    return {"process_s": wall, "process_cpu_s": cpu, "summary": json.loads((out / "summary.json").read_text()),
-            "report": json.loads((out / "report.json").read_text()), "load_avg_1min": [load, os.getloadavg()[0]]}
+    r.check()
+    return {"process_s": r.wall_s, "process_cpu_s": r.cpu_s, "summary": json.loads((out / "summary.json").read_text()),
+            "report": json.loads((out / "report.json").read_text()), "load_avg_1min": r.load_avg_1min}
 
 
 def figures(res: dict, out: Path, fps: float) -> dict:

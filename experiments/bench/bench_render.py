@@ -14,12 +14,12 @@ import json
 import os
 import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
-from convsynth_jax.api import REPO, write_result
+
+from convsynth_jax.api import run_convsynth, write_result
 
 
 
@@ -34,11 +34,7 @@ def converse_output(seconds: float, work: Path) -> Path:
 
     over, _ = speech_inputs(work, seconds)
     out = work / "out"
-    cmd = [sys.executable, "-m", "convsynth_jax.config", "task=converse", *[f"{k}={v}" for k, v in over.items()],
-           "task.video=false", "progress=false", f"hydra.run.dir={out}"]
-    r = subprocess.run(cmd, capture_output=True, text=True, cwd=str(REPO), env=dict(os.environ, PYTHONPATH=str(REPO)))
-    if r.returncode:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}")
+    run_convsynth(["task=converse", *[f"{k}={v}" for k, v in over.items()], "task.video=false", "progress=false"], out).check()
     return out
 
 

@@ -23,33 +23,20 @@ previous results file are kept and marked as not re-measured.
 import argparse
 import json
 import os
-import resource
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
-from convsynth_jax.api import REPO, RESULTS, SHARED_DATA, write_result, write_result_markdown
+
+from convsynth_jax.api import RESULTS, SHARED_DATA, run_convsynth, write_result, write_result_markdown
 
 GOALS = {"search_s_per_character": 0.1, "bandai2_construction_s": 1.5}
 
 
 def run_task(overrides, cache: Path, out: Path) -> dict:
-    env = dict(os.environ, CONVSYNTH_CACHE=str(cache), PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "convsynth_jax.config", *overrides, "progress=false", f"hydra.run.dir={out}"]
-    load = os.getloadavg()[0]
-    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t = time.perf_counter()
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
-    wall = time.perf_counter() - t
-    ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
-    if r.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}")
-    summary = json.loads((out / "summary.json").read_text())
-    return {"process_s": wall, "process_cpu_s": cpu, "summary": summary, "load_avg_1min": [load, os.getloadavg()[0]]}
+    r = run_convsynth([*overrides, "progress=false"], out, cache).check()
+    return {"process_s": r.wall_s, "process_cpu_s": r.cpu_s, "summary": json.loads((out / "summary.json").read_text()),
+            "load_avg_1min": r.load_avg_1min}
 
 
 def cache_stats(cache: Path) -> dict:

@@ -20,6 +20,7 @@ import sys
 import tempfile
 import time
 from pathlib import Path
+
 from convsynth_jax.api import REPO, write_result
 
 

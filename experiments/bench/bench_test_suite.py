@@ -21,6 +21,7 @@ import tempfile
 import time
 from collections import defaultdict
 from pathlib import Path
+
 from convsynth_jax.api import REPO, write_result, write_result_markdown
 
 

@@ -1,4 +1,4 @@
-"""Benchmark: drawing and encoding ``conversation.mp4`` (convsynth_jax/render.py, docs/render.md).
+"""Benchmark: drawing and encoding ``conversation.mp4`` (convsynth_jax/render/, docs/render.md).
 
 Input: a ``task=converse`` output folder (``--folder``), or, without one, the converse benchmark's
 timing input (``bench_converse.speech_inputs``: the shared recordings repeated to ``--seconds`` as

@@ -46,6 +46,7 @@ from pathlib import Path
 from typing import Any, Callable
 
 from .errors import FormatError
+from .utils import write_text_atomic
 
 REPO = Path(__file__).resolve().parent.parent
 
@@ -269,7 +270,8 @@ def _walk(table: MarkedTable, lines: list[str], files: _Files,
         if r is not None and c is not None:
             rval = next((v for k, v in table.rows.items() if _find(labels, k) == r), "{row}")
             specs[(r, c)] = _expand(cspecs, rval)
-    jobs = [(body[r], c, s, f"row {labels[r]!r}, column {header[c]!r}") for (r, c), s in sorted(specs.items())]
+    jobs = [(body[r], c, [x.replace("{head}", header[c]) for x in s], f"row {labels[r]!r}, column {header[c]!r}")
+            for (r, c), s in sorted(specs.items())]
     jobs += [(table.first, _find(header, k), s, f"header {k!r}") for k, s in table.heads.items() if _find(header, k) is not None]
     for line_no, c, cspecs, where in jobs:
         spans = _cell_spans(lines[line_no])
@@ -339,3 +341,19 @@ def marked_pages(root: Path = REPO) -> list[Path]:
     """The README and every page of docs/ that holds a numbers marker."""
     pages = [root / "README.md", *sorted((root / "docs").glob("*.md"))]
     return [p for p in pages if p.exists() and "<!-- numbers: " in p.read_text()]
+
+
+def check_pages(root: Path = REPO) -> list[str]:
+    """:func:`check_text` over every marked page of the README and docs/."""
+    return [bad for page in marked_pages(root) for bad in check_text(page.read_text(), str(page.relative_to(root)), root)]
+
+
+def regenerate_pages(root: Path = REPO) -> list[str]:
+    """Rewrite (atomically) every marked page whose numbers differ from their files; the changes made."""
+    changes = []
+    for page in marked_pages(root):
+        text, changed = regenerate_text(page.read_text(), str(page.relative_to(root)), root)
+        if changed:
+            write_text_atomic(page, text)
+            changes += changed
+    return changes

@@ -9,15 +9,17 @@ shown instead, and the commit and date are those of the git commit that last sto
 
     python experiments/results_doc.py                              # print the table
     python experiments/results_doc.py --out docs/results_inventory.md
+    python experiments/results_doc.py --tables   # rewrite the marked tables' numbers from their files
 """
 from __future__ import annotations
 
 import argparse
-import os
 import sys
 from pathlib import Path
 
 from convsynth_jax.api import RESULTS, results_inventory
+from convsynth_jax.docs_tables import regenerate_pages
+from convsynth_jax.utils import write_text_atomic
 
 # Results whose name does not start with the name of the script that writes them.
 WRITERS = {"loo_seams_summary": "analysis/seam_summary.py", "cdbn_energy_benchmark": "analysis/cdbn_benchmark_summary.py"}
@@ -69,16 +71,18 @@ def markdown() -> str:
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     ap.add_argument("--out", type=Path, help="write the table to this file instead of printing it")
+    ap.add_argument("--tables", action="store_true", help="rewrite the numbers of the tables marked in the "
+                    "README and docs/ from their results files (convsynth_jax/docs_tables.py), not the inventory")
     args = ap.parse_args(argv)
+    if args.tables:
+        print("\n".join(regenerate_pages()) or "every marked number equals its results file")
+        return 0
     text = markdown()
     if args.out is None:
         sys.stdout.write(text)
         return 0
     out = args.out if args.out.is_absolute() else Path.cwd() / args.out
-    out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, out)
+    write_text_atomic(out, text)
     print(f"wrote {out}")
     return 0
 

@@ -28,7 +28,7 @@ matched one to one with the specs; a cell whose count differs is a mismatch. A s
   matches is taken), a list index (``gt_ci.0``), or ``field=value`` (several joined by ``&``) picking
   the one record of a list whose fields have those values (a CSV file reads as such a list:
   ``system=ground_truth&scope=body&metric=fgd_raw.value``);
-* prefixed by ``FILE:`` to read another file than the marker's (``experiments/results/x.json:a.b``);
+* prefixed by ``FILE:`` to read another file than the marker's (``experiments/results/naturalness_17folds_options.json:summary.paper``);
 * suffixed by ``%`` to compare a fraction with a percentage (the value times 100);
 * ``-`` for a number that is not from the file (a goal, a count in prose, a derived ratio): skipped.
 
@@ -357,3 +357,14 @@ def regenerate_pages(root: Path = REPO) -> list[str]:
             write_text_atomic(page, text)
             changes += changed
     return changes
+
+
+def checked_counts(text: str, page: str = "<page>", root: Path = REPO) -> list[tuple[MarkedTable, int]]:
+    """Each marked table of the page with how many of its numbers a spec ties to a file (a marker that
+    ties none checks nothing)."""
+    lines, files, out = text.splitlines(), _Files(root), []
+    for table in parse_markers(text, page):
+        n = [0]
+        _walk(table, lines, files, lambda *a: n.__setitem__(0, n[0] + 1))
+        out.append((table, n[0]))
+    return out

@@ -1,7 +1,7 @@
 """Numbers in the docs that come from results files: a marker ties a Markdown table to its file.
 
 A marker is an HTML comment (invisible on the rendered page) right above a table (blank lines may
-separate them). Its first line names the results file, relative to the repository; each further line
+separate them; a marker inside a fenced code block is an example, not a marker). Its first line names the results file, relative to the repository; each further line
 maps the numbers of a row, a column or a cell to values in the file::
 
     <!-- numbers: experiments/results/naturalness_17folds.json
@@ -14,7 +14,9 @@ maps the numbers of a row, a column or a cell to values in the file::
     -->
 
 * ``row R = KEY``: ``{row}`` stands for ``KEY`` in that row's specs. ``R`` is the row's first cell
-  exactly as written, or its number (1 = the first row under the header).
+  exactly as written, or its number (1 = the first row under the header). A key of several words
+  makes one spec per word (a table with measures as rows: ``row 2 = pose_std_f pose_std_m`` with
+  ``col 3 = summary.paper.{row}``); ``{head}`` in a spec stands for the column's header.
 * ``col C = SPEC ...``: the specs of column ``C`` (its header exactly as written, or its number,
   1 = the first column) in every row that has a ``row`` line.
 * ``cell R | C = SPEC ...``: the specs of one cell, replacing the column's for that row.
@@ -124,9 +126,10 @@ def parse_markers(text: str, page: str = "<page>") -> list[MarkedTable]:
     page and line."""
     lines = text.splitlines()
     out = []
-    i = 0
+    i, fenced = 0, False
     while i < len(lines):
-        m = _MARKER.match(lines[i])
+        fenced ^= lines[i].lstrip().startswith("```")
+        m = None if fenced else _MARKER.match(lines[i])
         if m is None:
             i += 1
             continue
@@ -340,7 +343,7 @@ def regenerate_text(text: str, page: str = "<page>", root: Path = REPO) -> tuple
 def marked_pages(root: Path = REPO) -> list[Path]:
     """The README and every page of docs/ that holds a numbers marker."""
     pages = [root / "README.md", *sorted((root / "docs").glob("*.md"))]
-    return [p for p in pages if p.exists() and "<!-- numbers: " in p.read_text()]
+    return [p for p in pages if p.exists() and parse_markers(p.read_text(), str(p))]
 
 
 def check_pages(root: Path = REPO) -> list[str]:

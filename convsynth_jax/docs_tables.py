@@ -23,7 +23,7 @@ maps the numbers of a row, a column or a cell to values in the file::
 * ``head C = SPEC ...``: the specs of the numbers in column ``C``'s header.
 
 A cell's numbers are read left to right (:func:`numbers_in`: ``78.8``, ``7.3x``, ``0.33%``, ``21.5k``,
-``2.15e+04``, ``1,247``, ``-0.233``; not the digits inside a word such as ``v5`` or ``PC-LH``) and
+``2.15e+04``, ``1,247``, ``-0.233``, both of ``29/58``; not the digits inside a word such as ``v5`` or ``PC-LH``) and
 matched one to one with the specs; a cell whose count differs is a mismatch. A spec is
 
 * a path into the file: keys separated by ``.`` (a key may itself contain dots: the longest key that
@@ -53,8 +53,9 @@ from .utils import write_text_atomic
 REPO = Path(__file__).resolve().parent.parent
 
 _NUMBER = re.compile(r"^\s*(?P<num>-?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?:e[+-]?\d+)?)(?P<k>k)?")
-# a number in running text: not inside a word (v5, PC-LH, e1848f1) nor the tail of a range (0-9)
-_IN_CELL = re.compile(r"(?<![\w.\-/])-?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?:e[+-]?\d+)?k?(?![A-Za-wyz0-9_])")
+# a number in running text: not inside a word (v5, PC-LH, e1848f1) nor the tail of a range (0-9); both
+# numbers of a fraction (29/58)
+_IN_CELL = re.compile(r"(?<![\w.\-])-?(?:\d{1,3}(?:,\d{3})+|\d+)(?:\.\d+)?(?:e[+-]?\d+)?k?(?![A-Za-wyz0-9_])")
 _MARKER = re.compile(r"^<!-- numbers: (?P<file>\S+)\s*$")
 _LINE = re.compile(r"^(?P<kind>row|col|cell|head) (?P<key>.+?) =(?: (?P<value>.*))?$")
 

@@ -131,8 +131,8 @@ col x = system=x&metric={row}.value
 
 
 def test_numbers_in_a_cell_skip_words_ranges_and_identifiers():
-    cell = "v5 PC-LH/RH 0.65 [0.67, 0.76], folds 0-9, 7.3x, 0.33%, 1,247 of -0.233 e1848f1 2.15e+04 21.5k"
-    assert [m.group(0) for m in numbers_in(cell)] == ["0.65", "0.67", "0.76", "0", "7.3", "0.33", "1,247",
+    cell = "v5 PC-LH/RH 29/58 0.65 [0.67, 0.76], folds 0-9, 7.3x, 0.33%, 1,247 of -0.233 e1848f1 2.15e+04 21.5k"
+    assert [m.group(0) for m in numbers_in(cell)] == ["29", "58", "0.65", "0.67", "0.76", "0", "7.3", "0.33", "1,247",
                                                       "-0.233", "2.15e+04", "21.5k"]
 
 

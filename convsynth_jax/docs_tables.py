@@ -1,8 +1,9 @@
 """Numbers in the docs that come from results files: a marker ties a Markdown table to its file.
 
 A marker is an HTML comment (invisible on the rendered page) right above a table (blank lines may
-separate them; a marker inside a fenced code block is an example, not a marker). Its first line names the results file, relative to the repository; each further line
-maps the numbers of a row, a column or a cell to values in the file::
+separate them; one inside a fenced code block is an example, not a marker). Its first line names the
+results file, relative to the repository; each further line maps the numbers of a row, a column or a
+cell to values in the file::
 
     <!-- numbers: experiments/results/naturalness_17folds.json
     row `quality` = summary.quality

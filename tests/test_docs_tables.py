@@ -24,6 +24,11 @@ MARKED = {
     ("docs/results.md", "experiments/results/naturalness_hubs_17folds.json"),
     ("docs/motion_graph.md", "experiments/results/naturalness_hubs_17folds.json"),
     ("docs/motion_graph.md", "experiments/results/naturalness_sweep_3folds.json"),
+    ("docs/motion_graph.md", "experiments/results/naturalness_17folds_controls.json"),
+    ("docs/cdbn.md", "experiments/results/cdbn_energy.json"),
+    ("docs/converse.md", "experiments/results/bench_converse.json"),
+    ("docs/performance.md", "experiments/results/bench_startup.json"),
+    ("docs/scale.md", "experiments/results/bench_scale.json"),
 }
 
 
@@ -145,3 +150,10 @@ def test_format_like_writes_what_shows_reads():
             assert ("k" in out) == ("k" in text) and ("e" in out) == ("e" in text)
     assert format_like("0.16", 0.1234) == "0.12" and format_like("21.5k", 21459) == "21.5k"
     assert format_like("1,247", 1300.2) == "1,300" and format_like("2.15e+04", 21560) == "2.16e+04"
+
+
+def test_a_marker_in_a_code_block_is_an_example():
+    fenced = f"# A page\n\n```markdown\n{MARKER}\n| a | b |\n```\n"
+    assert parse_markers(fenced, "p.md") == []
+    with pytest.raises(FormatError, match="not followed by a Markdown table"):
+        parse_markers(fenced.replace("```markdown\n", "").replace("```\n", ""), "p.md")

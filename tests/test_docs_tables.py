@@ -10,8 +10,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from convsynth_jax.docs_tables import (check_text, checked_counts, format_like, marked_pages, numbers_in,
-                                       parse_markers, regenerate_text, resolve, shows)
+from convsynth_jax.docs_tables import (check_pages, check_text, checked_counts, format_like, marked_pages, numbers_in,
+                                       parse_markers, regenerate_pages, regenerate_text, resolve, shows)
 from convsynth_jax.errors import FormatError
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -157,3 +157,17 @@ def test_a_marker_in_a_code_block_is_an_example():
     assert parse_markers(fenced, "p.md") == []
     with pytest.raises(FormatError, match="not followed by a Markdown table"):
         parse_markers(fenced.replace("```markdown\n", "").replace("```\n", ""), "p.md")
+
+
+def test_regenerate_pages_rewrites_the_pages_whose_numbers_differ(tmp_path):
+    marker = MARKER.replace("{row}.fgd\n", "{row}.fgd -\n").replace("cell 3 | 2 = floor", "cell b | 2 = {row}.fgd\ncell 3 | 2 = floor")
+    root, text = _page(tmp_path, TABLE, marker, DATA)
+    (root / "docs").mkdir()
+    (root / "docs" / "good.md").write_text(text)
+    (root / "docs" / "stale.md").write_text(text.replace("0.07%", "0.09%"))
+    (root / "docs" / "plain.md").write_text("# no marker\n\n| a |\n|---|\n| 1.5 |\n")
+    assert [p.name for p in marked_pages(root)] == ["good.md", "stale.md"]
+    assert len(check_pages(root)) == 1
+    changes = regenerate_pages(root)
+    assert len(changes) == 1 and "0.09 -> 0.07" in changes[0]
+    assert (root / "docs" / "stale.md").read_text() == text and check_pages(root) == []

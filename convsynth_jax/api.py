@@ -4,7 +4,8 @@ corpus, its cached annotation, the cache folder, the configured synthesis system
 Everything here takes the typed :class:`~convsynth_jax.params.Params` (``config.default_params(...)``
 or ``params_of(cfg)``); the tasks (``convsynth task=...``) use the same functions, so a script that
 calls them sees what a task sees. Annotations are cached on disk keyed by the corpus's content and
-the annotating code (:mod:`convsynth_jax.annotate.cache`).
+the annotating code (:mod:`convsynth_jax.annotate.cache`). Results of scripts are written with their
+manifest by :func:`write_result` / :func:`write_result_markdown` (:mod:`convsynth_jax.manifest`).
 """
 from __future__ import annotations
 
@@ -12,6 +13,9 @@ import logging
 from pathlib import Path
 
 from .errors import ConfigError
+from .manifest import (REPO, RESULTS, SHARED_DATA, ProcessRun, peak_rss_mb, process_memory_mb, reset_peak_rss,
+                       results_inventory, run_convsynth, run_manifest, timed, write_result, write_result_manifest,
+                       write_result_markdown)
 
 log = logging.getLogger(__name__)
 
@@ -79,4 +83,69 @@ def make_configured_system(params):
     return make_system(params, params.system)
 
 
-__all__ = ["annotated_corpus", "cache_dir", "make_configured_system", "open_corpus", "pairing_note", "params_of"]
+def loo_setup(overrides):
+    """(params, annotated sessions, system) of the configured corpus and system under ``overrides``
+    (Hydra override strings): what a leave-one-out analysis starts from. The annotations come from
+    the cache when they are there; the corpus is annotated before the system is made."""
+    from .config import default_params
+
+    params = default_params(overrides)
+    _, ann = annotated_corpus(params)
+    return params, ann, make_configured_system(params)
+
+
+def autoencoder_training(params, task) -> tuple[list, str]:
+    """(Motions the FGD autoencoder of ``task=benchmark`` trains on, where they come from): the synthetic
+    generator under another seed for a synthetic corpus, else the corpus folder ``task.autoencoder_corpus``;
+    none (the autoencoder FGD is skipped) when neither exists. ``task``: the benchmark's settings."""
+    from .data import ensure_synthetic_corpus
+    from .io.corpus import load_corpus
+
+    c = params.corpus
+    if task.autoencoder_corpus:
+        root = Path(task.autoencoder_corpus)
+    elif c.kind == "synthetic":
+        gen = dict(c.generator)
+        seed = int(gen.get("seed", 0)) + task.autoencoder_seed_offset
+        gen.update(seed=seed, num_sessions=task.autoencoder_sessions)
+        name = f"{c.name or 'synthetic_default'}_autoencoder_seed{seed}_n{task.autoencoder_sessions}"
+        root = ensure_synthetic_corpus({"name": name, "root": None, "generator": gen}, cache_dir=params.cache_dir)
+    else:
+        log.warning("no corpus for the FGD autoencoder (task.autoencoder_corpus): the autoencoder FGD is skipped")
+        return [], "none"
+    corpus = load_corpus(root, layout="genea", tolerance=c.duration_tolerance)
+    motions = [p.load_motion(params.fps) for s in corpus.sessions for p in s.participants]
+    return motions, str(root)
+
+
+def cdbn_params(cfg):
+    """The constrained DBN's typed parameters (``cdbn.*``) of a composed config."""
+    from .config import group_params
+
+    return group_params(cfg, "cdbn")
+
+
+def cdbn_corpus_root(cfg, p) -> Path:
+    """Where the CDBN's semi-synthetic corpus lives: ``cdbn.corpus_root``, else under the cache folder."""
+    return Path(p.corpus_root) if p.corpus_root else Path(cfg.cache_dir) / "cdbn_semisynthetic"
+
+
+def cdbn_semisynthetic_params(p):
+    """``cdbn.data`` at the model's frame rate (``cdbn.features.fps``)."""
+    import dataclasses
+
+    return dataclasses.replace(p.data, fps=p.features.fps)
+
+
+def cdbn_corpus(cfg, p) -> Path:
+    """The CDBN's semi-synthetic corpus folder, generated on first use."""
+    from .cdbn.semisynthetic import ensure_corpus
+
+    return ensure_corpus(cdbn_corpus_root(cfg, p), cdbn_semisynthetic_params(p))
+
+
+__all__ = ["REPO", "RESULTS", "SHARED_DATA", "ProcessRun", "annotated_corpus", "autoencoder_training", "cache_dir",
+           "cdbn_corpus", "cdbn_corpus_root", "cdbn_params", "cdbn_semisynthetic_params", "loo_setup",
+           "make_configured_system", "open_corpus", "pairing_note", "params_of", "peak_rss_mb", "process_memory_mb",
+           "reset_peak_rss", "results_inventory", "run_convsynth", "run_manifest", "timed", "write_result",
+           "write_result_manifest", "write_result_markdown"]

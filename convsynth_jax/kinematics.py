@@ -163,6 +163,21 @@ def forward_difference(x, fps: float, order: int = 1) -> np.ndarray:
     return x
 
 
+def seam_acceleration(positions, fps: float) -> np.ndarray:
+    """(F, J) joint acceleration magnitudes relative to the root joint, float64, units per second**2:
+    the central second difference of ``positions - positions[:, :1]``; the first and last frames take
+    their neighbour's values, a clip of fewer than 3 frames is all zeros. The project's one definition
+    of how sharp a frame is, read at seams: by the seam filter of the motion graph (graph/seams.py, on
+    the database's positions, which are root-relative in the root's heading frame) and by the seam
+    metrics of the evaluation (evaluation/metrics.py, on forward kinematics as played, whose heading is
+    not undone). The heading is the caller's choice of ``positions``, not a second formula."""
+    p = np.asarray(positions, dtype=np.float64)
+    if p.shape[0] < 3:
+        return np.zeros(p.shape[:2])
+    a = np.linalg.norm(forward_difference(p - p[:, :1], fps, 2), axis=-1)
+    return np.concatenate([a[:1], a, a[-1:]])
+
+
 def jerk(positions, fps: float) -> np.ndarray:
     """Jerk, the third time derivative of positions: (F, ...) -> (F - 3, ...) float64, units per
     second**3; row i spans frames i..i+3. The project's one definition (motion-quality metrics,

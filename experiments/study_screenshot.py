@@ -6,16 +6,12 @@ Serves the built study (``task=study_build``) on a loopback port with a throw-aw
 to the consent page, begins, plays the first video to its end (the choice buttons become enabled)
 and saves the page. Needs Chromium and chromedriver (Debian: chromium, chromium-driver)."""
 import argparse
-import sys
 import tempfile
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[1]
-if str(REPO) not in sys.path:
-    sys.path.insert(0, str(REPO))
-
-from convsynth_jax.testing.study import serve_subprocess  # noqa: E402
-from convsynth_jax.testing.web import find_browser, free_port, headless_chrome  # noqa: E402
+from convsynth_jax.testing.study import serve_subprocess
+from convsynth_jax.testing.web import find_browser, free_port, headless_chrome
+from convsynth_jax.api import REPO
 
 
 def main():

@@ -2,7 +2,9 @@
 every cell compared with the row of the results file it quotes. A quoted number must equal the file's
 value rounded to the digits the page shows (``0.16`` quotes 0.159, ``21.5k`` quotes 21459, ``2.15e+04``
 quotes 21459, ``0`` quotes 2.7e-11); a rank ``(n)`` and an interval ``[low, high]`` likewise. A table
-whose file changed (a new sweep, a new scoring) fails here until the page is updated."""
+whose file changed (a new sweep, a new scoring) fails here until the page is updated. The rule
+(:func:`convsynth_jax.docs_tables.shows`) is the one every marked table of the docs is checked by
+(``tests/test_docs_tables.py``)."""
 from __future__ import annotations
 
 import re
@@ -11,23 +13,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
+from convsynth_jax.docs_tables import shows
+
 ROOT = Path(__file__).resolve().parents[1]
 LEADERBOARD = ROOT / "experiments" / "results" / "bench_metrics_leaderboard.csv"
-_NUMBER = re.compile(r"^\s*(?P<num>-?\d+(?:\.\d+)?(?:e[+-]?\d+)?)(?P<k>k)?")
-
-
-def shows(text: str, value: float) -> bool:
-    """Whether ``text`` (a number as a page prints it: ``0.16``, ``2.15e+04``, ``21.5k``, ``164``) is
-    ``value`` rounded to the digits ``text`` shows."""
-    m = _NUMBER.match(text)
-    if m is None:
-        raise ValueError(f"not a number: {text!r}")
-    num = m.group("num")
-    scale = 1000.0 if m.group("k") else 1.0
-    mantissa, _, exp = num.partition("e")
-    scale *= 10.0 ** int(exp) if exp else 1.0
-    decimals = len(mantissa.partition(".")[2])
-    return round(float(value) / scale, decimals) == round(float(mantissa), decimals)
 
 
 def _table(page: Path, header_start: str) -> list[dict]:

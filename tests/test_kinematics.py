@@ -1,5 +1,6 @@
 import jax.numpy as jnp
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from convsynth_jax.io import load_bvh
@@ -130,3 +131,29 @@ def test_joints_below_a_set_of_joints():
     sk = Skeleton(tuple(f"j{i}" for i in range(8)), parents, np.zeros((8, 3)), tuple(("Zrotation",) for _ in range(8)))
     assert sk.below([2, 5]) == {3, 4, 6}
     assert sk.below([0]) == set(range(1, 8)) and sk.below([]) == set() and sk.below([7]) == set()
+
+
+def _slow_seam_acceleration(p, fps):
+    """Frame by frame, joint by joint: || (p[n+1] - r[n+1]) - 2 (p[n] - r[n]) + (p[n-1] - r[n-1]) || fps^2,
+    the ends copied from their neighbours."""
+    F, J = p.shape[:2]
+    out = np.zeros((F, J))
+    if F < 3:
+        return out
+    for n in range(1, F - 1):
+        for j in range(J):
+            d = [p[n + k, j] - p[n + k, 0] for k in (-1, 0, 1)]
+            out[n, j] = np.linalg.norm((d[2] - 2 * d[1] + d[0]) * fps * fps)
+    out[0], out[-1] = out[1], out[-2]
+    return out
+
+
+@pytest.mark.parametrize("frames", [1, 2, 3, 17])
+def test_seam_acceleration_equals_the_loops_and_ignores_the_root_path(frames):
+    from convsynth_jax.kinematics import seam_acceleration
+
+    rng = np.random.default_rng(frames)
+    p = rng.normal(size=(frames, 5, 3))
+    np.testing.assert_allclose(seam_acceleration(p, 30.0), _slow_seam_acceleration(p, 30.0), rtol=1e-12)
+    moved = p + np.cumsum(rng.normal(size=(frames, 1, 3)), axis=0) ** 2       # any root path, every joint with it
+    np.testing.assert_allclose(seam_acceleration(moved, 30.0), seam_acceleration(p, 30.0), atol=1e-9)

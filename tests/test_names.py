@@ -9,7 +9,6 @@ from pathlib import Path
 PKG = Path(__file__).resolve().parent.parent / "convsynth_jax"
 SAME_IDEA = {
     "enable_compilation_cache",   # tasks/common.py: the task-level switch over kernel_cache's
-    "ensure_corpus",              # tasks/cdbn_common.py: the task-level call of cdbn.semisynthetic's
     "params_from_dict",           # a mapping -> that package's parameter dataclass (cdbn, walktalk)
 }
 
@@ -30,14 +29,17 @@ def test_no_library_module_is_named_like_a_test():
     assert [str(p.relative_to(PKG)) for p in PKG.rglob("test*.py")] == []
 
 
-# experiment scripts that still reach into the tasks' wiring (the CDBN tasks' semi-synthetic corpus, the
-# benchmark task's autoencoder corpus)
-TASKS_IMPORTERS = {"bench/bench_cdbn.py", "bench/bench_metrics.py"}
-
-
 def test_experiments_use_the_public_api_not_the_tasks():
     """Scripts under experiments/ get the configured corpus, its annotation and system from
     ``convsynth_jax.api`` (what the tasks use too), not from ``convsynth_jax.tasks``."""
     exp = PKG.parent / "experiments"
     found = {str(p.relative_to(exp)) for p in exp.rglob("*.py") if "convsynth_jax.tasks" in p.read_text()}
-    assert found <= TASKS_IMPORTERS, sorted(found - TASKS_IMPORTERS)
+    assert found == set(), sorted(found)
+
+
+def test_experiments_do_not_edit_sys_path():
+    """Scripts under experiments/ import the installed package (and siblings of their own folder, which
+    Python puts on the path of a script it runs); none edits ``sys.path``."""
+    exp = PKG.parent / "experiments"
+    found = sorted(str(p.relative_to(exp)) for p in exp.rglob("*.py") if "sys.path" in p.read_text())
+    assert found == []

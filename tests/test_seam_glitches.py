@@ -1,5 +1,5 @@
 """The seam/glitch detector (convsynth_jax/synth/seam_glitches.py, run over a sweep by
-experiments/analysis/seam_glitches.py) flags a planted glitch that a blend fades in, and not the same
+the retired diagnosis seam_glitches.py, in git at e1848f1) flags a planted glitch that a blend fades in, and not the same
 seam once the continuation holds (the control of the glitch detector's leave-one-out evidence)."""
 from __future__ import annotations
 

@@ -245,3 +245,16 @@ def test_glitch_options_are_off_in_the_paper_preset_and_on_in_quality():
     paper, quality = default_params([]), default_params(["preset=quality"])
     assert paper.graph.glitch_max_step_deg == 0.0 and paper.synth.continuation_max_step_deg == 0.0
     assert quality.graph.glitch_max_step_deg == 15.0 and quality.synth.continuation_max_step_deg == 15.0
+
+
+def test_the_seam_filter_and_the_seam_metrics_read_one_acceleration(planted):
+    """The graph's fast frames and the evaluation's seam metrics are one definition
+    (kinematics.seam_acceleration): on the database's positions they agree frame for frame."""
+    from convsynth_jax.evaluation.metrics import clip_acceleration, root_relative_acceleration
+
+    _, db = planted
+    acc = frame_acceleration(db)
+    for s, e in zip(db.offsets[:-1], db.offsets[1:]):
+        clip = np.asarray(db.positions[int(s):int(e)], np.float64)
+        np.testing.assert_allclose(acc[int(s):int(e)], clip_acceleration(clip, db.fps).max(-1), rtol=1e-12)
+        np.testing.assert_allclose(acc[int(s) + 1:int(e) - 1], root_relative_acceleration(clip, db.fps).max(-1), rtol=1e-12)

@@ -4,7 +4,7 @@ read half-written. The full command-line reproduction (4 ``convsynth task=cooccu
 multirun of 4) is experiments/bench/parallel_cache.py."""
 from __future__ import annotations
 
-from convsynth_jax.testing.cache_race import start_together
+from convsynth_jax.testing.cache_race import cache_report, start_together
 
 # a small corpus: the race is in how it is written and found, not in its size
 GENERATOR = {"seed": 1, "num_sessions": 2, "session_seconds": 10.0, "calibrate_rates": False,
@@ -41,13 +41,21 @@ def test_four_processes_on_one_empty_cache_compute_each_entry_once(tmp_path, mon
         assert kernel_cache._read(kfile, key) is not None
     finally:
         kernel_cache.set_kernel_dir(None)
-    from jax._src import compilation_cache
-
-    entries = [p for p in (cache / "jax_cache").iterdir() if p.name.endswith("-cache")]
-    assert entries
-    for p in entries:
-        compilation_cache.decompress_executable(p.read_bytes())  # raises on a truncated entry
+    report = cache_report(cache)   # JAX's entries decompress, the pickles load, no temporary is left
+    assert report["jax_entries"][0] > 0 and report["annotations"][0] == len(files), report
+    assert report["jax_entries"][1] == report["annotations"][1] == report["leftover_temporaries"] == 0, report
     # JAX's own lock guards its folder (jax_cache.max_size_bytes); our entries have theirs
     assert (cache / "jax_cache" / ".lockfile").exists()
-    leftovers = [p.name for p in cache.rglob(".*") if not p.name.endswith(".lock") and p.name != ".lockfile"]
-    assert not leftovers, leftovers
+
+
+def test_cache_report_counts_unreadable_entries_and_leftover_temporaries(tmp_path):
+    import pickle
+
+    (tmp_path / "loo_cache").mkdir()
+    (tmp_path / "loo_cache" / "annotations_a.pkl").write_bytes(pickle.dumps({"a": 1}))
+    (tmp_path / "loo_cache" / "annotations_b.pkl").write_bytes(pickle.dumps({"b": 2})[:-3])   # cut short
+    (tmp_path / "loo_cache" / ".annotations_c.pkl.tmp123").write_bytes(b"")
+    (tmp_path / "loo_cache" / "annotations_a.pkl.lock").write_bytes(b"")
+    report = cache_report(tmp_path)
+    assert report["annotations"] == [2, 1] and report["graphs"] == [0, 0] and report["jax_entries"] == [0, 0]
+    assert report["leftover_temporaries"] == 1

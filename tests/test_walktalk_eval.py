@@ -542,8 +542,8 @@ def test_limit_readings_report_both_readings_against_naive():
 
 
 def test_elbow_tracking_variants_and_loop_measures_on_fixtures():
-    """elbow.elbow_tracking with ``variants`` (the bench's elbow diagnosis goes through it, not
-    a copy of the loop): one row per gesture x loop x variant named by the variant; the paper's
+    """elbow.elbow_tracking with ``variants`` (an elbow study goes through it, not a copy of the
+    loop): one row per gesture x loop x variant named by the variant; the paper's
     band without the range-of-motion cut is within 1 deg of the default's stylized rows on the walk
     fixture (whose band barely meets the limits) and > 1 deg off on jog (cut at ~120 deg); ``loop_measures`` adds the bend of
     the mean pose and of the loop over the stroke's frames, close to the loop's mean bend."""
@@ -584,3 +584,43 @@ def test_quality_preset_sets_our_splice_options_and_paper_keeps_the_papers():
     assert _asdict(back) == _asdict(paper)
     # a key after the preset still wins
     assert walktalk("preset=quality", "walktalk.splice.rescale_coupling=0.5").splice.rescale_coupling == 0.5
+
+
+def test_gesture_reach_per_gait_and_variant_against_the_base():
+    """elbow.gesture_reach on the fixtures: one reach per gesture and loop for every variant, the base
+    variant's ratio to itself is 1, a second copy of the base reads the same, every reach finite and
+    positive."""
+    from convsynth_jax.walktalk.elbow import gesture_reach
+    from convsynth_jax.walktalk.library import load_library
+
+    p = WalkTalkParams()
+    lib = load_library(p, FIXTURES, 1, single_peak_only=True)
+    variants = {"naive": (p.splice, "naive"), "stylized": (p.splice, "stylized+synced"),
+                "copy": (p.splice, "stylized+synced")}
+    rows = {(r["gait"], r["variant"]): r for r in gesture_reach(lib, p, variants, "stylized", every=1)}
+    assert {g for g, _ in rows} == set(lib.loops)
+    for gait in lib.loops:
+        assert rows[gait, "stylized"]["ratio_to_base_median"] == pytest.approx(1.0)
+        assert rows[gait, "copy"]["reach_cm_median"] == pytest.approx(rows[gait, "stylized"]["reach_cm_median"])
+        assert rows[gait, "naive"]["splices"] == rows[gait, "stylized"]["splices"] == len(lib.gestures)
+        assert all(np.isfinite(r["reach_cm_median"]) and r["reach_cm_median"] > 0 for r in rows.values())
+
+
+def test_goal_rows_one_per_setting_and_gait_sharing_the_naive_run():
+    """evaluate.goal_rows on the fixtures: a row per setting and gait, counts within the splices, the
+    naive rows computed once and reusable (a second call given them reads the same)."""
+    import json
+
+    from convsynth_jax.walktalk.evaluate import goal_rows
+    from convsynth_jax.walktalk.library import load_library
+
+    p = WalkTalkParams()
+    lib = load_library(p, FIXTURES, 1, single_peak_only=True)
+    settings = {"paper defaults": {}, "coupled": {"rescale_coupling": 1.0}}
+    rows, naive = goal_rows(lib, p, settings)
+    assert [(r["setting"], r["gait"]) for r in rows] == [(s, g) for s in settings for g in lib.loops]
+    for r in rows:
+        assert r["splices"] == len(lib.gestures) and 0 <= r["jerk_over_2x"] <= r["splices"]
+        assert 0 <= r["naive_jerk_over_2x"] <= r["splices"] and 0.0 <= r["peak_in_contact_rate"] <= 1.0
+    again, _ = goal_rows(lib, p, {"paper defaults": {}}, naive_df=naive)
+    assert json.dumps(again, default=str) == json.dumps(rows[:len(lib.loops)], default=str)   # NaN reads as NaN

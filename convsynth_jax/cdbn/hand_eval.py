@@ -13,7 +13,7 @@ arm/forearm stream of cdbn/hands.py.
   constraint spans the gesture, from the first to the last frame whose arms are away from rest
   (:func:`gesture_span`; ``span="fraction"``, ours: everything but the clip's first and last
   ``rest_fraction``); the clip's remaining frames are ``other``. Why (measured on Bandai2,
-  ``experiments/analysis/cdbn_raise.py``): a pooled ``raise`` does not say which arm to lift, so the
+  ``cdbn_raise.py``, a diagnosis since retired, in git at e1848f1): a pooled ``raise`` does not say which arm to lift, so the
   synthesized raise is an average of the three, and a 15% margin holds most of a 2 s raise's lift.
 """
 from __future__ import annotations

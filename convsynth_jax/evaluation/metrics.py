@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from ..kinematics import forward_difference, jerk
+from ..kinematics import forward_difference, jerk, seam_acceleration
 
 
 def mean_acceleration(positions: np.ndarray, fps: float, weights: np.ndarray | None = None) -> float:
@@ -83,9 +83,10 @@ def max_frame_jump(positions: np.ndarray) -> np.ndarray:
 
 def root_relative_acceleration(positions: np.ndarray, fps: float) -> np.ndarray:
     """(F-2, J) joint acceleration magnitudes of positions relative to the root joint (joint 0's
-    position subtracted; heading not undone); row i is output frame i + 1 (central difference)."""
+    position subtracted; heading not undone); row i is output frame i + 1 (central difference):
+    ``kinematics.seam_acceleration`` without its repeated first and last rows."""
     p = np.asarray(positions, dtype=np.float64)
-    return np.linalg.norm(forward_difference(p - p[:, :1], fps, 2), axis=-1)
+    return seam_acceleration(p, fps)[1:-1] if p.shape[0] >= 3 else np.zeros((0,) + p.shape[1:2])
 
 
 SEAM_RADIUS = 3  # frames either side of a synthetic transition that count as its seam
@@ -140,10 +141,7 @@ def seam_content_ratio(clip_acc: dict, source_clip, source_frame, gt_positions: 
 
 
 def clip_acceleration(positions: np.ndarray, fps: float) -> np.ndarray:
-    """(F, J) per-frame root-relative acceleration magnitudes of a whole clip (as
-    :func:`root_relative_acceleration`, whose row i is frame i + 1; the first and last frames take
-    their neighbours' values), for :func:`seam_content_ratio`."""
-    a = root_relative_acceleration(positions, fps)
-    if a.shape[0] == 0:
-        return np.zeros((np.asarray(positions).shape[0], np.asarray(positions).shape[1]))
-    return np.concatenate([a[:1], a, a[-1:]])
+    """(F, J) per-frame root-relative acceleration magnitudes of a whole clip, for
+    :func:`seam_content_ratio`: ``kinematics.seam_acceleration`` (the first and last frames take
+    their neighbours' values)."""
+    return seam_acceleration(positions, fps)

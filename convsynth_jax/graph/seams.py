@@ -17,11 +17,14 @@ largest root-relative joint acceleration (every joint, fingers included) exceeds
 touched, so fast content still plays, only not at a seam.
 
     acc[n] = max_b || (p_{n+1}[b] - 2 p_n[b] + p_{n-1}[b]) * fps^2 ||   (central difference, in its clip)
+
+(``kinematics.seam_acceleration``, the definition the evaluation's seam metrics use too.)
 """
 from __future__ import annotations
 
 import numpy as np
 
+from ..kinematics import seam_acceleration
 from .database import MotionDatabase
 
 
@@ -33,14 +36,10 @@ def frame_acceleration(db: MotionDatabase) -> np.ndarray:
     frames gets 0)."""
     P = np.asarray(db.positions, np.float64)
     out = np.zeros(db.num_frames)
-    fps2 = float(db.fps) ** 2
     for s, e in zip(db.offsets[:-1], db.offsets[1:]):
         s, e = int(s), int(e)
-        if e - s < 3:
-            continue
-        a = np.linalg.norm((P[s + 2:e] - 2.0 * P[s + 1:e - 1] + P[s:e - 2]) * fps2, axis=-1).max(-1)
-        out[s + 1:e - 1] = a
-        out[s], out[e - 1] = a[0], a[-1]
+        if e > s:
+            out[s:e] = seam_acceleration(P[s:e], float(db.fps)).max(-1)
     return out
 
 

@@ -1,6 +1,6 @@
 """Which seams of a synthesized path can show a planted marker-swap glitch (ours; the analysis of
 docs/decisions.md#marker-swap-glitches-and-touching-clauses, run over a leave-one-out sweep by
-``experiments/analysis/seam_glitches.py``).
+``seam_glitches.py``, a diagnosis since retired, in git at e1848f1).
 
 A seam is a synthetic transition arriving at output frame t. Around it the realization shows the raw
 sources of output frames t - B .. t + B - 1 (B: the blend's length; the end of the clip the path

@@ -81,36 +81,13 @@ def system_params(cfg, entry: BenchmarkSystem):
     return params_of(c)
 
 
-def autoencoder_training(params, task: BenchmarkSettings) -> tuple[list, str]:
-    """(Motions the FGD autoencoder trains on, where they come from): the synthetic generator under
-    another seed for a synthetic corpus, else the corpus folder ``task.autoencoder_corpus``; none
-    (the autoencoder FGD is skipped) when neither exists."""
-    from ..data import ensure_synthetic_corpus
-    from ..io.corpus import load_corpus
-
-    c = params.corpus
-    if task.autoencoder_corpus:
-        root = Path(task.autoencoder_corpus)
-    elif c.kind == "synthetic":
-        gen = dict(c.generator)
-        seed = int(gen.get("seed", 0)) + task.autoencoder_seed_offset
-        gen.update(seed=seed, num_sessions=task.autoencoder_sessions)
-        name = f"{c.name or 'synthetic_default'}_autoencoder_seed{seed}_n{task.autoencoder_sessions}"
-        root = ensure_synthetic_corpus({"name": name, "root": None, "generator": gen}, cache_dir=params.cache_dir)
-    else:
-        log.warning("no corpus for the FGD autoencoder (task.autoencoder_corpus): the autoencoder FGD is skipped")
-        return [], "none"
-    corpus = load_corpus(root, layout="genea", tolerance=c.duration_tolerance)
-    motions = [p.load_motion(params.fps) for s in corpus.sessions for p in s.participants]
-    return motions, str(root)
-
-
 def run(cfg, out_dir: Path) -> dict:
     from ..config import task_settings
     from ..evaluation import benchmark as bm
     from ..figures import save_figure
     from ..figures.benchmark import leaderboard_figure
     from ..systems.base import make_system
+    from ..api import autoencoder_training
     from .common import annotated_corpus, cache_dir, params_of
 
     t_start = time.perf_counter()

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 
 from ..utils import atomic_path, write_json_atomic
-from .cdbn_common import ensure_corpus, params
+from ..api import cdbn_corpus as ensure_corpus, cdbn_params as params
 
 log = logging.getLogger(__name__)
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 from pathlib import Path
 
-from .cdbn_common import corpus_root, params, semisynthetic_params
+from ..api import cdbn_corpus_root as corpus_root, cdbn_params as params, cdbn_semisynthetic_params as semisynthetic_params
 
 
 @dataclass(frozen=True)

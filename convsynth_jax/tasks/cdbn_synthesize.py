@@ -12,7 +12,7 @@ from typing import Optional
 import numpy as np
 
 from ..errors import CDBNError, ConfigError
-from .cdbn_common import ensure_corpus, params
+from ..api import cdbn_corpus as ensure_corpus, cdbn_params as params
 
 
 @dataclass(frozen=True)

@@ -379,23 +379,62 @@ def write_report_md(path: Path, report: dict) -> None:
 
 
 # ----------------------------------------------------------------------------------------------- task
-def run(cfg, out_dir: Path) -> dict:
-    from ..config import task_settings
-    from ..io import save_bvh
-    from ..io.transcripts import save_transcript_tsv
-    from ..seeding import derive_seed
-    from ..synth.chain import plan_windows, quiet_mask, synthesize_conversation
-    from ..systems.motion_graph import MotionGraphSystem, clip_name
-    from .common import annotated_corpus, make_configured_system, params_of
-    from .synthesize import label_rows
+class _Timings:
+    """Wall seconds per step of the run (``timings`` in report.json) and the task's CPU seconds: its own
+    (all threads) and those of the programs it ran (ffmpeg). On a busy machine the wall times say little,
+    the CPU times do."""
 
-    t_start = time.perf_counter()
-    cpu_start = time.process_time()
-    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-    child_start = kids.ru_utime + kids.ru_stime
-    timings = {}
-    p = task_settings(cfg)
-    params = params_of(cfg)
+    def __init__(self):
+        self.wall0, self.cpu0, self.child0 = time.perf_counter(), time.process_time(), self._children()
+        self.steps: dict = {}
+
+    @staticmethod
+    def _children() -> float:
+        kids = resource.getrusage(resource.RUSAGE_CHILDREN)
+        return kids.ru_utime + kids.ru_stime
+
+    def step(self, key: str, fn, *args, **kwargs):
+        t0 = time.perf_counter()
+        out = fn(*args, **kwargs)
+        self.steps[key] = time.perf_counter() - t0
+        return out
+
+    def finished(self) -> dict:
+        return {**self.steps, "total_s": time.perf_counter() - self.wall0, "cpu_s": time.process_time() - self.cpu0,
+                "child_cpu_s": self._children() - self.child0}
+
+
+@dataclass(frozen=True)
+class _Setup:
+    """What every step after the inputs needs: the task's and the library's parameters, the search, the
+    two speakers, their audio labels, the characters, their models and the plan of windows."""
+
+    p: Any
+    params: Any
+    search: Any
+    speakers: tuple          # (SpeakerInput A, SpeakerInput B)
+    duration: float
+    seg: dict                # "A"/"B" -> audio labels
+    chars: list
+    models: dict
+    clip_audio: dict         # corpus clip -> (own, partner) labels, for the checker
+    num_frames: int
+    plan: list
+
+    @property
+    def fps(self) -> float:
+        return self.params.fps
+
+
+def run(cfg, out_dir: Path) -> dict:
+    """The conversation as a pipeline: read the speech, fit the characters' models, plan the windows,
+    synthesize both characters, write motion and audio, draw the video, write the report and summary."""
+    from ..config import task_settings
+    from ..systems.motion_graph import MotionGraphSystem
+    from .common import make_configured_system, params_of
+
+    clock = _Timings()
+    p, params = task_settings(cfg), params_of(cfg)
     system = make_configured_system(params)
     if system.converses_from_audio:
         return run_from_audio(system, p, params, out_dir)
@@ -404,101 +443,144 @@ def run(cfg, out_dir: Path) -> dict:
                           f"audio alone (system=motion_graph or system=flow_matching; got {system.name!r})")
     system.condition_options(p.condition)
     search = system.search_params(p.condition)
-    fps = params.fps
+    A, B, duration, seg = clock.step("inputs_s", read_speech, p, params, out_dir)
+    ann, chars = clock.step("corpus_s", _corpus_characters, p, params)
+    models = clock.step("models_s", fit_models, p, params, system, ann, chars)
+    setup = plan_conversation(p, params, search, (A, B), duration, seg, chars, models, ann)
+    report = report_head(setup)
+    results = clock.step("synthesis_s", synthesize_characters, setup, report)
+    wav = clock.step("write_s", write_motion_and_audio, setup, results, out_dir)
+    video = None
+    if p.video and all(r.success for r in results.values()):
+        video = clock.step("video_s", draw_video, setup, results, wav, out_dir)
+    failure = finish_report(report, setup, results, clock.finished(), wav, video, out_dir)
+    if failure:
+        raise SearchFailure(f"{failure} (report: {out_dir / 'report.md'})")
+    return conversation_summary(report, setup)
 
-    t0 = time.perf_counter()
+
+def read_speech(p: ConverseParams, params, out_dir: Path):
+    """(A, B, duration, audio labels per speaker): the inputs read and annotated as the corpus is. Words
+    that were recognized or aligned are written beside the outputs, for the user to correct and pass back."""
+    from ..io.transcripts import save_transcript_tsv
+
     A, B, duration = load_inputs(p)
     seg = {"A": annotate(A, params), "B": annotate(B, params)}
-    timings["inputs_s"] = time.perf_counter() - t0
     for sp in (A, B):
         if sp.words_source in ("recognized", "aligned"):
-            # the words the annotation used, in a form the user can correct and pass back as the transcript
             save_transcript_tsv(sp.words, out_dir / f"words_{sp.name}.tsv")
             log.info("speaker %s: %s words written to %s (task.transcript_%s=%s after correcting it)", sp.name,
                      sp.words_source, out_dir / f"words_{sp.name}.tsv", sp.name.lower(), f"words_{sp.name}.tsv")
+    return A, B, duration, seg
 
-    t0 = time.perf_counter()
-    corpus, ann = annotated_corpus(params)
-    chars = characters_of(p, ann)
-    timings["corpus_s"] = time.perf_counter() - t0
-    t0 = time.perf_counter()
-    models = fit_models(p, params, system, ann, chars)
-    timings["models_s"] = time.perf_counter() - t0
 
+def _corpus_characters(p: ConverseParams, params):
+    from .common import annotated_corpus
+
+    _, ann = annotated_corpus(params)
+    return ann, characters_of(p, ann)
+
+
+def plan_conversation(p: ConverseParams, params, search, speakers, duration: float, seg: dict, chars, models, ann) -> _Setup:
+    """The windows over the whole input (boundaries snapped to quiet frames of both speakers) and the
+    corpus's audio labels per clip, with everything the later steps read."""
+    from ..synth.chain import plan_windows, quiet_mask
+    from ..systems.motion_graph import clip_name
+
+    fps = params.fps
     T = int(round(duration * fps))
     tol = int(round(float(search.tolerance) * fps))
-    plan = plan_windows(T, fps, p.window_s, p.hop_s, p.snap_s, p.min_last_s,
-                        quiet_mask([seg["A"], seg["B"]], T, fps, tol))
+    plan = plan_windows(T, fps, p.window_s, p.hop_s, p.snap_s, p.min_last_s, quiet_mask([seg["A"], seg["B"]], T, fps, tol))
     clip_audio = {clip_name(s, r): (a.own, a.partner) for s, d in ann.items() for r, a in d.items()}
-    report = {"inputs": {"duration_s": duration, "num_frames": T, "fps": fps,
-                         **{sp.name: {"character": chars[k], "audio": sp.audio_file, "channel": sp.channel,
-                                      "transcript": sp.transcript_file, "words": sp.words_source,
-                                      "num_words": int(len(sp.words))} for k, sp in enumerate((A, B))}},
-              "plan": {"window_s": p.window_s, "hop_s": p.hop_s, "snap_s": p.snap_s, "chaining": p.chaining,
-                       "windows": [asdict(w) for w in plan]},
-              "search": {"method": search.method, "matching": search.matching, "tolerance": search.tolerance,
-                         "on_failure": getattr(search, "on_failure", None)},
-              "condition": p.condition, "characters": {}, "success": True}
-    results, failure = {}, None
-    t0 = time.perf_counter()
+    return _Setup(p, params, search, tuple(speakers), duration, seg, chars, models, clip_audio, T, plan)
 
-    def character(k):
-        """Character k's whole conversation and its report entry (the two characters are independent)."""
-        who, other, char = "AB"[k], "BA"[k], chars[k]
-        model = models[char]
 
-        def seed_of(frame):
-            return derive_seed(params.seed, fold=0, condition=p.condition, session="converse", window_frame=frame,
-                               role_index=k)
+def report_head(s: _Setup) -> dict:
+    """report.json's inputs, plan and search, before any character is synthesized."""
+    p = s.p
+    return {"inputs": {"duration_s": s.duration, "num_frames": s.num_frames, "fps": s.fps,
+                       **{sp.name: {"character": s.chars[k], "audio": sp.audio_file, "channel": sp.channel,
+                                    "transcript": sp.transcript_file, "words": sp.words_source,
+                                    "num_words": int(len(sp.words))} for k, sp in enumerate(s.speakers)}},
+            "plan": {"window_s": p.window_s, "hop_s": p.hop_s, "snap_s": p.snap_s, "chaining": p.chaining,
+                     "windows": [asdict(w) for w in s.plan]},
+            "search": {"method": s.search.method, "matching": s.search.matching, "tolerance": s.search.tolerance,
+                       "on_failure": getattr(s.search, "on_failure", None)},
+            "condition": p.condition, "characters": {}, "success": True}
 
-        res = synthesize_conversation(model.graph, model.motions, seg[who], seg[other], T, fps, plan, search,
-                                      params.synth, seed_of, chair_index=k, backoff_s=p.backoff_s, chaining=p.chaining)
-        entry = {"character": char, "success": res.success,
-                 "windows": [{**w, "start_s": w["start"] / fps, "end_s": w["end"] / fps} for w in res.windows],
-                 "search_seconds": float(sum(w["seconds"] for w in res.windows))}
-        if res.success:
-            entry["checker"] = check_character(res, seg[who], seg[other], res.windows, clip_audio, fps, search)
-            entry["continuity"] = continuity(res, model.motions)
-            entry["num_synthetic_transitions"] = len(res.synthetic_at)
-            # output frames (after the retiming warp), where the video and the viewer show them
-            entry["transitions"] = [{"frame": t} for t in res.output_frames(res.synthetic_at)]
-            entry["cuts"] = res.output_frames(res.cuts)
-            entry["cuts_path"] = [int(t) for t in res.cuts]      # the same cuts in path frames (continuity's keys)
-            entry["cost"] = res.cost
-            entry["graph"] = {"num_states": model.graph.num_states, "num_edges": model.graph.num_edges}
-        else:
-            entry["failure"] = res.failure
-        return res, entry
 
-    # the two characters' searches and realizations run side by side (XLA and NumPy release the GIL for
-    # most of their work: on two cores this takes about the longer of the two, not their sum); each
-    # character's result does not depend on the other's, so the files are the same bytes as one by one
-    stop = threading.Event()
+def converse_character(s: _Setup, k: int):
+    """Character k's whole conversation and its report entry (the two characters are independent)."""
+    from ..seeding import derive_seed
+    from ..synth.chain import synthesize_conversation
+
+    who, other, char, fps, p = "AB"[k], "BA"[k], s.chars[k], s.fps, s.p
+    model = s.models[char]
+
+    def seed_of(frame):
+        return derive_seed(s.params.seed, fold=0, condition=p.condition, session="converse", window_frame=frame,
+                           role_index=k)
+
+    res = synthesize_conversation(model.graph, model.motions, s.seg[who], s.seg[other], s.num_frames, fps, s.plan, s.search,
+                                  s.params.synth, seed_of, chair_index=k, backoff_s=p.backoff_s, chaining=p.chaining)
+    entry = {"character": char, "success": res.success,
+             "windows": [{**w, "start_s": w["start"] / fps, "end_s": w["end"] / fps} for w in res.windows],
+             "search_seconds": float(sum(w["seconds"] for w in res.windows))}
+    if res.success:
+        entry["checker"] = check_character(res, s.seg[who], s.seg[other], res.windows, s.clip_audio, fps, s.search)
+        entry["continuity"] = continuity(res, model.motions)
+        entry["num_synthetic_transitions"] = len(res.synthetic_at)
+        # output frames (after the retiming warp), where the video and the viewer show them
+        entry["transitions"] = [{"frame": t} for t in res.output_frames(res.synthetic_at)]
+        entry["cuts"] = res.output_frames(res.cuts)
+        entry["cuts_path"] = [int(t) for t in res.cuts]      # the same cuts in path frames (continuity's keys)
+        entry["cost"] = res.cost
+        entry["graph"] = {"num_states": model.graph.num_states, "num_edges": model.graph.num_edges}
+    else:
+        entry["failure"] = res.failure
+    return res, entry
+
+
+def synthesize_characters(s: _Setup, report: dict) -> dict:
+    """Both characters' conversations ("A"/"B" -> result), their entries put into ``report``; a failed
+    character sets ``report["success"]`` false and ``report["failure"]`` to the first failure.
+
+    The two searches and realizations run side by side (XLA and NumPy release the GIL for most of their
+    work: on two cores this takes about the longer of the two, not their sum); each character's result
+    does not depend on the other's, so the files are the same bytes as one by one."""
+    stop, t0 = threading.Event(), time.perf_counter()
 
     def heartbeat():
         """Progress of long searches: a line every task.progress_s seconds (one per window follows as each ends)."""
-        while not stop.wait(p.progress_s):
+        while not stop.wait(s.p.progress_s):
             log.info("searching: %.0f s so far (%d window(s) per character, %.0f s of input)",
-                     time.perf_counter() - t0, len(plan), duration)
+                     time.perf_counter() - t0, len(s.plan), s.duration)
 
-    beat = threading.Thread(target=heartbeat, name="progress", daemon=True) if p.progress_s > 0 else None
+    beat = threading.Thread(target=heartbeat, name="progress", daemon=True) if s.p.progress_s > 0 else None
     if beat is not None:
         beat.start()
     try:
-        with ThreadPoolExecutor(max_workers=2 if p.parallel_characters else 1, thread_name_prefix="character") as pool:
-            done = [f.result() for f in [pool.submit(character, k) for k in range(2)]]
+        with ThreadPoolExecutor(max_workers=2 if s.p.parallel_characters else 1, thread_name_prefix="character") as pool:
+            done = [f.result() for f in [pool.submit(converse_character, s, k) for k in range(2)]]
     finally:
         stop.set()
+    results, report["failure"] = {}, None
     for k, (who, (res, entry)) in enumerate(zip("AB", done)):
         results[who] = res
         if not res.success:
             report["success"] = False
-            failure = failure or f"character {who} ({chars[k]}): {res.failure}"
-            log.error("character %s (%s): %s", who, chars[k], res.failure)
+            report["failure"] = report["failure"] or f"character {who} ({s.chars[k]}): {res.failure}"
+            log.error("character %s (%s): %s", who, s.chars[k], res.failure)
         report["characters"][who] = entry
-    timings["synthesis_s"] = time.perf_counter() - t0
+    return results
 
-    t0 = time.perf_counter()
+
+def write_motion_and_audio(s: _Setup, results: dict, out_dir: Path) -> Path:
+    """``A.bvh``/``B.bvh`` and their blinks for each character that succeeded, and ``conversation.wav``
+    (A left, B right); returns the WAV's path."""
+    from ..io import save_bvh
+
+    T, fps = s.num_frames, s.fps
     for who in "AB":
         res = results[who]
         if res.success:
@@ -506,24 +588,28 @@ def run(cfg, out_dir: Path) -> dict:
             with atomic_path(out_dir / f"{who}_blinks.csv") as tmp:
                 pd.DataFrame({"frame": np.arange(T), "time": np.arange(T) / fps, "blink": res.blinks}).to_csv(tmp, index=False)
     wav = out_dir / "conversation.wav"
-    write_stereo(wav, A.audio, B.audio, duration)
-    timings["write_s"] = time.perf_counter() - t0
-    video = None
-    if p.video and all(r.success for r in results.values()):
-        t0 = time.perf_counter()
-        ticks = {w: tuple(t / fps for t in results[w].output_frames(results[w].synthetic_at)) for w in "AB"}
-        spans = [(r["start"] / fps, r["end"] / fps) for r in results["A"].windows] if len(plan) > 1 else None
-        video = render_conversation({w: results[w].motion for w in "AB"}, ticks, spans, seg, chars, fps,
-                                    out_dir / "conversation.mp4", wav, p)
-        timings["video_s"] = time.perf_counter() - t0
-    timings["total_s"] = time.perf_counter() - t_start
-    # CPU seconds of the task (all its threads) and of the programs it ran (ffmpeg): on a busy machine the
-    # wall times above say little, these do
-    kids = resource.getrusage(resource.RUSAGE_CHILDREN)
-    timings["cpu_s"] = time.process_time() - cpu_start
-    timings["child_cpu_s"] = kids.ru_utime + kids.ru_stime - child_start
+    write_stereo(wav, s.speakers[0].audio, s.speakers[1].audio, s.duration)
+    return wav
+
+
+def draw_video(s: _Setup, results: dict, wav: Path, out_dir: Path) -> Path:
+    """``conversation.mp4``: both characters over the label timeline, the synthetic transitions as ticks
+    and the windows' spans when there are several, the WAV muxed in."""
+    fps = s.fps
+    ticks = {w: tuple(t / fps for t in results[w].output_frames(results[w].synthetic_at)) for w in "AB"}
+    spans = [(r["start"] / fps, r["end"] / fps) for r in results["A"].windows] if len(s.plan) > 1 else None
+    return render_conversation({w: results[w].motion for w in "AB"}, ticks, spans, s.seg, s.chars, fps,
+                               out_dir / "conversation.mp4", wav, s.p)
+
+
+def finish_report(report: dict, s: _Setup, results: dict, timings: dict, wav: Path, video, out_dir: Path):
+    """report.json and report.md with the timings, the audio labels per speaker (task=view draws them),
+    whether every constraint was met and the output files; returns the first failure (None without)."""
+    from .synthesize import label_rows
+
+    failure = report.pop("failure")
     report["timings"] = timings
-    report["segments"] = {w: label_rows(seg[w]) for w in "AB"}   # audio labels per character (task=view draws them)
+    report["segments"] = {w: label_rows(s.seg[w]) for w in "AB"}
     report["failure"] = failure
     report["all_constraints_met"] = (not failure) and all(
         report["characters"][w]["checker"]["total"]["met"] == report["characters"][w]["checker"]["total"]["total"]
@@ -532,21 +618,23 @@ def run(cfg, out_dir: Path) -> dict:
                          "video": None if video is None else video.name}
     write_json_atomic(out_dir / "report.json", report)
     write_report_md(out_dir / "report.md", report)
-    if failure:
-        raise SearchFailure(f"{failure} (report: {out_dir / 'report.md'})")
-    speakers = {w: speaker_summary(report, w, fps) for w in "AB"}
+    return failure
+
+
+def conversation_summary(report: dict, s: _Setup) -> dict:
+    """summary.json of a run whose characters were both synthesized, with a line per speaker in the log."""
+    speakers = {w: speaker_summary(report, w, s.fps) for w in "AB"}
     for w in "AB":
         log.info("%s", speaker_line(w, speakers[w]))
-    summary = {"success": True,   # motion was written for both characters
-               "all_constraints_met": all(s["constraints"]["met"] == s["constraints"]["total"] for s in speakers.values()),
-               "duration_s": duration, "num_frames": T, "windows": len(plan),
-               "characters": {w: chars[k] for k, w in enumerate("AB")},
-               "constraints_met": {w: speakers[w]["constraints"]["met"] for w in "AB"},
-               "constraints_total": {w: speakers[w]["constraints"]["total"] for w in "AB"},
-               "speakers": speakers,
-               "search_seconds": {w: report["characters"][w]["search_seconds"] for w in "AB"},
-               "timings": timings}
-    return summary
+    return {"success": True,   # motion was written for both characters
+            "all_constraints_met": all(x["constraints"]["met"] == x["constraints"]["total"] for x in speakers.values()),
+            "duration_s": s.duration, "num_frames": s.num_frames, "windows": len(s.plan),
+            "characters": {w: s.chars[k] for k, w in enumerate("AB")},
+            "constraints_met": {w: speakers[w]["constraints"]["met"] for w in "AB"},
+            "constraints_total": {w: speakers[w]["constraints"]["total"] for w in "AB"},
+            "speakers": speakers,
+            "search_seconds": {w: report["characters"][w]["search_seconds"] for w in "AB"},
+            "timings": report["timings"]}
 
 
 def _padded(audio, seconds: float):

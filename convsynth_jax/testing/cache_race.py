@@ -15,7 +15,8 @@ parameters) and ``out`` (where the process writes ``result-INDEX.json``). The pr
 
 and records how many times it computed each entry (generated the corpus, annotated, compiled and
 stored the kernel) and a digest of what it read. :func:`start_together` runs N of them and returns
-their results. Test helper only: no library module imports it.
+their results; :func:`cache_report` reads every entry of the folder back. Test helper only: no library
+module imports it.
 """
 from __future__ import annotations
 
@@ -140,3 +141,37 @@ def main(argv: list[str]) -> None:
 
 if __name__ == "__main__":
     main(sys.argv[1:])
+
+
+def cache_report(cache: Path) -> dict:
+    """Every entry of a cache folder read back: {kind: [entries, unreadable]} for the annotation pickles,
+    the motion graphs and JAX's compilation cache, and ``leftover_temporaries``: hidden files other than
+    locks (a temporary name left behind by a write that did not finish)."""
+    import pickle
+
+    from jax._src import compilation_cache
+
+    from ..graph import load_graph
+
+    report = {"annotations": [0, 0], "graphs": [0, 0], "jax_entries": [0, 0], "leftover_temporaries": 0}
+    for p in (cache / "loo_cache").glob("annotations_*.pkl"):
+        report["annotations"][0] += 1
+        try:
+            pickle.loads(p.read_bytes())
+        except Exception:  # noqa: BLE001 - counted
+            report["annotations"][1] += 1
+    for p in (cache / "loo_cache").glob("graph_*.npz"):
+        report["graphs"][0] += 1
+        try:
+            load_graph(p)
+        except Exception:  # noqa: BLE001 - counted
+            report["graphs"][1] += 1
+    for p in (cache / "jax_cache").glob("*-cache"):
+        report["jax_entries"][0] += 1
+        try:
+            compilation_cache.decompress_executable(p.read_bytes())
+        except Exception:  # noqa: BLE001 - counted
+            report["jax_entries"][1] += 1
+    report["leftover_temporaries"] = sum(1 for p in cache.rglob(".*")
+                                         if not p.name.endswith(".lock") and p.name != ".lockfile")
+    return report

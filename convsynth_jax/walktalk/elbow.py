@@ -197,3 +197,30 @@ def elbow_tracking_summary(df: pd.DataFrame) -> list[dict]:
         out.append({"gait": gait, "method": method, "loops": int(d["loop"].nunique()),
                     "gestures": int(d["gesture"].nunique()), **elbow_summary(d)})
     return out
+
+
+def gesture_reach(lib: Library, p: WalkTalkParams, variants: dict, base: str, every: int = 4) -> list[dict]:
+    """The gesture's reach per gait and variant ({name: (SpliceParams, method)}): the root-relative
+    gesturing hand's distance at the stroke peak from the loop's own hand at that frame (cm), every
+    ``every``-th gesture x the library's loops (peak-placed splices), and its median ratio to the
+    variant ``base``: the price of a stylization option in the gesture's size."""
+    rom = dof_limits(lib, p.splice.joint_limit_percentiles)
+    hips = lib.body.joints["hips"]
+    reach: dict = {}
+    for gc, gait, lc, T, u, loco, contact in peak_placed_splices(lib, p, lib.gestures[::every]):
+        gst = gc.gesture
+        lpos = forward_kinematics_np(loco)
+        for name, (sp, method) in variants.items():
+            r = splice_gesture(lc, gc, u, T, sp, METHODS[method], loco=loco, contact=contact, limits=rom)
+            pos = forward_kinematics_np(r.motion.slice(r.peak, r.peak + 1))[0]
+            d = np.mean([np.linalg.norm((pos[lib.body.joints[f"hand_{s}"]] - pos[hips])
+                                        - (lpos[r.peak, lib.body.joints[f"hand_{s}"]] - lpos[r.peak, hips]))
+                         for s in gst.sides])
+            reach.setdefault((gait, name), []).append(float(d))
+    rows = []
+    for (gait, name), v in reach.items():
+        b = np.asarray(reach[gait, base])
+        rows.append({"gait": gait, "variant": name, "splices": len(v), "reach_cm_mean": float(np.mean(v)),
+                     "reach_cm_median": float(np.median(v)),
+                     "base": base, "ratio_to_base_median": float(np.median(np.asarray(v) / np.maximum(b, 1e-6)))})
+    return rows

@@ -24,7 +24,8 @@ from ..skeleton import Motion
 from ..kinematics import forward_kinematics_np
 from .elbow import elbow_bend, elbow_summary, lc_bend
 from .library import Library, dof_limits
-from .limit_metrics import CellReading, LimitCheck, ScoredSpan, limit_cells, limit_violations, mean_or_zero
+from .limit_metrics import (CellReading, LimitCheck, ScoredSpan, limit_cells, limit_readings, limit_violations,
+                            mean_or_zero)
 from .locomotion import seam_foot_slide, tile_contact, tile_loop
 from .params import GaitParams, WalkTalkParams
 from .pipeline import METHODS, GestureContext, LoopContext, SpliceResult, splice_gesture
@@ -247,3 +248,40 @@ def summarize(df: pd.DataFrame) -> list[dict]:
             **elbow_summary(d),
         })
     return out
+
+
+def goal_rows(lib: Library, p: WalkTalkParams, settings: dict, naive_df=None) -> tuple[list[dict], pd.DataFrame]:
+    """Per setting ({name: SpliceParams overrides}) x gait: every splice goal from one
+    run_evaluation of ``lib`` (stylized+synced; naive once, shared, for the "<= naive" parts):
+    splices over 2x jerk and the worst, peak in contact, shifts, peaks before the utterance, foot
+    slide, DOFs within +- c sigma, joint limits in both readings with the loop alone, naive and
+    what the splice introduces over its loop, and the within-gait elbow correlation of these rows
+    (plain and partial given the loop's spread, per gesture over its loops). Also returns the naive
+    rows, to pass as ``naive_df`` to a second call on the same library."""
+    if naive_df is None:
+        naive_df = run_evaluation(lib, p, EvalParams(methods=("naive",)))
+    rows = []
+    for name, kw in settings.items():
+        pg = replace(p, splice=replace(p.splice, **kw))
+        df = run_evaluation(lib, pg, EvalParams(methods=("stylized+synced",)))
+        both = pd.concat([naive_df, df], ignore_index=True)
+        summ = {(r["gait"], r["method"]): r for r in summarize(both)}
+        lim = {(r["gait"], r["method"]): r for r in limit_readings(list(summ.values()))}
+        for gait, d in df.groupby("gait", sort=False):
+            worst = d.loc[d["max_jerk_ratio"].idxmax()]
+            r, lr = summ[gait, "stylized+synced"], lim[gait, "stylized+synced"]
+            rn = summ[gait, "naive"]
+            rows.append({
+                "setting": name, "overrides": kw, "gait": gait, "splices": len(d),
+                "jerk_over_2x": int((d["max_jerk_ratio"] > 2.0).sum()), "jerk_ratio_max": float(worst["max_jerk_ratio"]),
+                "jerk_worst": f"{worst['gesture']} on {worst['loop']}",
+                "naive_jerk_over_2x": int((naive_df.loc[naive_df["gait"] == gait, "max_jerk_ratio"] > 2.0).sum()),
+                "peak_in_contact_rate": r["peak_in_contact_rate"], "shift_min_s": r["shift_min_s"],
+                "shift_max_s": r["shift_max_s"], "all_peaks_before_utterance": r["all_peaks_before_utterance"],
+                "foot_slide_cm_max": r["foot_slide_cm_max"], "dof_within_csigma_rate": r["dof_within_csigma_rate"],
+                "limits_per_frame": lr["per_frame"], "limits_per_cell": lr["per_cell"],
+                "met_per_frame": lr["met_per_frame"], "met_per_cell": lr["met_per_cell"],
+                "met_per_frame_introduced": lr["met_per_frame_introduced"],
+                "elbow_plain": r["elbow_corr_per_gesture_mean"], "elbow_partial": r["elbow_partial_corr_per_gesture_mean"],
+                "elbow_plain_naive": rn["elbow_corr_per_gesture_mean"], "elbow_gestures": r["elbow_corr_per_gesture_n"]})
+    return rows, naive_df

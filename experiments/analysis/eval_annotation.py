@@ -28,178 +28,23 @@ Writes experiments/results/eval_annotation.json and .md.
     python experiments/analysis/eval_annotation.py [--cache DIR] [--fluent N]
 """
 import argparse
-import dataclasses
 import time
-import sys
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-from _bench import REPO, RESULTS, SHARED, write
 
 from convsynth_jax.config import default_params
 from convsynth_jax.annotate.cache import annotate_corpus_cached
 from convsynth_jax.annotate.kinds import hypotheses
-from convsynth_jax.evaluation.annotation import CLAUSE_TOLERANCE_S, audio_scores, detection_scores, near, words_stats
+from convsynth_jax.evaluation.annotation import (CLAUSE_TOLERANCE_S, audio_scores, detection_scores, fluent_clause_scores,
+                                                 hand_decomposition, negative_control, planted_rate, real_speech_scores)
 from convsynth_jax.evaluation.summaries import to_markdown
 from convsynth_jax.stats.cooccurrence import cooccurrence_table
-from convsynth_jax.api import open_corpus
+from convsynth_jax.api import REPO, SHARED_DATA, open_corpus, write_result, write_result_markdown
 
-# the hypothesis table (audio kind, motion kinds, channel; the generator's planting key): the registry's
-SPEC = {h.name: (h.label, list(h.motions), h.channel) for h in hypotheses()}
 CLAUSE_TOL = CLAUSE_TOLERANCE_S  # s: clause boundary matching tolerance
-CONFIG_KEY = {h.name: h.planting for h in hypotheses()}
-
-
-def planted_rate(ev, role, hypothesis):
-    akind, kinds, whose = SPEC[hypothesis]
-    who = (ev.participant == role) if whose == "own" else (ev.participant != role)
-    audio = ev[(ev.kind == akind) & who]
-    caused = ev[(ev.participant == role) & (ev.source == akind) & ev.kind.isin(kinds)]
-    return caused.groupby(["session", "cause_start"]).ngroups / max(1, len(audio))
-
-
-def control(ann, how):
-    names = list(ann)
-    out = []
-    for i, s in enumerate(names):
-        for role, a in ann[s].items():
-            if how == "swap":
-                m = ann[names[(i + 1) % len(names)]][role].motion
-                m = m.slice(0, min(m.num_frames, a.motion.num_frames))
-            else:
-                k = a.motion.num_frames // 3
-                m = dataclasses.replace(a.motion, rotations=np.roll(a.motion.rotations, k, 0),
-                                        translations=np.roll(a.motion.translations, k, 0))
-            out.append(dataclasses.replace(a, motion=m))
-    return out
-
-
-def hand_decomposition(ann, ev, glitches, params):
-    """Section 5 of the module docstring: {(character role, hypothesis): counts}."""
-    from convsynth_jax.annotate.motion import joint_speeds, recording_thresholds, segment_windows
-    from convsynth_jax.data.synthetic import window_matches
-    from convsynth_jax.stats.cooccurrence import hypothesis_matches
-
-    ap = params
-    out = {}
-    for s, parts in ann.items():
-        for role, a in parts.items():
-            sp = joint_speeds(a.motion, ap)
-            thr = recording_thresholds(sp, ap.alpha_s)
-            fps = a.motion.fps
-            e = ev[ev.session == s]
-            chans = {r: e[(e.participant == r) & e.kind.isin(["PC", "LR", "HP"])].sort_values("start")
-                     for r in e.participant.unique()}
-            own = chans[role]
-            partner = next((c for r, c in chans.items() if r != role), own.iloc[:0])
-            pcs = own[own.kind == "PC"]
-            for h, side in (("PC-LH", "Left"), ("PC-RH", "Right")):
-                k = SPEC[h][1][0]
-                mv = e[(e.participant == role) & (e.kind == k)]
-                det, wins = hypothesis_matches(sp, own, partner, fps, h, thresholds=thr, alpha_w=ap.alpha_w,
-                                               extend_trim=ap.extend_trim)
-                found = segment_windows(sp[k], wins, float(thr[k]), ap.alpha_w, extend_trim=ap.extend_trim)
-                emu = window_matches(pcs[["start", "end"]].values, own[["start", "end"]].values,
-                                     mv[["start", "end"]].values)
-                caused = np.array([((mv.source == "PC") & (np.abs(mv.cause_start - r.start) < 1e-3)).any()
-                                   for r in pcs.itertuples()])
-                c = out.setdefault((role, h), {x: 0 for x in (
-                    "clauses", "caused", "detected", "window_matches", "caused_detected", "caused_missed",
-                    "not_caused_detected_other_clause_gesture", "not_caused_detected_spontaneous",
-                    "not_caused_detected_glitch", "not_caused_detected_nothing_planted",
-                    "caused_detected_window_matches_misses")})
-                c["clauses"] += len(pcs)
-                c["caused"] += int(caused.sum())
-                c["detected"] += int(det.sum())
-                c["window_matches"] += int(emu.sum())
-                c["caused_detected"] += int((caused & det).sum())
-                c["caused_missed"] += int((caused & ~det).sum())
-                c["caused_detected_window_matches_misses"] += int((caused & det & ~emu).sum())
-                g = glitches[(glitches.session == s) & (glitches.participant == role)
-                             & glitches.joint.str.startswith(side)]
-                for i in np.flatnonzero(~caused & det):
-                    f0, f1 = found[i][0], found[i][2]
-                    ov = mv[(mv.start < f1 / fps) & (mv.end > f0 / fps)]
-                    if (ov.source == "PC").any():
-                        c["not_caused_detected_other_clause_gesture"] += 1
-                    elif len(ov):
-                        c["not_caused_detected_spontaneous"] += 1
-                    elif ((g.start_frame < f1) & (g.end_frame > f0)).any():
-                        c["not_caused_detected_glitch"] += 1
-                    else:
-                        c["not_caused_detected_nothing_planted"] += 1
-    return out
-
-
-def fluent_scores(n_passages, base_params):
-    """Clause starts (all but the first of a passage) on fluent synthetic speech (module docstring)."""
-    from convsynth_jax.annotate.audio import annotate_audio
-    from convsynth_jax.data.fluent import fluent_speech
-
-    out = {}
-    for method in (base_params.clause_method, "pause"):
-        p = dataclasses.replace(base_params, clause_method=method)
-        hp = n_p = hd = n_d = 0
-        nw, peak_err = [], []
-        for k in range(n_passages):
-            rng = np.random.default_rng(1000 + k)
-            sizes = [int(np.clip(round(rng.normal(4.1, 2.0)), 1, 10)) for _ in range(7)]
-            audio, w, segs = fluent_speech(2000 + k, sizes, f0_base=(210.0, 118.0)[k % 2])
-            seg = annotate_audio(w, audio, p)
-            pc = seg[seg.kind == "PC"]
-            truth, det = np.array([x.start for x in segs[1:]]), pc.start.to_numpy()[1:]
-            hp += int(near(truth, det, CLAUSE_TOL).sum())
-            n_p += truth.size
-            hd += int(near(det, truth, CLAUSE_TOL).sum())
-            n_d += det.size
-            nw += pc.text.str.split().str.len().tolist()
-            for x in segs:
-                same = pc[(np.abs(pc.start - x.start) < CLAUSE_TOL) & (np.abs(pc.end - x.end) < CLAUSE_TOL)]
-                if len(same):
-                    peak_err.append(abs(float(same.peak.iloc[0]) - x.peak))
-        out[method] = {"passages": n_passages, "boundary_recall": hp / max(n_p, 1),
-                       "boundary_precision": hd / max(n_d, 1), "planted_boundaries": n_p, "detected_boundaries": n_d,
-                       "words_per_clause": words_stats(nw),
-                       "peak_within_0.1s_of_planted": float(np.mean(np.array(peak_err) < 0.1)) if peak_err else None}
-    return out
-
-
-def real_speech(params):
-    from convsynth_jax.annotate.audio import annotate_audio, f0_track, load_word_corpus, normalize_word
-    from convsynth_jax.annotate.clauses import guard_f0
-    from convsynth_jax.io import load_audio, load_transcript
-
-    d = SHARED / "speech"
-    if not d.is_dir():
-        return {"skipped": f"{d} not found"}
-    hesitation = set(load_word_corpus()["hesitation"])
-    out = {}
-    for name in ("acoustic_corpus", "cold_corpus"):
-        w = load_transcript(d / f"{name}.TextGrid")
-        audio = load_audio(d / f"{name}.wav")
-        seg = annotate_audio(w, audio, params)
-        fillers = w[w["word"].str.lower().isin(["uh", "um", "yknow"])]
-        hp = seg[seg.kind == "HP"]
-        in_hp = sum(((hp.start <= f.start + 1e-9) & (hp.end >= f.end - 1e-9)).any() for f in fillers.itertuples())
-        hp_content = [t for t in hp.text if " ".join(normalize_word(x) for x in t.split()) not in hesitation]
-        t, f = f0_track(audio, params)
-        g = guard_f0(t, f, params)
-        f0 = seg["f0_peak"].dropna()
-        pc = seg[seg.kind == "PC"]
-        out[name] = {"words": int(len(w)), "segments": seg["kind"].value_counts().to_dict(),
-                     "words_per_clause": words_stats(pc.text.str.split().str.len()),
-                     "clauses": pc.text.tolist(),
-                     "fillers": int(len(fillers)), "fillers_labelled_hp": int(in_hp),
-                     "hp_on_words_outside_the_hesitation_list": hp_content,
-                     "f0_median_hz": g.median, "f0_frames_dropped_by_guard": int(g.dropped.sum()),
-                     "f0_raw_max_hz": float(np.nanmax(g.raw)),
-                     "f0_peak_hz_min": float(f0.min()), "f0_peak_hz_median": float(f0.median()),
-                     "f0_peak_hz_max": float(f0.max()), "voiced_segments": int(len(f0)),
-                     "suspicious_peaks": int(seg["f0_suspect"].sum()),
-                     "peaks_inside_segments": bool(((seg.peak >= seg.start) & (seg.peak <= seg.end)).all())}
-    return out
+CONFIG_KEY = {h.name: h.planting for h in hypotheses()}  # the generator's planting key of each hypothesis
 
 
 if __name__ == "__main__":
@@ -239,7 +84,7 @@ if __name__ == "__main__":
     decomposition = hand_decomposition(ann, ev, glitches, params.annotate)
     controls = {}
     for how in ("swap", "shift"):
-        c = cooccurrence_table(control(ann, how), params.annotate, params.stats, params.seed)
+        c = cooccurrence_table(negative_control(ann, how), params.annotate, params.stats, params.seed)
         controls[how] = {
             "any_above_chance_p_lt_0.01": bool(((c.p_permutation < 0.01) | ((c.rate > c.chance_rate) & (c.p_chi2 < 0.01))).any()),
             "min_p_permutation": float(c.p_permutation.min()),
@@ -248,7 +93,7 @@ if __name__ == "__main__":
     res = {"corpus": str(corpus.root), "sessions": len(ann),
            "seconds": {"total": time.perf_counter() - t0, "annotation": t_ann, "table": t_table},
            "detection": det, "audio_segmentation": aud, "clause_method": params.annotate.clause_method,
-           "fluent_speech": fluent_scores(args.fluent, params.annotate) if args.fluent else None,
+           "fluent_speech": fluent_clause_scores(args.fluent, params.annotate) if args.fluent else None,
            "max_abs_rate_error_pp": float(comp["measured_minus_planted_pp"].abs().max()),
            "all_rows_significant_p_lt_0.01": bool((comp["p_chi2"] < 0.01).all() and (comp["p_permutation"] < 0.01).all()),
            "rows": comp.to_dict(orient="records"),
@@ -257,7 +102,7 @@ if __name__ == "__main__":
            "max_abs_table1_minus_configured_pp": float((100 * (comp.measured_rate - comp.configured)).abs().max()),
            "hand_decomposition": [{"character": roles_inv.get(r, r), "hypothesis": h, **c}
                                   for (r, h), c in decomposition.items()],
-           "negative_controls": controls, "real_speech": real_speech(params.annotate)}
+           "negative_controls": controls, "real_speech": real_speech_scores(SHARED_DATA / "speech", params.annotate)}
     md = ["# Annotation evidence (synthetic default corpus)", "",
           f"Motion events: precision {det['precision']:.3f}, recall {det['recall']:.3f} "
           f"({det['planted_caused']} planted audio-caused movements, {det['detected']} detected).", "",
@@ -299,6 +144,5 @@ if __name__ == "__main__":
                f"the octave guard), suspicious peaks {r['suspicious_peaks']}",
                "  clauses: " + " | ".join(r["clauses"])]
     md += [""]
-    RESULTS.mkdir(parents=True, exist_ok=True)
-    (RESULTS / "eval_annotation.md").write_text("\n".join(md))
-    write("eval_annotation", res)
+    write_result_markdown("eval_annotation", md)
+    write_result("eval_annotation", res)

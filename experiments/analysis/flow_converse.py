@@ -9,23 +9,20 @@ audio and the other's as the partner's, one BVH per speaker as long as the longe
 Writes DIR/A.bvh, DIR/B.bvh, DIR/report.json and experiments/results/flow_converse.json (manifest).
 """
 import argparse
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
-import numpy as np  # noqa: E402
-from _bench import SHARED, write  # noqa: E402
+import numpy as np
 
-from convsynth_jax.config import default_params  # noqa: E402
-from convsynth_jax.evaluation.loo import fit_fold  # noqa: E402
-from convsynth_jax.io import load_audio, load_bvh, save_bvh  # noqa: E402
-from convsynth_jax.io.audio import Audio  # noqa: E402
-from convsynth_jax.seeding import derive_seed  # noqa: E402
-from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
-from convsynth_jax.utils import write_json_atomic  # noqa: E402
+from convsynth_jax.config import default_params
+from convsynth_jax.evaluation.loo import fit_fold
+from convsynth_jax.io import load_audio, load_bvh, save_bvh
+from convsynth_jax.io.audio import Audio
+from convsynth_jax.seeding import derive_seed
+from convsynth_jax.systems.base import make_system
+from convsynth_jax.utils import write_json_atomic
+from convsynth_jax.api import annotated_corpus, cache_dir, SHARED_DATA, write_result
 
 
 def padded(a: Audio, seconds: float) -> Audio:
@@ -37,8 +34,8 @@ def padded(a: Audio, seconds: float) -> Audio:
 
 def main():
     ap = argparse.ArgumentParser()
-    ap.add_argument("--a", default=str(SHARED / "speech" / "acoustic_corpus.wav"))
-    ap.add_argument("--b", default=str(SHARED / "speech" / "cold_corpus.wav"))
+    ap.add_argument("--a", default=str(SHARED_DATA / "speech" / "acoustic_corpus.wav"))
+    ap.add_argument("--b", default=str(SHARED_DATA / "speech" / "cold_corpus.wav"))
     ap.add_argument("--out", default="/tmp/flow_converse")
     ap.add_argument("--override", nargs="*", default=[])
     args = ap.parse_args()
@@ -73,7 +70,7 @@ def main():
     report["success"] = all(v["frames"] == T for v in report["characters"].values())
     report["total_seconds"] = time.perf_counter() - t0
     write_json_atomic(out / "report.json", report)
-    write("flow_converse", report)
+    write_result("flow_converse", report)
 
 
 if __name__ == "__main__":

@@ -8,19 +8,17 @@ windows.
 Writes experiments/results/flow_join_continuity.json (manifest).
 """
 import argparse
-import sys
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
 
-import numpy as np  # noqa: E402
-from _bench import write  # noqa: E402
+import numpy as np
 
-from convsynth_jax.annotate.params import AnnotateParams  # noqa: E402
-from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
-from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
-from convsynth_jax.flow.model import FlowParams  # noqa: E402
-from convsynth_jax.io import load_bvh  # noqa: E402
+from convsynth_jax.annotate.params import AnnotateParams
+from convsynth_jax.evaluation.field.params import FieldMetricParams
+from convsynth_jax.evaluation.field.views import motion_view
+from convsynth_jax.flow.model import FlowParams
+from convsynth_jax.io import load_bvh
+from convsynth_jax.api import write_result
 
 
 def main():
@@ -50,7 +48,7 @@ def main():
               "join_step_p99": float(np.percentile(at, 99)), "other_step_p99": float(np.percentile(other, 99)),
               "join_step_max": float(at.max()), "other_step_max": float(other.max()),
               "joins_above_other_p99": float((at > np.percentile(other, 99)).mean()), "sweep": args.sweep}
-    write("flow_join_continuity", result)
+    write_result("flow_join_continuity", result)
 
 
 if __name__ == "__main__":

@@ -17,15 +17,10 @@ Writes experiments/results/<name>.json and .md with manifests.
 """
 import argparse
 import pickle
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 import numpy as np  # noqa: E402
-from _bench import write, write_markdown  # noqa: E402
 from naturalness import (FP, VARIANTS, body_view, load_cached, measure_lines, noise_floor, rate_lines, run_variant,  # noqa: E402
                          summarize)
 
@@ -37,6 +32,7 @@ from convsynth_jax.evaluation.loo import (fit_fold, fold_thresholds, recording_t
 from convsynth_jax.seeding import derive_seed  # noqa: E402
 from convsynth_jax.systems.base import make_system  # noqa: E402
 from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.api import write_result as write, write_result_markdown as write_markdown  # noqa: E402
 
 CONDITION = "audio"
 

@@ -46,15 +46,12 @@ the union of the folds of earlier runs (e.g. ``--folds 0 1 2`` and ``--folds 3 4
 """
 import argparse
 import pickle
-import sys
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / "bench"))
-
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
-from _bench import write, write_markdown  # noqa: E402
+from convsynth_jax.api import write_result as write, write_result_markdown as write_markdown  # noqa: E402
 
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.field import beat  # noqa: E402

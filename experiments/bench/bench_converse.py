@@ -25,54 +25,31 @@ start-up) and as the whole process.
 import argparse
 import json
 import os
-import resource
 import statistics
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
-import numpy as np
-from _bench import REPO, SHARED, write
+from convsynth_jax.api import REPO, SHARED_DATA, run_convsynth, write_result
+from convsynth_jax.data.conversation_inputs import exchange, repeated_speech, silent_partner
 
 GOAL_S = 15.0
 
 
+def task_files(files) -> dict:
+    """The task's overrides (``task.audio_a`` ...) naming a conversation's files."""
+    return {f"task.{k}": v for k, v in files._asdict().items()}
+
+
 def speech_inputs(folder: Path, seconds: float) -> tuple[dict, str]:
     """(task overrides, description) of the input: shared speech for A and a silent B, or the synthetic corpus."""
-    from convsynth_jax.io import load_audio, load_transcript, save_wav
+    from convsynth_jax.io import save_wav
     from convsynth_jax.io.transcripts import save_transcript_tsv
 
-    speech = SHARED / "speech"
+    speech = SHARED_DATA / "speech"
     if speech.is_dir():
-        import pandas as pd
-
-        recs = [(load_audio(w), load_transcript(w.with_suffix(".TextGrid"))) for w in sorted(speech.glob("*.wav"))]
-        rate = recs[0][0].sample_rate
-        gap = np.zeros(int(0.5 * rate), np.float32)
-        parts, words, t = [], [], 0.0
-        while t < seconds:
-            for a, wd in recs:
-                if t >= seconds:
-                    break
-                if a.sample_rate != rate:
-                    raise SystemExit(f"{a.path}: sample rate {a.sample_rate}, expected {rate}")
-                parts += [a.samples, gap]
-                w = wd.copy()
-                w[["start", "end"]] += t
-                words.append(w)
-                t += a.duration + 0.5
-        samples = np.concatenate(parts)[:int(round(seconds * rate))]
-        words = pd.concat(words, ignore_index=True)
-        words = words[words["end"] <= seconds].reset_index(drop=True)
-        save_wav(folder / "a.wav", samples, rate)
-        save_transcript_tsv(words, folder / "a.tsv")
-        save_wav(folder / "b.wav", np.zeros_like(samples), rate)
-        (folder / "b.tsv").write_text("start\tend\tword\n")
-        desc = f"A: {', '.join(w.name for w in sorted(speech.glob('*.wav')))} repeated to {seconds:g} s; B silent"
-        return {"task.audio_a": folder / "a.wav", "task.transcript_a": folder / "a.tsv",
-                "task.audio_b": folder / "b.wav", "task.transcript_b": folder / "b.tsv"}, desc
+        wavs = sorted(speech.glob("*.wav"))
+        files, _ = repeated_speech(folder, [(w, w.with_suffix(".TextGrid")) for w in wavs], seconds)
+        return task_files(files), f"A: {', '.join(w.name for w in wavs)} repeated to {seconds:g} s; B silent"
     from convsynth_jax.config import compose, to_params
     from convsynth_jax.api import open_corpus
 
@@ -90,25 +67,15 @@ def speech_inputs(folder: Path, seconds: float) -> tuple[dict, str]:
 
 
 def run(overrides: list, cache: Path, out: Path, check: bool = True) -> dict:
-    env = dict(os.environ, CONVSYNTH_CACHE=str(cache), PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "convsynth_jax.config", "task=converse", *overrides, "progress=false",
-           f"hydra.run.dir={out}"]
-    load = os.getloadavg()[0]
-    t = time.perf_counter()
-    cpu0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
-    wall = time.perf_counter() - t
-    cpu1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (cpu1.ru_utime - cpu0.ru_utime) + (cpu1.ru_stime - cpu0.ru_stime)   # the process's CPU seconds
+    r = run_convsynth(["task=converse", *overrides, "progress=false"], out, cache)
     if r.returncode != 0 and not check:
         summ = out / "summary.json"
-        return {"process_s": wall, "process_cpu_s": cpu,
+        return {"process_s": r.wall_s, "process_cpu_s": r.cpu_s,
                 "summary": json.loads(summ.read_text()) if summ.is_file() else {"error": r.stderr[-2000:]},
                 "report_md": (out / "report.md").read_text() if (out / "report.md").is_file() else None}
-    if r.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stdout[-3000:]}\n{r.stderr[-3000:]}")
-    return {"process_s": wall, "process_cpu_s": cpu, "summary": json.loads((out / "summary.json").read_text()),
-            "report": json.loads((out / "report.json").read_text()), "load_avg_1min": [load, os.getloadavg()[0]]}
+    r.check()
+    return {"process_s": r.wall_s, "process_cpu_s": r.cpu_s, "summary": json.loads((out / "summary.json").read_text()),
+            "report": json.loads((out / "report.json").read_text()), "load_avg_1min": r.load_avg_1min}
 
 
 def figures(res: dict, out: Path, fps: float) -> dict:
@@ -133,63 +100,20 @@ def figures(res: dict, out: Path, fps: float) -> dict:
             "video": video, "load_avg_1min": res["load_avg_1min"]}
 
 
-def cut_wav(folder: Path, name: str, wav: Path, grid: Path, rate_check=None) -> tuple:
-    """One recording as A and a silent B of the same length: (task overrides, duration s)."""
-    from convsynth_jax.io import load_audio, load_transcript, save_wav
-    from convsynth_jax.io.transcripts import save_transcript_tsv
-
-    a = load_audio(wav)
-    d = folder / name
-    d.mkdir()
-    save_transcript_tsv(load_transcript(grid), d / "a.tsv")
-    save_wav(d / "b.wav", np.zeros(int(round(a.duration * a.sample_rate)), np.float32), a.sample_rate)
-    (d / "b.tsv").write_text("start\tend\tword\n")
-    return {"task.audio_a": wav, "task.transcript_a": d / "a.tsv", "task.audio_b": d / "b.wav",
-            "task.transcript_b": d / "b.tsv"}, a.duration
-
-
-def exchange(folder: Path, gap: float = 0.6) -> tuple:
-    """A speaks acoustic_corpus, B answers with cold_corpus after ``gap`` s; each silent while the other speaks."""
-    from convsynth_jax.io import load_audio, load_transcript, save_wav
-    from convsynth_jax.io.transcripts import save_transcript_tsv
-
-    sp = SHARED / "speech"
-    a, b = load_audio(sp / "acoustic_corpus.wav"), load_audio(sp / "cold_corpus.wav")
-    if a.sample_rate != b.sample_rate:
-        raise SystemExit(f"{b.path}: sample rate {b.sample_rate}, expected {a.sample_rate}")
-    r = a.sample_rate
-    t_b = a.duration + gap
-    n = int(round((t_b + b.duration) * r))
-    sa, sb = np.zeros(n, np.float32), np.zeros(n, np.float32)
-    sa[:len(a.samples)] = np.asarray(a.samples, np.float32).reshape(len(a.samples), -1)[:, 0]
-    k = int(round(t_b * r))
-    xb = np.asarray(b.samples, np.float32).reshape(len(b.samples), -1)[:, 0]
-    sb[k:k + len(xb)] = xb[:n - k]
-    d = folder / "exchange"
-    d.mkdir()
-    save_wav(d / "a.wav", sa, r)
-    save_wav(d / "b.wav", sb, r)
-    save_transcript_tsv(load_transcript(sp / "acoustic_corpus.TextGrid"), d / "a.tsv")
-    wb = load_transcript(sp / "cold_corpus.TextGrid")
-    wb[["start", "end"]] += t_b
-    save_transcript_tsv(wb, d / "b.tsv")
-    return {"task.audio_a": d / "a.wav", "task.transcript_a": d / "a.tsv", "task.audio_b": d / "b.wav",
-            "task.transcript_b": d / "b.tsv"}, n / r
-
-
 def real_inputs(folder: Path) -> dict:
     """name -> task overrides of the benchmark's real inputs (empty without ../shared)."""
     out = {}
-    sp = SHARED / "speech"
+    sp = SHARED_DATA / "speech"
     for w in sorted(sp.glob("*.wav")) if sp.is_dir() else []:
-        out[w.stem] = cut_wav(folder, w.stem, w, w.with_suffix(".TextGrid"))[0]
-    beat = SHARED / "beat2"
+        out[w.stem] = task_files(silent_partner(folder / w.stem, w, w.with_suffix(".TextGrid"))[0])
+    beat = SHARED_DATA / "beat2"
     for w in sorted((beat / "wave16k").glob("*.wav")) if beat.is_dir() else []:
         grid = beat / "textgrid" / f"{w.stem}.TextGrid"
         if grid.is_file():
-            out[f"beat2_{w.stem}"] = cut_wav(folder, f"beat2_{w.stem}", w, grid)[0]
+            out[f"beat2_{w.stem}"] = task_files(silent_partner(folder / f"beat2_{w.stem}", w, grid)[0])
     if sp.is_dir():
-        out["exchange"] = exchange(folder)[0]
+        pair = [(sp / f"{n}.wav", sp / f"{n}.TextGrid") for n in ("acoustic_corpus", "cold_corpus")]
+        out["exchange"] = task_files(exchange(folder / "exchange", *pair, gap=0.6)[0])
     return out
 
 
@@ -279,7 +203,7 @@ def main():
                          "acceptance_met": bool(per_input) and all(f.get("success") and f.get("frames_as_long_as_audio")
                                                                    for f in per_input.values())
                          and total > 0 and met >= 0.9 * total and pc[0] >= 0.85 * pc[1]}}
-    write("bench_converse", result, overrides=a.overrides)
+    write_result("bench_converse", result, overrides=a.overrides)
 
 
 if __name__ == "__main__":

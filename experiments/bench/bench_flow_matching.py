@@ -11,18 +11,15 @@ task.from_dir`` reads (``<out>/<fold>/cases.csv``, ``bvh/``).
 """
 import argparse
 import os
-import sys
 import tempfile
 import time
 from pathlib import Path
 
-sys.path.insert(0, str(Path(__file__).resolve().parent))
-
 import numpy as np  # noqa: E402
-from _bench import loo_setup, write  # noqa: E402
 
 from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold  # noqa: E402
 from convsynth_jax.utils import atomic_path  # noqa: E402
+from convsynth_jax.api import loo_setup, write_result as write  # noqa: E402
 
 
 def main():

@@ -22,14 +22,14 @@ import sys
 
 import jax
 import numpy as np
-from _bench import RESULTS, SHARED, peak_rss_mb, timed, write
 
 from convsynth_jax.config import compose, to_params
 from convsynth_jax.graph import build_database, build_graph
 from convsynth_jax.graph.database import bvh_folder_clips
 from convsynth_jax.testing.graph_reference import build_graph_reference
+from convsynth_jax.api import RESULTS, SHARED_DATA, peak_rss_mb, process_memory_mb, reset_peak_rss, timed, write_result
 
-ROOT = SHARED / "bandai2" / "bvh"
+ROOT = SHARED_DATA / "bandai2" / "bvh"
 GOALS = {"construction_s": 3.0, "speedup": 15, "peak_mb": 2048}
 
 
@@ -42,27 +42,6 @@ def summary(g):
     keys = ("num_frames", "num_key_states", "key_fraction", "threshold", "w_v", "num_states_before_scc",
             "num_edges_before_scc", "num_states", "num_edges", "kernel")
     return {k: g.meta[k] for k in keys}
-
-
-def vm_kb(field: str) -> float:
-    """A VmXXX field of /proc/self/status in MB (Linux), NaN elsewhere."""
-    try:
-        for line in open("/proc/self/status"):
-            if line.startswith(field + ":"):
-                return float(line.split()[1]) / 1024.0
-    except OSError:
-        pass
-    return float("nan")
-
-
-def reset_peak() -> bool:
-    """Reset the process's peak RSS (VmHWM) so that it measures what follows (Linux >= 4.0)."""
-    try:
-        with open("/proc/self/clear_refs", "w") as fh:
-            fh.write("5")
-        return True
-    except OSError:
-        return False
 
 
 def child(flag, *extra):
@@ -120,11 +99,11 @@ if __name__ == "__main__":
     clips = bvh_folder_clips(ROOT)
     if args.memory_only or args.no_pruning_only:
         extra = [] if args.memory_only else ["graph.key_fraction=1.0", f"graph.max_out_degree={args.no_pruning_degree}"]
-        rss_loaded = vm_kb("VmRSS")
-        reset = reset_peak()
+        rss_loaded = process_memory_mb("VmRSS")
+        reset = reset_peak_rss()
         g, t = timed(construct, clips, compose(base + extra))
         out = {"seconds_including_compile": t, "peak_rss_mb": peak_rss_mb(), "rss_after_load_mb": rss_loaded,
-               "peak_rss_during_construction_mb": vm_kb("VmHWM") if reset else None, **summary(g),
+               "peak_rss_during_construction_mb": process_memory_mb("VmHWM") if reset else None, **summary(g),
                "candidates_found": g.meta["kernel"].get("candidates_found"), "max_out_degree": args.no_pruning_degree}
         if args.no_pruning_only:  # warm second run
             g, out["seconds"] = timed(construct, clips, compose(base + extra))
@@ -168,5 +147,5 @@ if __name__ == "__main__":
     res["peak_rss_mb_this_process"] = peak_rss_mb()
     res["loadavg_end"] = os.getloadavg()
     res["goals"] = GOALS
-    write("bench_graph", res)
+    write_result("bench_graph", res)
     (RESULTS / "bench_graph.md").write_text(markdown(res))

@@ -8,22 +8,18 @@ experiments/results/loo_default/.
 import argparse
 import json
 import os
-import sys
 import time
 from pathlib import Path
 
-REPO = Path(__file__).resolve().parents[2]
-sys.path.insert(0, str(REPO))
+import pandas as pd
 
-import pandas as pd  # noqa: E402
+from convsynth_jax.manifest import run_manifest
 
-from convsynth_jax.manifest import run_manifest  # noqa: E402
-
-from convsynth_jax.config import default_params  # noqa: E402
-from convsynth_jax.evaluation.collect import write_collected  # noqa: E402
-from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold  # noqa: E402
-from convsynth_jax.systems.base import make_system  # noqa: E402
-from convsynth_jax.api import annotated_corpus, cache_dir  # noqa: E402
+from convsynth_jax.config import default_params
+from convsynth_jax.evaluation.collect import write_collected
+from convsynth_jax.evaluation.loo import recording_threshold_table, run_fold
+from convsynth_jax.systems.base import make_system
+from convsynth_jax.api import annotated_corpus, cache_dir, REPO
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser(description=__doc__)

@@ -13,15 +13,12 @@ import time
 
 import numpy as np
 
-from _bench import timed, write
-
 from convsynth_jax.config import compose, task_settings
 from convsynth_jax.evaluation import benchmark as bm
 from convsynth_jax.evaluation.field import fgd
 from convsynth_jax.evaluation.field.autoencoder import encode
 from convsynth_jax.evaluation.field.views import motion_view
-from convsynth_jax.tasks.benchmark import autoencoder_training
-from convsynth_jax.api import annotated_corpus, params_of
+from convsynth_jax.api import RESULTS, annotated_corpus, autoencoder_training, params_of, timed, write_result
 
 
 def main(argv):
@@ -79,12 +76,11 @@ def main(argv):
         "autoencoder_goal_s": 180.0, "autoencoder_training_data": ae_source, "validity": validity,
         "bc_note": "beat_consistency, body scope, mean over windows",
     }
-    from _bench import RESULTS
 
     RESULTS.mkdir(parents=True, exist_ok=True)
     res.leaderboard.to_csv(RESULTS / "bench_metrics_leaderboard.csv", index=False)
     (RESULTS / "bench_metrics_leaderboard.md").write_text(bm.leaderboard_markdown(res.leaderboard))
-    write("bench_metrics", out, overrides=overrides)
+    write_result("bench_metrics", out, overrides=overrides)
 
 
 if __name__ == "__main__":

@@ -24,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 import pandas as pd
-from _bench import REPO, SHARED, write
 
 from convsynth_jax.annotate.audio import annotate_audio
 from convsynth_jax.config import default_params
@@ -36,7 +35,7 @@ from convsynth_jax.kinematics import forward_kinematics
 from convsynth_jax.search.check import check_path
 from convsynth_jax.synth.pipeline import synthesize_character
 from convsynth_jax.systems.motion_graph import clip_name
-from convsynth_jax.api import annotated_corpus, cache_dir, make_configured_system
+from convsynth_jax.api import annotated_corpus, cache_dir, make_configured_system, REPO, SHARED_DATA, write_result
 
 FILES = ("acoustic_corpus", "cold_corpus")
 STARTS = (0.0, 10.0)
@@ -68,7 +67,7 @@ def run_preset(preset: str, cache: str, overrides: list, characters, seed: int) 
     n = int(round(LENGTH * fps))
     empty = pd.DataFrame(columns=["kind", "start", "peak", "end", "text"])
     rows = []
-    for name, own in speech_windows(SHARED / "speech", params.annotate):
+    for name, own in speech_windows(SHARED_DATA / "speech", params.annotate):
         for char in characters or sorted(fitted):
             model = fitted[char]
             ref = next(a.motion for d in ann.values() for a in d.values() if a.character == char)
@@ -135,8 +134,8 @@ if __name__ == "__main__":
     ap.add_argument("--name", default="bench_real_speech")
     ap.add_argument("--fit-only", action="store_true", help="only fit (and cache) the graphs")
     args = ap.parse_args()
-    if not (SHARED / "speech").is_dir():
-        sys.exit(f"no real speech at {SHARED / 'speech'}")
+    if not (SHARED_DATA / "speech").is_dir():
+        sys.exit(f"no real speech at {SHARED_DATA / 'speech'}")
     if args.fit_only:
         for p in args.presets:
             prm = default_params([f"preset={p}", f"cache_dir={args.cache}", "progress=false", *args.overrides])
@@ -147,4 +146,4 @@ if __name__ == "__main__":
            "targets": {"paper_solved_share": 0.5, "quality_pc_constraints_met_share": 0.8}}
     for p in args.presets:
         out[p] = run_preset(p, args.cache, args.overrides, args.characters, args.seed)
-    write(args.name, out, overrides=args.overrides)
+    write_result(args.name, out, overrides=args.overrides)

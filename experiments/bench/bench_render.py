@@ -1,4 +1,4 @@
-"""Benchmark: drawing and encoding ``conversation.mp4`` (convsynth_jax/render.py, docs/render.md).
+"""Benchmark: drawing and encoding ``conversation.mp4`` (convsynth_jax/render/, docs/render.md).
 
 Input: a ``task=converse`` output folder (``--folder``), or, without one, the converse benchmark's
 timing input (``bench_converse.speech_inputs``: the shared recordings repeated to ``--seconds`` as
@@ -14,13 +14,13 @@ import json
 import os
 import resource
 import statistics
-import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from _bench import REPO, write
+from convsynth_jax.api import run_convsynth, write_result
+
 
 
 def _cpu(who) -> float:
@@ -34,11 +34,7 @@ def converse_output(seconds: float, work: Path) -> Path:
 
     over, _ = speech_inputs(work, seconds)
     out = work / "out"
-    cmd = [sys.executable, "-m", "convsynth_jax.config", "task=converse", *[f"{k}={v}" for k, v in over.items()],
-           "task.video=false", "progress=false", f"hydra.run.dir={out}"]
-    r = subprocess.run(cmd, capture_output=True, text=True, cwd=str(REPO), env=dict(os.environ, PYTHONPATH=str(REPO)))
-    if r.returncode:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}")
+    run_convsynth(["task=converse", *[f"{k}={v}" for k, v in over.items()], "task.video=false", "progress=false"], out).check()
     return out
 
 
@@ -87,7 +83,7 @@ def main() -> None:
               "median_video_wall_s": statistics.median(x["video_wall_s"] for x in runs),
               "median_draw_cpu_ms_per_frame": statistics.median(x["draw_cpu_ms_per_frame"] for x in runs),
               "goal": "about 4-7 s of video for 60 s of speech (docs/converse.md)"}
-    write("bench_render", result, overrides=sys.argv[1:])
+    write_result("bench_render", result, overrides=sys.argv[1:])
 
 
 if __name__ == "__main__":

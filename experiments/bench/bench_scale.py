@@ -24,7 +24,6 @@ import argparse
 import dataclasses
 import json
 import os
-import resource
 import shutil
 import subprocess
 import sys
@@ -32,15 +31,10 @@ import time
 from pathlib import Path
 
 import numpy as np
-from _bench import REPO, SHARED, write, write_markdown
 
-# the shared data folder: CONVSYNTH_SHARED (as the tests read it) or the one beside the repository
-SHARED_DATA = Path(os.environ["CONVSYNTH_SHARED"]) / "data" if os.environ.get("CONVSYNTH_SHARED") else SHARED
+from convsynth_jax.api import REPO, SHARED_DATA, peak_rss_mb, write_result, write_result_markdown
 GOALS = {"construction_1m_s": 600.0, "peak_rss_mb": 8192.0, "warm_search_s": 1.0}
 
-
-def peak_mb():
-    return resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024.0
 
 
 def child(*args):
@@ -62,7 +56,7 @@ def make_db(frames: int, folder: Path) -> dict:
     db = make_scale_database(ScaleDBParams(frames=frames, seed=0, bandai_root=str(root) if root.is_dir() else None))
     save_database(db, folder)
     return {"frames": db.num_frames, "clips": len(db.clip_names), "seconds": time.perf_counter() - t,
-            **db.meta["scale_db"], "peak_rss_mb": peak_mb()}
+            **db.meta["scale_db"], "peak_rss_mb": peak_rss_mb()}
 
 
 def build(folder: Path, out: Path, overrides: list) -> dict:
@@ -77,7 +71,7 @@ def build(folder: Path, out: Path, overrides: list) -> dict:
     g = build_graph_sharded(db, params, out)
     m = g.meta
     return {"frames": db.num_frames, "wall_s": time.perf_counter() - t, "cpu_s": time.process_time() - c,
-            "peak_rss_mb": peak_mb(), "key_states": m["num_key_states"], "threshold": m["threshold"],
+            "peak_rss_mb": peak_rss_mb(), "key_states": m["num_key_states"], "threshold": m["threshold"],
             "states_before_scc": m["num_states_before_scc"], "edges_before_scc": m["num_edges_before_scc"],
             "states": m["num_states"], "edges": m["num_edges"], "synthetic_edges": m["num_synthetic_edges"],
             "timings": m["timings"], "kernel": m["kernel"], "scc_warning": m.get("scc_warning", "")}
@@ -168,7 +162,7 @@ def search(out: Path, repeats: int) -> dict:
             "constraints_met": int(r.constraints_met), "synthetic_transitions": int(r.num_synthetic_transitions),
             "lookahead_kernel": lookahead_kernels(g, c, params, repeats), "loadavg_before": load0,
             "loadavg_after": os.getloadavg()}
-    res["peak_rss_mb"] = peak_mb()
+    res["peak_rss_mb"] = peak_rss_mb()
     return res
 
 
@@ -255,8 +249,8 @@ if __name__ == "__main__":
                             for n in args.search_only.split(",")}}
         res["loadavg_end"] = os.getloadavg()
         res["goals"] = GOALS
-        write(args.name, res)
-        write_markdown(args.name, markdown(res))
+        write_result(args.name, res)
+        write_result_markdown(args.name, markdown(res))
         raise SystemExit(0)
     sizes = [int(x) for x in args.frames.split(",")]
     res = {"loadavg_start": os.getloadavg(), "command": "python experiments/bench/bench_scale.py " + " ".join(sys.argv[1:]),
@@ -277,5 +271,5 @@ if __name__ == "__main__":
                                                    str(args.repeats)) for r in ok}
     res["loadavg_end"] = os.getloadavg()
     res["goals"] = GOALS
-    write(args.name, res)
-    write_markdown(args.name, markdown(res))
+    write_result(args.name, res)
+    write_result_markdown(args.name, markdown(res))

@@ -14,7 +14,6 @@ import time
 import numpy as np
 import dataclasses
 
-from _bench import REPO, timed, write
 
 from convsynth_jax.config import default_params
 from convsynth_jax.evaluation.loo import fit_fold
@@ -23,7 +22,7 @@ from convsynth_jax.search.beam import beam_search
 from convsynth_jax.search.constraints import build_constraints
 from convsynth_jax.search.dfs import stochastic_greedy_search
 from convsynth_jax.systems.base import make_system
-from convsynth_jax.api import annotated_corpus, cache_dir
+from convsynth_jax.api import annotated_corpus, cache_dir, REPO, timed, write_result
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
@@ -74,7 +73,7 @@ if __name__ == "__main__":
                             "dfs_median_s": float(np.median(dfs_t)), "dfs_success_rate": mean(dfs_ok),
                             "dfs_mean_cost": mean(dfs_cost), "dfs_mean_synthetic_transitions": mean(dfs_syn)}
     out["goal_beam_median_s"] = 0.05
-    write(args.name, out)
+    write_result(args.name, out)
     if args.export:
         with open(args.export, "wb") as f:
             pickle.dump(({"search": out["search_config"]}, export), f)

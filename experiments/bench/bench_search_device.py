@@ -12,10 +12,10 @@ import time
 
 import jax
 import numpy as np
-from _bench import write
 
 from convsynth_jax.search.beam import beam_search
 from convsynth_jax.search.params import SearchParams
+from convsynth_jax.api import write_result
 
 if __name__ == "__main__":
     ap = argparse.ArgumentParser()
@@ -46,4 +46,4 @@ if __name__ == "__main__":
                 "graph_states": g.num_states, "windows": len(cons), "first_call_s": first,
                 "median_s": float(np.median(ts)), "success_rate": float(np.mean(ok)),
                 "mean_synthetic_transitions": float(np.mean(ns)) if ns else float("nan")}
-    write(args.name, out)
+    write_result(args.name, out)

@@ -23,33 +23,20 @@ previous results file are kept and marked as not re-measured.
 import argparse
 import json
 import os
-import resource
-import subprocess
-import sys
 import tempfile
-import time
 from pathlib import Path
 
 import numpy as np
-from _bench import REPO, RESULTS, SHARED, write, write_markdown
+
+from convsynth_jax.api import RESULTS, SHARED_DATA, run_convsynth, write_result, write_result_markdown
 
 GOALS = {"search_s_per_character": 0.1, "bandai2_construction_s": 1.5}
 
 
 def run_task(overrides, cache: Path, out: Path) -> dict:
-    env = dict(os.environ, CONVSYNTH_CACHE=str(cache), PYTHONPATH=str(REPO))
-    cmd = [sys.executable, "-m", "convsynth_jax.config", *overrides, "progress=false", f"hydra.run.dir={out}"]
-    load = os.getloadavg()[0]
-    ru0 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    t = time.perf_counter()
-    r = subprocess.run(cmd, env=env, capture_output=True, text=True, cwd=str(REPO))
-    wall = time.perf_counter() - t
-    ru1 = resource.getrusage(resource.RUSAGE_CHILDREN)
-    cpu = (ru1.ru_utime - ru0.ru_utime) + (ru1.ru_stime - ru0.ru_stime)
-    if r.returncode != 0:
-        raise SystemExit(f"{' '.join(cmd)} failed:\n{r.stderr[-3000:]}")
-    summary = json.loads((out / "summary.json").read_text())
-    return {"process_s": wall, "process_cpu_s": cpu, "summary": summary, "load_avg_1min": [load, os.getloadavg()[0]]}
+    r = run_convsynth([*overrides, "progress=false"], out, cache).check()
+    return {"process_s": r.wall_s, "process_cpu_s": r.cpu_s, "summary": json.loads((out / "summary.json").read_text()),
+            "load_avg_1min": r.load_avg_1min}
 
 
 def cache_stats(cache: Path) -> dict:
@@ -117,7 +104,7 @@ def main():
                                   lambda s: {"search_seconds": s["search_seconds"],
                                              "synthesis_cpu_seconds": s.get("synthesis_cpu_seconds"),
                                              "graph_seconds": s.get("graph_seconds")}, tmp, a.repeats)
-        bandai = SHARED / "bandai2" / "bvh"
+        bandai = SHARED_DATA / "bandai2" / "bvh"
         if not a.skip_bandai and bandai.is_dir():
             out["bandai2_build_graph"] = bench("bandai2", ["task=build_graph", "corpus=bvh_folder",
                                                            f"corpus.root={bandai}"],
@@ -132,7 +119,7 @@ def main():
     if "bandai2_build_graph" in out:
         out["met"]["bandai2_construction_s"] = (out["bandai2_build_graph"]["warm"]["construction_s"]
                                                 <= GOALS["bandai2_construction_s"])
-    write("bench_startup", out)
+    write_result("bench_startup", out)
     carried = out.get("bandai2_build_graph", {}).get("carried_over", False)
     loads = [x for b in ("synthesize",) + (() if carried else ("bandai2_build_graph",)) if b in out
              for r in out[b].values() if isinstance(r, dict) for x in r.get("load_avg_1min", [])]
@@ -167,7 +154,7 @@ def main():
             lines.append("| build_graph bandai2 | construction CPU s | " + " | ".join(f"{c:.2f}" for c in cells) + " | |")
         lines.append(f"| build_graph bandai2 | process wall s | {b['cold']['process_s']:.1f} | "
                      f"{b['warm']['process_s']:.1f} | {b['control_no_jax_cache']['process_s']:.1f} | |")
-    write_markdown("bench_startup", lines)
+    write_result_markdown("bench_startup", lines)
 
 
 if __name__ == "__main__":

@@ -21,7 +21,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from _bench import REPO, write
+from convsynth_jax.api import REPO, write_result
+
 
 
 def _cpu_children() -> float:
@@ -64,7 +65,7 @@ def main():
               "wall_s": wall, "cpu_s": cpu, "goal_s": 300.0, "met": wall <= 300.0, "task_timings": summary["timings"],
               "video_bytes": sizes, "prepare_corpus_and_annotation": prep,
               "loadavg_before": list(load_before), "loadavg_after": list(load_after), "cpu_count": os.cpu_count()}
-    write("bench_study_build", result, overrides=["task=study_build", *overrides[:1]])
+    write_result("bench_study_build", result, overrides=["task=study_build", *overrides[:1]])
 
 
 if __name__ == "__main__":

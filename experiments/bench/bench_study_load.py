@@ -20,13 +20,13 @@ import tempfile
 import time
 from pathlib import Path
 
-from _bench import write
 
 import numpy as np
 
 from convsynth_jax.study import design
 from convsynth_jax.testing.study import make_fake_study, serve_subprocess
 from convsynth_jax.testing.web import free_port
+from convsynth_jax.api import write_result
 
 ADMIN = "bench-admin-token-0123456789abcdef"
 
@@ -123,7 +123,7 @@ def main():
         "answers_per_s": len(acked) / wall, "latency": pct, "fake_study_build_s": t_build,
         "loadavg_before": list(load_before), "loadavg_after": list(load_after), "cpu_count": os.cpu_count(),
     }
-    write("bench_study_load", result)
+    write_result("bench_study_load", result)
     if lost or dup or len(acked) != result["answers_expected"]:
         raise SystemExit("answers lost or duplicated")
 

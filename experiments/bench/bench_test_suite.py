@@ -22,7 +22,8 @@ import time
 from collections import defaultdict
 from pathlib import Path
 
-from _bench import REPO, write, write_markdown
+from convsynth_jax.api import REPO, write_result, write_result_markdown
+
 
 HERE = Path(__file__).resolve().parent
 
@@ -60,14 +61,14 @@ def main():
         "by_function": largest(rows, lambda row: row[1], args.top),
         "by_file": largest(rows, lambda row: row[0].split("::")[0], args.top),
     }
-    write("bench_test_suite", result, overrides=pytest_args)
+    write_result("bench_test_suite", result, overrides=pytest_args)
     lines = [f"pytest: {summary}; wall {result['wall_s']} s, CPU {result['cpu_s']} s; XLA compile "
              f"{result['compile_s']} s in {result['compilations']} compilations (pytest processes)", "",
              "| jitted function | compilations | seconds |", "|---|---|---|"]
     lines += [f"| `{name}` | {n} | {s} |" for name, n, s in result["by_function"]]
     lines += ["", "| test file | compilations | seconds |", "|---|---|---|"]
     lines += [f"| `{name}` | {n} | {s} |" for name, n, s in result["by_file"]]
-    write_markdown("bench_test_suite", lines, overrides=pytest_args)
+    write_result_markdown("bench_test_suite", lines, overrides=pytest_args)
 
 
 if __name__ == "__main__":

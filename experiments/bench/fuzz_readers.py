@@ -18,9 +18,9 @@ import tempfile
 import time
 from pathlib import Path
 
-from _bench import write
 
 from convsynth_jax.testing.fuzz import KINDS, READERS, Mutation, run_case
+from convsynth_jax.api import write_result
 
 CORPORA = ("manifest_yaml", "manifest_csv", "genea")
 
@@ -70,7 +70,7 @@ def main() -> None:
 
         print(json.dumps(result, indent=1))
     else:
-        write("fuzz_readers", result, overrides=[f"--cases={args.cases}", f"--seed={args.seed}"])
+        write_result("fuzz_readers", result, overrides=[f"--cases={args.cases}", f"--seed={args.seed}"])
 
 
 if __name__ == "__main__":

@@ -16,14 +16,15 @@ the full command line, too slow for CI.
 import argparse
 import hashlib
 import os
-import pickle
 import subprocess
 import sys
 import tempfile
 import time
 from pathlib import Path
 
-from _bench import REPO, write
+from convsynth_jax.api import REPO, write_result
+from convsynth_jax.testing.cache_race import cache_report
+
 
 BASE = ["task=cooccurrence", "corpus=synthetic_tiny", "progress=false"]
 
@@ -34,36 +35,6 @@ def _env(cache: Path) -> dict:
 
 def _convsynth(args):
     return [sys.executable, "-m", "convsynth_jax.config", *args]
-
-
-def _cache_intact(cache: Path) -> dict:
-    """Every cache entry read back: {kind: [entries, unreadable]}."""
-    from jax._src import compilation_cache
-
-    from convsynth_jax.graph import load_graph
-
-    report = {"annotations": [0, 0], "graphs": [0, 0], "jax_entries": [0, 0], "leftover_temporaries": 0}
-    for p in (cache / "loo_cache").glob("annotations_*.pkl"):
-        report["annotations"][0] += 1
-        try:
-            pickle.loads(p.read_bytes())
-        except Exception:  # noqa: BLE001 - counted
-            report["annotations"][1] += 1
-    for p in (cache / "loo_cache").glob("graph_*.npz"):
-        report["graphs"][0] += 1
-        try:
-            load_graph(p)
-        except Exception:  # noqa: BLE001 - counted
-            report["graphs"][1] += 1
-    for p in (cache / "jax_cache").glob("*-cache"):
-        report["jax_entries"][0] += 1
-        try:
-            compilation_cache.decompress_executable(p.read_bytes())
-        except Exception:  # noqa: BLE001 - counted
-            report["jax_entries"][1] += 1
-    report["leftover_temporaries"] = sum(1 for p in cache.rglob(".*")
-                                         if not p.name.endswith(".lock") and p.name != ".lockfile")
-    return report
 
 
 def _digest(path: Path) -> str | None:
@@ -87,7 +58,7 @@ def together(n: int, work: Path) -> dict:
     return {"processes": n, "succeeded": sum(c == 0 for c in codes), "exit_codes": codes,
             "identical_tables": len(set(tables)) == 1 and tables[0] is not None,
             "corpus_generated": logs.count("generating synthetic corpus"),
-            "wall_s": round(time.perf_counter() - t0, 1), "cache": _cache_intact(cache),
+            "wall_s": round(time.perf_counter() - t0, 1), "cache": cache_report(cache),
             "errors": [line for line in logs.splitlines() if "ERROR" in line or "Error" in line][:10]}
 
 
@@ -111,7 +82,7 @@ def multirun(work: Path) -> dict:
     return {"jobs": 4, "exit_code": code, "succeeded": sum(t is not None for t in tables),
             "identical_counts": len(set(tables)) == 1 and tables[0] is not None,
             "corpus_generated": job_logs.count("generating synthetic corpus"),
-            "wall_s": round(time.perf_counter() - t0, 1), "cache": _cache_intact(cache),
+            "wall_s": round(time.perf_counter() - t0, 1), "cache": cache_report(cache),
             "errors": [line for line in logs.splitlines() if "ERROR" in line or "Error" in line][:10]}
 
 
@@ -125,7 +96,7 @@ def main() -> None:
         result = {"together": together(args.processes, work), "joblib_multirun": multirun(work)}
     result["loadavg_before"] = load_before
     result["loadavg_after"] = Path("/proc/loadavg").read_text().split()[:3]
-    write("parallel_cache", result, overrides=BASE)
+    write_result("parallel_cache", result, overrides=BASE)
 
 
 if __name__ == "__main__":

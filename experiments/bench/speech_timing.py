@@ -18,7 +18,6 @@ import logging
 import tempfile
 from pathlib import Path
 
-from _bench import SHARED, timed, write, write_markdown
 
 from omegaconf import OmegaConf
 
@@ -26,6 +25,7 @@ from convsynth_jax.config import compose
 from convsynth_jax.data import make_synthetic_corpus
 from convsynth_jax.data.speech_timing import DISTRIBUTIONS, compare, corpus_timing, speech_folder_timing
 from convsynth_jax.io import load_corpus
+from convsynth_jax.api import SHARED_DATA, timed, write_result, write_result_markdown
 
 
 def _cell(s: dict) -> str:
@@ -39,7 +39,7 @@ def main() -> None:
     ap.add_argument("--corpus-config", default="synthetic", help="conf/corpus entry to generate (default: synthetic)")
     ap.add_argument("--corpus", type=Path, help="measure this corpus folder instead of generating one")
     ap.add_argument("--sessions", type=int, help="measure only the first N sessions")
-    ap.add_argument("--speech", type=Path, default=SHARED / "speech")
+    ap.add_argument("--speech", type=Path, default=SHARED_DATA / "speech")
     args = ap.parse_args()
     logging.getLogger("convsynth_jax.annotate.audio").setLevel(logging.ERROR)  # octave-jump notes
 
@@ -59,7 +59,7 @@ def main() -> None:
     result = {"real": str(args.speech), "synthetic": str(args.corpus or f"corpus={args.corpus_config}"),
               "sessions": args.sessions, "distributions": table,
               "seconds": {"annotate_real": t_real, "generate_synthetic": gen_seconds, "annotate_synthetic": t_syn}}
-    write(name, result, overrides=overrides)
+    write_result(name, result, overrides=overrides)
     lines = ["| distribution | real: median (IQR; 90th) | synthetic: median (IQR; 90th) | KS |", "|---|---|---|---|"]
     for dist in DISTRIBUTIONS:
         row = table[dist]
@@ -67,7 +67,7 @@ def main() -> None:
         lines.append(f"| {dist} | {_cell(row['real'])} | {_cell(row['synthetic'])} | {ks} |")
     f = table["fillers_per_100_words"]
     lines.append(f"| fillers per 100 words | {f['real']:.1f} | {f['synthetic']:.1f} | - |")
-    write_markdown(name, lines, overrides=overrides)
+    write_result_markdown(name, lines, overrides=overrides)
 
 
 if __name__ == "__main__":

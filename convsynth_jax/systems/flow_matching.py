@@ -5,8 +5,9 @@ the model: ``convsynth_jax/flow/``).
 fit: the character's training recordings resampled to the model's rate (``options.fps``), encoded
 (6-D joint rotations and root motion, ``flow/features.py``), z-normalised; audio features of each
 recording's own channel and its partner's; a velocity field trained on them (seeded). The trained
-model is cached in ``<cache_dir>/flow_matching/`` under a key over the training arrays, the options
-and the model's code (``flow.model.checkpoint_key``), with its loss curve (PNG) and a manifest (JSON)
+model is cached in ``<cache_dir>/flow_matching/`` under a key over the training arrays, the content
+of the training recordings' files (:func:`recordings_fingerprint`), the options and the model's code
+(``flow.model.checkpoint_key``), with its loss curve (PNG) and a manifest (JSON)
 beside it; a model with the same key is loaded instead of trained.
 
 synthesize: audio features of the window's own and partner samples, sampled in overlapping windows
@@ -38,6 +39,7 @@ from ..flow.features import (AUDIO_DIM, MotionBasis, Standardizer, audio_feature
                              recording_audio_features, resample_features)
 from ..flow.joins import smooth_joins
 from ..flow.model import FlowModel, FlowParams, checkpoint_key, load_checkpoint, sample_sequence, save_checkpoint, train_flow
+from ..fingerprint import stable_hash
 from ..utils import atomic_path, file_lock, save_figure
 from .base import SynthesisSystem, WindowInput, WindowResult
 
@@ -92,6 +94,24 @@ def partner_audio_source(clip, siblings: dict | None = None) -> tuple[str, int |
     return str(others[0]), None
 
 
+def recordings_fingerprint(clips, partner_audio: bool = True) -> str:
+    """The content of a character's training recordings as the model reads them: each one's session,
+    role, character, the digests of its own and (``partner_audio``) its partner's audio file and their
+    channels, and the digest of its motion (:mod:`convsynth_jax.fingerprint`), so a recording edited in
+    place, or moved to another session, trains again."""
+    from ..fingerprint import content_digest, file_digest
+
+    items = []
+    for c in clips:
+        row = [c.session, c.role, getattr(c, "character", ""), file_digest(c.audio_path), c.audio_channel,
+               content_digest(c.motion)]
+        if partner_audio:
+            path, ch = partner_audio_source(c)
+            row += [file_digest(path), ch]
+        items.append(row)
+    return stable_hash(items, length=24)
+
+
 def _plot_losses(losses: np.ndarray, every: int, path: Path, title: str) -> None:
     import matplotlib
 
@@ -142,7 +162,7 @@ class FlowMatchingSystem(SynthesisSystem):
         xs = [mn.apply(m) for m in motions]
         cs = [np.concatenate([an.apply(o)] + ([an.apply(q)] if p.partner_audio else []), axis=1)
               for o, q in zip(own, partner or own)]
-        key = checkpoint_key(motions + own + partner, p, extra=character)
+        key = checkpoint_key(motions + own + partner, p, extra=f"{character}:{recordings_fingerprint(mine, p.partner_audio)}")
         template = mine[0].motion
         detail = np.median([frame_detail_sd(encode_motion(c.motion)) for c in mine], axis=0)
         if cache_dir is None:
@@ -175,6 +195,7 @@ class FlowMatchingSystem(SynthesisSystem):
 
         data = run_manifest(what="flow-matching checkpoint", character=character, key=model.key,
                             options=asdict(model.params), training_seconds=model.seconds,
+                            training_cpu_seconds=model.cpu_seconds,
                             training_frames=int(frames), recordings=[f"{c.session}/{c.role}" for c in clips],
                             loss_first=float(model.losses[0]), loss_last=float(model.losses[-1]),
                             losses=[float(x) for x in model.losses])
@@ -225,4 +246,4 @@ class FlowMatchingSystem(SynthesisSystem):
         return decode_motion(feats, model.template, fps, chair, yaw, name)
 
 
-__all__ = ["FlowFit", "FlowMatchingSystem", "partner_audio_source", "AUDIO_DIM"]
+__all__ = ["FlowFit", "FlowMatchingSystem", "partner_audio_source", "recordings_fingerprint", "AUDIO_DIM"]

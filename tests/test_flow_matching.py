@@ -241,3 +241,33 @@ def test_a_training_recording_edited_in_place_trains_again(annotated, tmp_path):
     sf.write(wav, samples[::-1] * 0.5, rate)          # the same file name and length, other speech
     again = sysm.fit(clips, char, "audio", cache)
     assert again.model.key != first.model.key and not again.model.loaded
+
+
+def test_representation_round_trip_and_one_long_sampling_window(fitted):
+    """``represent`` (the control of the evaluation) gives a training recording back through the model's
+    space within a few centimetres at every joint and frame; a sampling window as long as the sequence samples it in one window
+    (no joins), and ``sample_window_frames`` equal to the training window changes nothing."""
+    from convsynth_jax.kinematics import global_transforms
+
+    sysm, fit, _, ann, held, _ = fitted
+    motion = fit.template.slice(0, 300)
+    back = sysm.represent(fit, motion, seed=0)
+    assert back.num_frames == motion.num_frames and back.skeleton is motion.skeleton
+
+    def rel(m):
+        pos = np.asarray(global_transforms(m)[0], np.float64)
+        return pos - pos[:, :1]
+
+    err = np.linalg.norm(rel(back) - rel(motion), axis=-1)
+    assert np.median(err) < 1.0 and err.max() < 6.0, (np.median(err), err.max())
+    p = fit.model.params
+    cond = np.random.default_rng(2).normal(size=(100, fit.model.cond_dim)).astype(np.float32)
+    same = flow_system(sysm.params, sample_window_frames=p.window_frames)
+    np.testing.assert_array_equal(sample_sequence(same._sampling_model(fit.model), cond, 5),
+                                  sample_sequence(fit.model, cond, 5))
+    one = flow_system(sysm.params, sample_window_frames=100)
+    assert one._num_windows(fit, 200, 30.0) == 1 and sysm._num_windows(fit, 200, 30.0) > 1
+    x = sample_sequence(one._sampling_model(fit.model), cond, 5)
+    assert x.shape == (100, fit.model.dim) and np.isfinite(x).all()
+    with pytest.raises(ConfigError, match="sample_window_frames"):
+        flow_system(sysm.params, sample_window_frames=p.prefix_frames)

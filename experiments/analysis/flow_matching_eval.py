@@ -95,7 +95,12 @@ def fgd_split(recs, gt_store) -> dict:
             "mean_pose_offset_max_cm": float(np.linalg.norm(pose_s - pose_g, axis=-1).max())}
 
 
-def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, dict]:
+def run_flow(folds, ann, table, gt_store, overrides, cache=None, represent=None) -> tuple[dict, dict]:
+    """Records of every window of ``folds``: the flow model's samples, or with ``represent`` ("plain" or
+    "detail") the ground truth itself through the model's representation (``FlowMatchingSystem.represent``,
+    no network; "detail" with the frame-level detail noise): the floor the representation sets."""
+    from convsynth_jax.systems.base import WindowResult
+
     params = default_params(["system=flow_matching", *overrides])
     sysm = make_system(params, params.system)
     names = list(ann)
@@ -120,7 +125,13 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
                 seed = derive_seed(params.seed, fold=fold, condition=CONDITION, session=held_out, window_frame=f0,
                                    role_index=k)
                 win = window_input(held, role, w, fps, seed, with_audio=True)
-                res = sysm.synthesize(fitted[a.character], win, CONDITION)
+                if represent:
+                    r0 = time.perf_counter()
+                    m = sysm.represent(fitted[a.character], held[role].motion.slice(f0, f0 + win.num_frames), seed,
+                                       detail_noise=represent == "detail", chair_index=k)
+                    res = WindowResult(True, motion=m, seconds=time.perf_counter() - r0)
+                else:
+                    res = sysm.synthesize(fitted[a.character], win, CONDITION)
                 if not res.success:
                     out[key] = {"ok": False}
                     continue
@@ -128,7 +139,8 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
                 tf["window_seconds"].append(win.num_frames / fps)
                 v = body_view(res.motion, params.annotate)
                 n = win.num_frames
-                at, other = join_steps(v.relative, fps, po.fps, po.window_frames, po.prefix_frames)
+                at, other = join_steps(v.relative, fps, po.fps, po.sample_window_frames or po.window_frames,
+                                       po.prefix_frames)
                 out[key] = {"ok": True, "rel": v.relative.astype(np.float32), "still": still_frames(v.relative, fps),
                             "bc": beat.beat_consistency(beat.motion_beats(v.relative[:, g["upper"]], fps, FP.beat),
                                                         g["audio_beats"], n / fps, FP.beat),
@@ -149,6 +161,8 @@ def main():
     ap.add_argument("--cache", default=None, help="the model cache (default: the configured loo_cache)")
     ap.add_argument("--graph-work", default=None, help="a naturalness.py --work folder with the motion graph's records")
     ap.add_argument("--graph-variant", default="quality")
+    ap.add_argument("--represent", choices=["plain", "detail"], default=None,
+                    help="control: the ground truth through the model's representation instead of samples")
     args = ap.parse_args()
     t0 = time.perf_counter()
     params = default_params(["preset=quality"])
@@ -166,7 +180,7 @@ def main():
     t1, c1 = time.perf_counter(), time.process_time()
     flow, timing = load_cached(work, "flow_matching", args.folds), load_cached(work, "flowtiming", args.folds)
     if flow is None or timing is None:   # records of earlier runs whose folds together cover these are reused
-        flow, timing = run_flow(args.folds, ann, table, gt_store, args.override, args.cache)
+        flow, timing = run_flow(args.folds, ann, table, gt_store, args.override, args.cache, args.represent)
         (work / f"flow_matching_{tag}.pkl").write_bytes(pickle.dumps(flow))
         (work / f"flowtiming_{tag}.pkl").write_bytes(pickle.dumps(timing))
         (work / f"gt_{tag}.pkl").write_bytes(pickle.dumps(gt_store))
@@ -198,10 +212,12 @@ def main():
     for n, r in results.items():
         summary[n].update(fgd_split(r, gt_store))
     floor = noise_floor(gt_store, params.fps)
-    result = {"folds": args.folds, "overrides": args.override, "summary": summary, "timing": timing_summary,
+    result = {"folds": args.folds, "overrides": args.override, "represent": args.represent, "summary": summary, "timing": timing_summary,
               "noise_floor": floor, "seconds": time.perf_counter() - t0}
-    write(args.name, result, overrides=[f"folds={args.folds}", *args.override])
-    write_markdown(args.name, markdown(summary, timing_summary, args.folds), overrides=[f"folds={args.folds}"])
+    control = [f"represent={args.represent}"] if args.represent else []
+    write(args.name, result, overrides=[f"folds={args.folds}", *args.override, *control])
+    write_markdown(args.name, markdown(summary, timing_summary, args.folds),
+                   overrides=[f"folds={args.folds}", *args.override, *control])
 
 
 def markdown(summary, timing, folds) -> list:

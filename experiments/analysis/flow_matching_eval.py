@@ -73,10 +73,11 @@ def join_steps(rel, fps_out, model_fps, window_frames, prefix_frames) -> tuple[n
     return step[at], step[~at]
 
 
-def fgd_split(recs, gt_store) -> dict:
+def fgd_split(recs, gt_store, by_character: bool = True) -> dict:
     """The raw FGD's two terms against the ground truth of the same windows: the squared difference of
     the means (``fgd_mean_term``) and the rest (covariances, ``fgd_cov_term``), the total variance as a
-    share of the ground truth's, and the largest per-joint offset of the mean pose (cm)."""
+    share of the ground truth's, and the largest per-joint offset of the mean pose (cm); the same per
+    character (``<measure>_<character>``) when ``by_character``."""
     from naturalness import raw_features
 
     from convsynth_jax.evaluation.field.fgd import frechet_distance, gaussian_stats
@@ -84,15 +85,20 @@ def fgd_split(recs, gt_store) -> dict:
     ok = [k for k in sorted(gt_store) if recs.get(k, {}).get("ok")]
     if not ok:
         return {}
+    out = {}
+    if by_character:
+        for c in sorted({gt_store[k]["character"] for k in ok}):
+            part = fgd_split({k: recs[k] for k in ok if gt_store[k]["character"] == c}, gt_store, False)
+            out.update({f"{m}_{c}": v for m, v in part.items()})
     ms, ss = gaussian_stats(raw_features([recs[k]["rel"] for k in ok]))
     mg, sg = gaussian_stats(raw_features([gt_store[k]["rel"] for k in ok]))
     total = frechet_distance(ms, ss, mg, sg)
     mean_term = float((ms - mg) @ (ms - mg))
     pose_s = np.concatenate([recs[k]["rel"] for k in ok]).mean(axis=0)
     pose_g = np.concatenate([gt_store[k]["rel"] for k in ok]).mean(axis=0)
-    return {"fgd_mean_term": mean_term, "fgd_cov_term": total - mean_term,
+    return {"fgd_raw": total, "fgd_mean_term": mean_term, "fgd_cov_term": total - mean_term,
             "total_variance_ratio": float(np.trace(ss) / np.trace(sg)),
-            "mean_pose_offset_max_cm": float(np.linalg.norm(pose_s - pose_g, axis=-1).max())}
+            "mean_pose_offset_max_cm": float(np.linalg.norm(pose_s - pose_g, axis=-1).max()), **out}
 
 
 def run_flow(folds, ann, table, gt_store, overrides, cache=None, represent=None) -> tuple[dict, dict]:
@@ -223,6 +229,8 @@ def main():
 def markdown(summary, timing, folds) -> list:
     keys = ["windows", "solved", "fgd_raw", "fgd_raw_random_playback_same_windows", "fgd_ratio_to_random_playback",
             "fgd_mean_term", "fgd_cov_term", "total_variance_ratio", "mean_pose_offset_max_cm"]
+    chars = sorted({k.rsplit("_", 1)[-1] for s in summary.values() for k in s if k.startswith("pose_std_ratio_")})
+    keys += [f"{m}_{c}" for c in chars for m in ("fgd_raw", "fgd_mean_term", "fgd_cov_term", "total_variance_ratio")]
     keys += sorted(k for s in summary.values() for k in s if k.startswith("pose_std_ratio"))
     keys += ["still", "still_gt_same_windows", "beat_consistency", "bc_random_playback_same_windows",
              "bc_mismatched_gt_same_windows", "beat_consistency_gt", "pc_lr_within_gt_interval", "join_step_mean",

@@ -48,7 +48,7 @@ class FlowParams:
     pca_variance: float = 0.995      # the motion's principal components kept (share of its variance)
     pca_max_components: int = 48
     time_embedding: int = 32
-    train_steps: int = 800
+    train_steps: int = 1600          # 800 (the earlier default) leaves the model undertrained: docs/flow_matching.md
     batch_size: int = 32
     learning_rate: float = 2e-3      # Adam, cosine decay to 10% over train_steps
     log_every: int = 100             # steps per scanned chunk (one loss-curve point each)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import copy
 import dataclasses
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -205,3 +206,68 @@ def test_smooth_joins_removes_the_step_at_each_join_and_keeps_the_prefixes():
     for s in starts[1:]:
         np.testing.assert_array_equal(y[s:s + P], x[s:s + P])    # each window's prefix as sampled
     np.testing.assert_array_equal(smooth_joins(x, W, P, 0), x)
+
+
+def test_a_training_recording_edited_in_place_trains_again(annotated, tmp_path):
+    """The checkpoint's key follows the content of the training recordings' files, not their names:
+    a WAV rewritten in place (same path, same length, other samples) gives another key and a model
+    trained anew in the same process, while the unchanged recordings load the cached model."""
+    import shutil
+
+    import soundfile as sf
+
+    from convsynth_jax.evaluation.loo import training_clips
+
+    cfg, ann = annotated
+    ann = copy.deepcopy(ann)
+    audio_dir = tmp_path / "audio"
+    audio_dir.mkdir()
+    for roles in ann.values():
+        for a in roles.values():
+            src = Path(a.audio_path)
+            for f in src.parent.glob(f"{a.session}_*{src.suffix}"):   # the partner's file travels with it
+                shutil.copy2(f, audio_dir / f.name)
+            a.audio_path = str(audio_dir / src.name)
+    sysm = flow_system(cfg, train_steps=4, log_every=2)
+    held = list(ann)[0]
+    char = next(iter(ann[held].values())).character
+    clips = training_clips(ann, held, char)
+    cache = tmp_path / "cache"
+    first = sysm.fit(clips, char, "audio", cache)
+    assert not first.model.loaded
+    assert sysm.fit(clips, char, "audio", cache).model.loaded
+    wav = Path(clips[0].audio_path)
+    samples, rate = sf.read(wav, always_2d=True)
+    sf.write(wav, samples[::-1] * 0.5, rate)          # the same file name and length, other speech
+    again = sysm.fit(clips, char, "audio", cache)
+    assert again.model.key != first.model.key and not again.model.loaded
+
+
+def test_representation_round_trip_and_one_long_sampling_window(fitted):
+    """``represent`` (the control of the evaluation) gives a training recording back through the model's
+    space within a few centimetres at every joint and frame; a sampling window as long as the sequence samples it in one window
+    (no joins), and ``sample_window_frames`` equal to the training window changes nothing."""
+    from convsynth_jax.kinematics import global_transforms
+
+    sysm, fit, _, ann, held, _ = fitted
+    motion = fit.template.slice(0, 300)
+    back = sysm.represent(fit, motion, seed=0)
+    assert back.num_frames == motion.num_frames and back.skeleton is motion.skeleton
+
+    def rel(m):
+        pos = np.asarray(global_transforms(m)[0], np.float64)
+        return pos - pos[:, :1]
+
+    err = np.linalg.norm(rel(back) - rel(motion), axis=-1)
+    assert np.median(err) < 1.0 and err.max() < 6.0, (np.median(err), err.max())
+    p = fit.model.params
+    cond = np.random.default_rng(2).normal(size=(100, fit.model.cond_dim)).astype(np.float32)
+    same = flow_system(sysm.params, sample_window_frames=p.window_frames)
+    np.testing.assert_array_equal(sample_sequence(same._sampling_model(fit.model), cond, 5),
+                                  sample_sequence(fit.model, cond, 5))
+    one = flow_system(sysm.params, sample_window_frames=100)
+    assert one._num_windows(fit, 200, 30.0) == 1 and sysm._num_windows(fit, 200, 30.0) > 1
+    x = sample_sequence(one._sampling_model(fit.model), cond, 5)
+    assert x.shape == (100, fit.model.dim) and np.isfinite(x).all()
+    with pytest.raises(ConfigError, match="sample_window_frames"):
+        flow_system(sysm.params, sample_window_frames=p.prefix_frames)

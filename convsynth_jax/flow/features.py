@@ -216,10 +216,18 @@ def audio_features(audio, num_frames: int, fps: float) -> np.ndarray:
     return out
 
 
-@functools.lru_cache(maxsize=128)
 def recording_audio_features(path: str, channel, fps: float) -> np.ndarray:
-    """(F, AUDIO_DIM) features of a whole recording (read once per process: every fold and both
-    characters reuse them); F covers the audio's duration."""
+    """(F, AUDIO_DIM) features of a whole recording (computed once per process and file content:
+    every fold and both characters reuse them, a file edited in place is read again); F covers the
+    audio's duration."""
+    from ..fingerprint import file_digest
+
+    return _recording_audio_features(str(path), channel, float(fps), file_digest(path))
+
+
+@functools.lru_cache(maxsize=128)
+def _recording_audio_features(path: str, channel, fps: float, content: str) -> np.ndarray:
+    """:func:`recording_audio_features` remembered by (path, channel, rate, the file's digest)."""
     from ..io import load_audio
 
     a = load_audio(path, channel=channel)

@@ -5,8 +5,9 @@ the model: ``convsynth_jax/flow/``).
 fit: the character's training recordings resampled to the model's rate (``options.fps``), encoded
 (6-D joint rotations and root motion, ``flow/features.py``), z-normalised; audio features of each
 recording's own channel and its partner's; a velocity field trained on them (seeded). The trained
-model is cached in ``<cache_dir>/flow_matching/`` under a key over the training arrays, the options
-and the model's code (``flow.model.checkpoint_key``), with its loss curve (PNG) and a manifest (JSON)
+model is cached in ``<cache_dir>/flow_matching/`` under a key over the training arrays, the content
+of the training recordings' files (:func:`recordings_fingerprint`), the options and the model's code
+(``flow.model.checkpoint_key``), with its loss curve (PNG) and a manifest (JSON)
 beside it; a model with the same key is loaded instead of trained.
 
 synthesize: audio features of the window's own and partner samples, sampled in overlapping windows
@@ -38,6 +39,7 @@ from ..flow.features import (AUDIO_DIM, MotionBasis, Standardizer, audio_feature
                              recording_audio_features, resample_features)
 from ..flow.joins import smooth_joins
 from ..flow.model import FlowModel, FlowParams, checkpoint_key, load_checkpoint, sample_sequence, save_checkpoint, train_flow
+from ..fingerprint import stable_hash
 from ..utils import atomic_path, file_lock, save_figure
 from .base import SynthesisSystem, WindowInput, WindowResult
 
@@ -50,6 +52,13 @@ class FlowSystemOptions(FlowParams):
     the system's sampling uses."""
 
     join_frames: int = 6    # a window's jump at its first generated frame decays over this many model frames; 0: off
+    sample_window_frames: int = 0   # model frames per sampling window; 0: the training window (window_frames)
+
+    def __post_init__(self):
+        super().__post_init__()
+        if self.sample_window_frames and self.sample_window_frames <= self.prefix_frames:
+            raise ConfigError(f"flow_matching: sample_window_frames must be 0 or above prefix_frames "
+                              f"({self.prefix_frames}), got {self.sample_window_frames} (system.options)")
 
 
 def model_params(options: FlowParams) -> FlowParams:
@@ -90,6 +99,24 @@ def partner_audio_source(clip, siblings: dict | None = None) -> tuple[str, int |
         raise ConfigError(f"flow_matching: cannot tell the partner's audio of {own} ({len(others)} other "
                           f"'{clip.session}_*{own.suffix}' files beside it); set system.options.partner_audio=false")
     return str(others[0]), None
+
+
+def recordings_fingerprint(clips, partner_audio: bool = True) -> str:
+    """The content of a character's training recordings as the model reads them: each one's session,
+    role, character, the digests of its own and (``partner_audio``) its partner's audio file and their
+    channels, and the digest of its motion (:mod:`convsynth_jax.fingerprint`), so a recording edited in
+    place, or moved to another session, trains again."""
+    from ..fingerprint import content_digest, file_digest
+
+    items = []
+    for c in clips:
+        row = [c.session, c.role, getattr(c, "character", ""), file_digest(c.audio_path), c.audio_channel,
+               content_digest(c.motion)]
+        if partner_audio:
+            path, ch = partner_audio_source(c)
+            row += [file_digest(path), ch]
+        items.append(row)
+    return stable_hash(items, length=24)
 
 
 def _plot_losses(losses: np.ndarray, every: int, path: Path, title: str) -> None:
@@ -142,7 +169,7 @@ class FlowMatchingSystem(SynthesisSystem):
         xs = [mn.apply(m) for m in motions]
         cs = [np.concatenate([an.apply(o)] + ([an.apply(q)] if p.partner_audio else []), axis=1)
               for o, q in zip(own, partner or own)]
-        key = checkpoint_key(motions + own + partner, p, extra=character)
+        key = checkpoint_key(motions + own + partner, p, extra=f"{character}:{recordings_fingerprint(mine, p.partner_audio)}")
         template = mine[0].motion
         detail = np.median([frame_detail_sd(encode_motion(c.motion)) for c in mine], axis=0)
         if cache_dir is None:
@@ -175,6 +202,7 @@ class FlowMatchingSystem(SynthesisSystem):
 
         data = run_manifest(what="flow-matching checkpoint", character=character, key=model.key,
                             options=asdict(model.params), training_seconds=model.seconds,
+                            training_cpu_seconds=model.cpu_seconds,
                             training_frames=int(frames), recordings=[f"{c.session}/{c.role}" for c in clips],
                             loss_first=float(model.losses[0]), loss_last=float(model.losses[-1]),
                             losses=[float(x) for x in model.losses])
@@ -198,7 +226,7 @@ class FlowMatchingSystem(SynthesisSystem):
                                                                                float(window.fps))})
 
     def _num_windows(self, model: FlowFit, num_frames: int, fps: float) -> int:
-        p = model.model.params
+        p = self._sampling_model(model.model).params
         n = int(np.ceil(num_frames * p.fps / fps))
         return 1 if n <= p.window_frames else 1 + int(np.ceil((n - p.window_frames) / (p.window_frames - p.prefix_frames)))
 
@@ -208,21 +236,52 @@ class FlowMatchingSystem(SynthesisSystem):
         and the partner's (an ``io.Audio`` each; ``partner_audio`` None: silence), placed at chair
         ``chair_index``; any length (overlapping windows). What a conversation task calls for a whole
         conversation: no transcript and no annotation are read."""
-        from ..synth.pipeline import CHAIRS
-
         p = model.model.params
         n = int(np.ceil(num_frames * p.fps / fps))
         cond = [model.audio_norm.apply(audio_features(own_audio, n, p.fps))]
         if p.partner_audio:
             cond.append(model.audio_norm.apply(audio_features(partner_audio, n, p.fps)))
-        x = sample_sequence(model.model, np.concatenate(cond, axis=1), seed)
-        x = smooth_joins(x, p.window_frames, p.prefix_frames, int(self.options.join_frames))
+        sampler = self._sampling_model(model.model)
+        x = sample_sequence(sampler, np.concatenate(cond, axis=1), seed)
+        x = smooth_joins(x, sampler.params.window_frames, p.prefix_frames, int(self.options.join_frames))
+        return self._decode(model, x, num_frames, fps, seed, chair_index, name, bool(p.detail_noise))
+
+    def _sampling_model(self, model: FlowModel) -> FlowModel:
+        """``model`` sampling in windows of ``options.sample_window_frames`` (the network is convolutional:
+        a window longer than the training window reads, at each frame, what a training window does)."""
+        w = int(self.options.sample_window_frames)
+        if not w or w == model.params.window_frames:
+            return model
+        found = model._fns.get(("window", w))
+        if found is None:
+            found = model._fns[("window", w)] = dataclasses.replace(
+                model, params=dataclasses.replace(model.params, window_frames=w), _fns={})
+        return found
+
+    @staticmethod
+    def _decode(model: FlowFit, x: np.ndarray, num_frames: int, fps: float, seed: int, chair_index: int, name: str,
+                detail_noise: bool):
+        """The Motion of model-space frames ``x`` (n, K): back to features, resampled to ``num_frames``
+        at ``fps``, the frame-level detail added (``detail_noise``), decoded at chair ``chair_index``."""
+        from ..synth.pipeline import CHAIRS
+
+        p = model.model.params
         feats = resample_features(model.motion_norm.invert(x), num_frames, p.fps / fps)
-        if p.detail_noise and model.detail_sd is not None:   # the recordings' frame-level detail, white
+        if detail_noise and model.detail_sd is not None:   # the recordings' frame-level detail, white
             rng = np.random.default_rng([int(seed) & 0x7FFFFFFF, 1])
             feats = feats + rng.normal(size=feats.shape) * np.asarray(model.detail_sd)[None, :]
         chair, yaw = CHAIRS.get(int(chair_index), CHAIRS[0])
         return decode_motion(feats, model.template, fps, chair, yaw, name)
 
+    def represent(self, model: FlowFit, motion, seed: int = 0, detail_noise: bool = False, chair_index: int = 0):
+        """``motion`` through the model's representation alone, no network: encoded, resampled to the
+        model's rate, projected on its principal components and back, resampled to ``motion``'s rate and
+        decoded as samples are (with the frame-level detail when ``detail_noise``). The floor of what
+        the model's space, rate and decoding can show (a control of the evaluation)."""
+        p = model.model.params
+        x = model.motion_norm.apply(encode_motion(motion.resample(p.fps)))
+        return self._decode(model, x, motion.num_frames, motion.fps, seed, chair_index,
+                            f"{motion.name}:represented", detail_noise)
 
-__all__ = ["FlowFit", "FlowMatchingSystem", "partner_audio_source", "AUDIO_DIM"]
+
+__all__ = ["FlowFit", "FlowMatchingSystem", "partner_audio_source", "recordings_fingerprint", "AUDIO_DIM"]

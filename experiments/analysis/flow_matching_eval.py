@@ -69,7 +69,40 @@ def join_steps(rel, fps_out, model_fps, window_frames, prefix_frames) -> tuple[n
     return step[at], step[~at]
 
 
-def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, dict]:
+def fgd_split(recs, gt_store, by_character: bool = True) -> dict:
+    """The raw FGD's two terms against the ground truth of the same windows: the squared difference of
+    the means (``fgd_mean_term``) and the rest (covariances, ``fgd_cov_term``), the total variance as a
+    share of the ground truth's, and the largest per-joint offset of the mean pose (cm); the same per
+    character (``<measure>_<character>``) when ``by_character``."""
+    from naturalness import raw_features
+
+    from convsynth_jax.evaluation.field.fgd import frechet_distance, gaussian_stats
+
+    ok = [k for k in sorted(gt_store) if recs.get(k, {}).get("ok")]
+    if not ok:
+        return {}
+    out = {}
+    if by_character:
+        for c in sorted({gt_store[k]["character"] for k in ok}):
+            part = fgd_split({k: recs[k] for k in ok if gt_store[k]["character"] == c}, gt_store, False)
+            out.update({f"{m}_{c}": v for m, v in part.items()})
+    ms, ss = gaussian_stats(raw_features([recs[k]["rel"] for k in ok]))
+    mg, sg = gaussian_stats(raw_features([gt_store[k]["rel"] for k in ok]))
+    total = frechet_distance(ms, ss, mg, sg)
+    mean_term = float((ms - mg) @ (ms - mg))
+    pose_s = np.concatenate([recs[k]["rel"] for k in ok]).mean(axis=0)
+    pose_g = np.concatenate([gt_store[k]["rel"] for k in ok]).mean(axis=0)
+    return {"fgd_raw": total, "fgd_mean_term": mean_term, "fgd_cov_term": total - mean_term,
+            "total_variance_ratio": float(np.trace(ss) / np.trace(sg)),
+            "mean_pose_offset_max_cm": float(np.linalg.norm(pose_s - pose_g, axis=-1).max()), **out}
+
+
+def run_flow(folds, ann, table, gt_store, overrides, cache=None, represent=None) -> tuple[dict, dict]:
+    """Records of every window of ``folds``: the flow model's samples, or with ``represent`` ("plain" or
+    "detail") the ground truth itself through the model's representation (``FlowMatchingSystem.represent``,
+    no network; "detail" with the frame-level detail noise): the floor the representation sets."""
+    from convsynth_jax.systems.base import WindowResult
+
     params = default_params(["system=flow_matching", *overrides])
     sysm = make_system(params, params.system)
     names = list(ann)
@@ -82,7 +115,8 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
         t0 = time.perf_counter()
         fitted = fit_fold(sysm, ann, held_out, CONDITION, cd)
         tf = timing[fold] = {"fit_wall_seconds": time.perf_counter() - t0, "synthesis_seconds": [], "window_seconds": [],
-                             "fit_seconds": {c: float(m.model.seconds) for c, m in fitted.items()}}
+                             "fit_seconds": {c: float(m.model.seconds) for c, m in fitted.items()},
+                             "fit_cpu_seconds": {c: float(m.model.cpu_seconds) for c, m in fitted.items()}}
         gt_thr, syn_thr = fold_thresholds(ann, held_out, params.annotate, table)
         held = ann[held_out]
         for w in session_windows(held, fps, params.loo.window, params.loo.hop, params.loo.max_windows):
@@ -93,7 +127,13 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
                 seed = derive_seed(params.seed, fold=fold, condition=CONDITION, session=held_out, window_frame=f0,
                                    role_index=k)
                 win = window_input(held, role, w, fps, seed, with_audio=True)
-                res = sysm.synthesize(fitted[a.character], win, CONDITION)
+                if represent:
+                    r0 = time.perf_counter()
+                    m = sysm.represent(fitted[a.character], held[role].motion.slice(f0, f0 + win.num_frames), seed,
+                                       detail_noise=represent == "detail", chair_index=k)
+                    res = WindowResult(True, motion=m, seconds=time.perf_counter() - r0)
+                else:
+                    res = sysm.synthesize(fitted[a.character], win, CONDITION)
                 if not res.success:
                     out[key] = {"ok": False}
                     continue
@@ -101,7 +141,8 @@ def run_flow(folds, ann, table, gt_store, overrides, cache=None) -> tuple[dict, 
                 tf["window_seconds"].append(win.num_frames / fps)
                 v = body_view(res.motion, params.annotate)
                 n = win.num_frames
-                at, other = join_steps(v.relative, fps, po.fps, po.window_frames, po.prefix_frames)
+                at, other = join_steps(v.relative, fps, po.fps, po.sample_window_frames or po.window_frames,
+                                       po.prefix_frames)
                 out[key] = {"ok": True, "rel": v.relative.astype(np.float32), "still": still_frames(v.relative, fps),
                             "bc": beat.beat_consistency(beat.motion_beats(v.relative[:, g["upper"]], fps, FP.beat),
                                                         g["audio_beats"], n / fps, FP.beat),
@@ -122,6 +163,8 @@ def main():
     ap.add_argument("--cache", default=None, help="the model cache (default: the configured loo_cache)")
     ap.add_argument("--graph-work", default=None, help="a naturalness.py --work folder with the motion graph's records")
     ap.add_argument("--graph-variant", default="quality")
+    ap.add_argument("--represent", choices=["plain", "detail"], default=None,
+                    help="control: the ground truth through the model's representation instead of samples")
     args = ap.parse_args()
     t0 = time.perf_counter()
     params = default_params(["preset=quality"])
@@ -136,14 +179,14 @@ def main():
         rp = run_variant("random_playback", VARIANTS["random_playback"], args.folds, ann, table, gt_store)
         (work / f"random_playback_{tag}.pkl").write_bytes(pickle.dumps(rp))
         (work / f"gt_{tag}.pkl").write_bytes(pickle.dumps(gt_store))
-    t1 = time.perf_counter()
+    t1, c1 = time.perf_counter(), time.process_time()
     flow, timing = load_cached(work, "flow_matching", args.folds), load_cached(work, "flowtiming", args.folds)
     if flow is None or timing is None:   # records of earlier runs whose folds together cover these are reused
-        flow, timing = run_flow(args.folds, ann, table, gt_store, args.override, args.cache)
+        flow, timing = run_flow(args.folds, ann, table, gt_store, args.override, args.cache, args.represent)
         (work / f"flow_matching_{tag}.pkl").write_bytes(pickle.dumps(flow))
         (work / f"flowtiming_{tag}.pkl").write_bytes(pickle.dumps(timing))
         (work / f"gt_{tag}.pkl").write_bytes(pickle.dumps(gt_store))
-    flow_seconds = time.perf_counter() - t1
+    flow_seconds, flow_cpu = time.perf_counter() - t1, time.process_time() - c1
     results = {"flow_matching": flow, "random_playback": rp}
     if args.graph_work:
         g = load_cached(Path(args.graph_work), args.graph_variant, args.folds)
@@ -162,27 +205,39 @@ def main():
     fit = [v for t in timing.values() for v in t["fit_seconds"].values()]
     synth = float(sum(np.sum(t["synthesis_seconds"]) for t in timing.values()))
     speech = float(sum(np.sum(t["window_seconds"]) for t in timing.values()))
-    timing_summary = {"flow_run_seconds": flow_seconds, "fit_seconds_per_character_mean": float(np.mean(fit)),
+    fit_cpu = [v for t in timing.values() for v in t.get("fit_cpu_seconds", {}).values()]
+    timing_summary = {"flow_run_seconds": flow_seconds, "flow_run_cpu_seconds": flow_cpu,
+                      "fit_seconds_per_character_mean": float(np.mean(fit)),
+                      "fit_cpu_seconds_per_character_mean": float(np.mean(fit_cpu)) if fit_cpu else float("nan"),
                       "fit_wall_seconds_per_fold": {f: t["fit_wall_seconds"] for f, t in timing.items()},
                       "sampling_seconds_per_60s_speech": synth / speech * 60.0 if speech else float("nan")}
-    floor = noise_floor(gt_store)
-    result = {"folds": args.folds, "overrides": args.override, "summary": summary, "timing": timing_summary,
+    for n, r in results.items():
+        summary[n].update(fgd_split(r, gt_store))
+    floor = noise_floor(gt_store, params.fps)
+    result = {"folds": args.folds, "overrides": args.override, "represent": args.represent, "summary": summary, "timing": timing_summary,
               "noise_floor": floor, "seconds": time.perf_counter() - t0}
-    write(args.name, result, overrides=[f"folds={args.folds}", *args.override])
-    write_markdown(args.name, markdown(summary, timing_summary, args.folds), overrides=[f"folds={args.folds}"])
+    control = [f"represent={args.represent}"] if args.represent else []
+    write(args.name, result, overrides=[f"folds={args.folds}", *args.override, *control])
+    write_markdown(args.name, markdown(summary, timing_summary, args.folds),
+                   overrides=[f"folds={args.folds}", *args.override, *control])
 
 
 def markdown(summary, timing, folds) -> list:
-    keys = ["windows", "solved", "fgd_raw", "fgd_raw_random_playback_same_windows", "fgd_ratio_to_random_playback"]
+    keys = ["windows", "solved", "fgd_raw", "fgd_raw_random_playback_same_windows", "fgd_ratio_to_random_playback",
+            "fgd_mean_term", "fgd_cov_term", "total_variance_ratio", "mean_pose_offset_max_cm"]
+    chars = sorted({k.rsplit("_", 1)[-1] for s in summary.values() for k in s if k.startswith("pose_std_ratio_")})
+    keys += [f"{m}_{c}" for c in chars for m in ("fgd_raw", "fgd_mean_term", "fgd_cov_term", "total_variance_ratio")]
     keys += sorted(k for s in summary.values() for k in s if k.startswith("pose_std_ratio"))
     keys += ["still", "still_gt_same_windows", "beat_consistency", "bc_random_playback_same_windows",
              "bc_mismatched_gt_same_windows", "beat_consistency_gt", "pc_lr_within_gt_interval", "join_step_mean",
              "other_step_mean", "joins_above_other_p99"]
     lines = measure_lines(summary, keys, folds)
     lines += rate_lines(summary, "cooccurrence", "Co-occurrence rates (synthesized, ground truth [95% interval]):")
-    lines += ["", "Timing:", "", f"- training per character (mean): {timing['fit_seconds_per_character_mean']:.1f} s",
+    lines += ["", "Timing:", "", f"- training per character (mean): {timing['fit_seconds_per_character_mean']:.1f} s wall, "
+              f"{timing.get('fit_cpu_seconds_per_character_mean', float('nan')):.1f} s CPU",
               f"- sampling: {timing['sampling_seconds_per_60s_speech']:.2f} s per 60 s of speech",
-              f"- the flow-matching part of this run: {timing['flow_run_seconds']:.0f} s"]
+              f"- the flow-matching part of this run: {timing['flow_run_seconds']:.0f} s wall, "
+              f"{timing.get('flow_run_cpu_seconds', float('nan')):.0f} s CPU (this process)"]
     return lines
 
 

@@ -17,7 +17,7 @@ from convsynth_jax.errors import FormatError
 ROOT = Path(__file__).resolve().parents[1]
 # the tables whose markers must stay: (page, results file)
 MARKED = {
-    ("docs/flow_matching.md", "experiments/results/flow_matching_eval_17folds.json"),
+    ("docs/flow_matching.md", "experiments/results/fm2_steps1600_17folds.json"),
     ("docs/flow_matching.md", "experiments/results/flow_matching_benchmark_6folds/leaderboard.csv"),
     ("docs/results.md", "experiments/results/naturalness.json"),
     ("docs/results.md", "experiments/results/naturalness_17folds.json"),

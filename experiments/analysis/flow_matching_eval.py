@@ -25,7 +25,7 @@ from naturalness import (FP, VARIANTS, body_view, load_cached, measure_lines, no
                          summarize)
 
 from convsynth_jax.config import default_params  # noqa: E402
-from convsynth_jax.evaluation.field import beat  # noqa: E402
+from convsynth_jax.evaluation.field import beat, window_sets  # noqa: E402
 from convsynth_jax.evaluation.field.kinematic import still_frames  # noqa: E402
 from convsynth_jax.evaluation.loo import (fit_fold, fold_thresholds, recording_threshold_table,  # noqa: E402
                                           session_windows, window_cooccurrence, window_input)
@@ -70,31 +70,16 @@ def join_steps(rel, fps_out, model_fps, window_frames, prefix_frames) -> tuple[n
 
 
 def fgd_split(recs, gt_store, by_character: bool = True) -> dict:
-    """The raw FGD's two terms against the ground truth of the same windows: the squared difference of
-    the means (``fgd_mean_term``) and the rest (covariances, ``fgd_cov_term``), the total variance as a
-    share of the ground truth's, and the largest per-joint offset of the mean pose (cm); the same per
-    character (``<measure>_<character>``) when ``by_character``."""
-    from naturalness import raw_features
-
-    from convsynth_jax.evaluation.field.fgd import frechet_distance, gaussian_stats
-
+    """``window_sets.fgd_split`` of the solved windows against the ground truth of the same windows, and
+    per character (``<measure>_<character>``) when ``by_character``."""
     ok = [k for k in sorted(gt_store) if recs.get(k, {}).get("ok")]
     if not ok:
         return {}
-    out = {}
-    if by_character:
-        for c in sorted({gt_store[k]["character"] for k in ok}):
-            part = fgd_split({k: recs[k] for k in ok if gt_store[k]["character"] == c}, gt_store, False)
-            out.update({f"{m}_{c}": v for m, v in part.items()})
-    ms, ss = gaussian_stats(raw_features([recs[k]["rel"] for k in ok]))
-    mg, sg = gaussian_stats(raw_features([gt_store[k]["rel"] for k in ok]))
-    total = frechet_distance(ms, ss, mg, sg)
-    mean_term = float((ms - mg) @ (ms - mg))
-    pose_s = np.concatenate([recs[k]["rel"] for k in ok]).mean(axis=0)
-    pose_g = np.concatenate([gt_store[k]["rel"] for k in ok]).mean(axis=0)
-    return {"fgd_raw": total, "fgd_mean_term": mean_term, "fgd_cov_term": total - mean_term,
-            "total_variance_ratio": float(np.trace(ss) / np.trace(sg)),
-            "mean_pose_offset_max_cm": float(np.linalg.norm(pose_s - pose_g, axis=-1).max()), **out}
+    out = window_sets.fgd_split([recs[k]["rel"] for k in ok], [gt_store[k]["rel"] for k in ok])
+    for c in sorted({gt_store[k]["character"] for k in ok}) if by_character else ():
+        part = fgd_split({k: recs[k] for k in ok if gt_store[k]["character"] == c}, gt_store, False)
+        out.update({f"{m}_{c}": v for m, v in part.items()})
+    return out
 
 
 def run_flow(folds, ann, table, gt_store, overrides, cache=None, represent=None) -> tuple[dict, dict]:

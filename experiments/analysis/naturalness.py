@@ -55,10 +55,12 @@ from convsynth_jax.api import write_result as write, write_result_markdown as wr
 
 from convsynth_jax.config import default_params  # noqa: E402
 from convsynth_jax.evaluation.field import beat  # noqa: E402
-from convsynth_jax.evaluation.field.fgd import fgd, raw_window_features  # noqa: E402
+from convsynth_jax.evaluation.field.fgd import fgd  # noqa: E402
 from convsynth_jax.evaluation.field.kinematic import STILL_SPEED, mean_joint_speed, still_frames  # noqa: E402
 from convsynth_jax.evaluation.field.params import FieldMetricParams  # noqa: E402
-from convsynth_jax.evaluation.field.views import motion_view  # noqa: E402
+from convsynth_jax.evaluation.field.views import motion_view
+from convsynth_jax.evaluation.field.window_sets import pose_std_ratio, raw_features, single_poses
+from convsynth_jax.evaluation.provenance import blend_mask, source_visits  # noqa: E402
 from convsynth_jax.evaluation.loo import (fit_fold, fold_thresholds, recording_threshold_table,  # noqa: E402
                                           session_windows, source_window_cooccurrence, window_cooccurrence,
                                           window_input)
@@ -134,23 +136,6 @@ PC_LR = ("PC-LH/RH", "LR-Nod")   # the rates the acceptance checks
 
 def body_view(motion, annotate):
     return motion_view(motion, "body", FP.joints, annotate)
-
-
-def visits(clips, frames, fps, source_still, source_speed) -> dict:
-    cells = np.array([f"{c}:{int(f // fps)}" for c, f in zip(clips, frames)])
-    _, counts = np.unique(cells, return_counts=True)
-    p = counts / counts.sum()
-    _, per_clip = np.unique(np.asarray(clips), return_counts=True)
-    frames = np.asarray(frames)
-    cuts = np.flatnonzero((np.diff(frames) != 1) | (np.asarray(clips[1:]) != np.asarray(clips[:-1]))) + 1
-    seen, revisits = set(), 0
-    for seg in np.split(np.arange(len(frames)), cuts):
-        secs = {(clips[seg[0]], int(frames[i] // fps)) for i in seg}
-        revisits += len(secs & seen)
-        seen |= secs
-    return {"entropy_bits": float(-(p * np.log2(p)).sum()), "source_still_share": float(np.mean(source_still)),
-            "top_clip_share": float(per_clip.max() / len(clips)), "revisited_seconds": revisits,
-            "source_speed_ratio": float(np.mean(source_speed))}
 
 
 def held_speeds(session, role, motion, params, _cache={}):
@@ -314,7 +299,7 @@ def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None, cuts
                                                    g["audio_beats"], n / fps, FP.beat),
                        "cooc": window_cooccurrence(res.motion, win.own_segments, win.partner_segments,
                                                    syn_thr[a.character], params, "synth"),
-                       **visits(clips, frames, fps, sp < STILL_SPEED, sp / mean_speed[a.character])}
+                       **source_visits(clips, frames, fps, sp < STILL_SPEED, sp / mean_speed[a.character])}
                 d = res.diagnostics
                 if system_name == "motion_graph":   # masks of where still frames may come from
                     rec["target_in_degree"] = target_in_degree(fitted[a.character].graph, clips, frames, cuts,
@@ -324,38 +309,10 @@ def run_variant(name, spec, folds, ann, table, gt_store, matched_from=None, cuts
                     rec.update({"best_effort": bool(d.get("best_effort")),
                                 "slow": np.gradient(warp_times(n, *warp)) < SLOW if warp is not None else np.zeros(n, bool),
                                 "held_src": np.r_[False, frames[1:] == frames[:-1]], "src_still": sp < STILL_SPEED,
-                                "blend": in_blend(n, res.synthetic_at or [], int(res.blend_frames or 0))})
+                                "blend": blend_mask(n, res.synthetic_at or [], int(res.blend_frames or 0))})
                 out[key] = rec
         print(f"{name}: fold {fold} done", flush=True)
     return out
-
-
-def in_blend(n, synthetic_at, blend_frames) -> np.ndarray:
-    """(n,) bool: output frames within ``blend_frames`` after a synthetic transition."""
-    m = np.zeros(n, bool)
-    for t in synthetic_at:
-        m[int(t):int(t) + blend_frames] = True
-    return m
-
-
-def raw_features(rels) -> np.ndarray:
-    fp = FP.fgd
-    return np.concatenate([raw_window_features(r, fp.raw_window_frames, fp.raw_frame_step) for r in rels])
-
-
-def joint_std(rels) -> np.ndarray:
-    x = np.concatenate(rels).astype(np.float64)          # (F, P, 3)
-    return np.sqrt(x.var(axis=0).sum(axis=-1))           # per joint
-
-
-def pose_std_ratio(rels_sys, rels_gt) -> float:
-    return float(np.median(joint_std(rels_sys) / np.maximum(joint_std(rels_gt), 1e-9)))
-
-
-def pose_features(rels, step: int = 3) -> np.ndarray:
-    """(N, 3 P) single poses (every ``step``-th frame, root-relative joint positions): the single-pose
-    Frechet distance compares what poses are shown, not how they move."""
-    return np.concatenate([r[::step].reshape(len(r[::step]), -1) for r in rels]).astype(np.float64)
 
 
 def cooc_rates(keys, recs, gt_store, label, field="cooc") -> pd.DataFrame:
@@ -379,7 +336,7 @@ def summarize(name, recs, gt_store, rp) -> dict:
         return out
     gt_feat = raw_features([gt_store[k]["rel"] for k in ok])
     out["fgd_raw"] = fgd(raw_features([recs[k]["rel"] for k in ok]), gt_feat)
-    out["pose_frechet"] = fgd(pose_features([recs[k]["rel"] for k in ok]), pose_features([gt_store[k]["rel"] for k in ok]))
+    out["pose_frechet"] = fgd(single_poses([recs[k]["rel"] for k in ok]), single_poses([gt_store[k]["rel"] for k in ok]))
     tot = sum(recs[k].get("total", 0) for k in ok)
     if tot:
         out["constraints_met"] = sum(recs[k]["met"] for k in ok) / tot

@@ -87,17 +87,11 @@ def test_bad_warp_knots_are_config_errors():
         warp_motion(m, [0, 10, 18], [0, 4, 18])
 
 
-def clause_graph(length=20, frames=60, n_clips=3):
-    """Clips with one PC [10, 10 + length) each (peak at its middle), chained, each clip's last frame
-    linked back to every clip's first (synthetic), so a path can wait in idle frames."""
-    own, clip, frame, st, en, pk = [], [], [], [], [], []
-    for c in range(n_clips):
-        lab = np.zeros(frames, np.int8)
-        lab[10:10 + length] = PC
-        on = lab > 0
-        own.append(lab); clip.append(np.full(frames, c)); frame.append(np.arange(frames))
-        st.append(np.where(on, 10, -1)); en.append(np.where(on, 10 + length, -1))
-        pk.append(np.where(on, 10 + length // 2, -1))
+def _labelled_graph(own, clip, frame, st, en, pk, frames, jumps):
+    """A graph over clips with the given per-frame own labels and segments: each frame's natural edge to
+    the next (cost 0), and from every frame where ``jumps(clip, frame)`` synthetic edges (cost 1) to any
+    clip's frames 0, 3 and 6; with each clip's FrameAudio (silent partner)."""
+    n_clips = len(own)
     S = n_clips * frames
     rows, cols, cost, syn = [], [], [], []
     for c in range(n_clips):
@@ -105,7 +99,7 @@ def clause_graph(length=20, frames=60, n_clips=3):
             s = c * frames + f
             if f + 1 < frames:
                 rows.append(s); cols.append(s + 1); cost.append(0.0); syn.append(False)
-            if f < 10 or f == frames - 1:   # idle frames: jump to any clip's idle frames
+            if jumps(c, f):
                 for c2 in range(n_clips):
                     for g in (0, 3, 6):
                         if c2 * frames + g != s + 1:
@@ -121,6 +115,22 @@ def clause_graph(length=20, frames=60, n_clips=3):
     audio = {f"c{c}": (FrameAudio(own[c], st[c].astype(np.int32), en[c].astype(np.int32), pk[c].astype(np.int32)),
                        FrameAudio(np.zeros(frames, np.int8), *(np.full(frames, -1, np.int32),) * 3))
              for c in range(n_clips)}
+    return g, audio
+
+
+def clause_graph(length=20, frames=60, n_clips=3):
+    """Clips with one PC [10, 10 + length) each (peak at its middle), chained, each clip's last frame
+    linked back to every clip's first (synthetic), so a path can wait in idle frames."""
+    own, clip, frame, st, en, pk = [], [], [], [], [], []
+    for c in range(n_clips):
+        lab = np.zeros(frames, np.int8)
+        lab[10:10 + length] = PC
+        on = lab > 0
+        own.append(lab); clip.append(np.full(frames, c)); frame.append(np.arange(frames))
+        st.append(np.where(on, 10, -1)); en.append(np.where(on, 10 + length, -1))
+        pk.append(np.where(on, 10 + length // 2, -1))
+    # idle frames before the clause (and each clip's last frame) jump to any clip's idle frames
+    g, audio = _labelled_graph(own, clip, frame, st, en, pk, frames, lambda c, f: f < 10 or f == frames - 1)
     skel = seated_skeleton()
     J = skel.num_joints
     motions = {}
@@ -325,30 +335,7 @@ def two_clause_graph(frames=70):
             s_[a:a + 10], e_[a:a + 10], p_[a:a + 10] = a, a + 10, a + 5
         own.append(lab); clip.append(np.full(frames, c)); frame.append(np.arange(frames))
         st.append(s_); en.append(e_); pk.append(p_)
-    S = n_clips * frames
-    rows, cols, cost, syn = [], [], [], []
-    for c in range(n_clips):
-        for f in range(frames):
-            s = c * frames + f
-            if f + 1 < frames:
-                rows.append(s); cols.append(s + 1); cost.append(0.0); syn.append(False)
-            if own[c][f] == 0 or f == frames - 1:
-                for c2 in range(n_clips):
-                    for g in (0, 3, 6):
-                        if c2 * frames + g != s + 1:
-                            rows.append(s); cols.append(c2 * frames + g); cost.append(1.0); syn.append(True)
-    rows, cols, cost, syn = map(np.asarray, (rows, cols, cost, syn))
-    o = np.lexsort((cols, rows))
-    rows, cols, cost, syn = rows[o], cols[o], cost[o], syn[o]
-    indptr = np.concatenate([[0], np.cumsum(np.bincount(rows, minlength=S))])
-    cat = lambda x: np.concatenate(x).astype(np.int32)  # noqa: E731
-    z = np.zeros(S, np.int32)
-    g = MotionGraph(tuple(f"c{c}" for c in range(n_clips)), FPS, cat(clip), cat(frame), cat(own), cat(st), cat(en),
-                    cat(pk), z, z - 1, z - 1, np.ones(S, bool), indptr, cols, cost.astype(np.float32), syn, {})
-    audio = {f"c{c}": (FrameAudio(own[c], st[c].astype(np.int32), en[c].astype(np.int32), pk[c].astype(np.int32)),
-                       FrameAudio(np.zeros(frames, np.int8), *(np.full(frames, -1, np.int32),) * 3))
-             for c in range(n_clips)}
-    return g, audio
+    return _labelled_graph(own, clip, frame, st, en, pk, frames, lambda c, f: own[c][f] == 0 or f == frames - 1)
 
 
 def test_start_slack_lets_one_recorded_run_cover_two_clauses_with_another_pause():

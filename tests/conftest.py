@@ -47,11 +47,7 @@ def pytest_unconfigure(config):
         os.environ.pop("CONVSYNTH_JAX_CACHE", None)
 
 
-@pytest.fixture(autouse=True)
-def _session_compilation_cache():
-    """Kernels that tests compile in their own process go to the run's compilation cache too; a test
-    that moved or disabled the cache (a task run points JAX at its ``jax_cache.dir``) gets it back for
-    the next test."""
+def _use_session_compilation_cache():
     folder = os.environ.get("CONVSYNTH_JAX_CACHE")
     if folder:
         import jax
@@ -60,6 +56,22 @@ def _session_compilation_cache():
 
         if jax.config.jax_compilation_cache_dir != str(Path(folder).resolve()) or kernel_cache.kernel_dir() is not None:
             kernel_cache.enable_compilation_cache(kernel_cache.JaxCacheParams(dir=folder))
+
+
+@pytest.fixture(scope="session", autouse=True)
+def _compilation_cache_from_the_start():
+    """The run's compilation cache from the first fixture on: module and session fixtures (which pytest
+    sets up before a test's function-scoped fixtures) compile into it too."""
+    _use_session_compilation_cache()
+    yield
+
+
+@pytest.fixture(autouse=True)
+def _session_compilation_cache():
+    """Kernels that tests compile in their own process go to the run's compilation cache too; a test
+    that moved or disabled the cache (a task run points JAX at its ``jax_cache.dir``) gets it back for
+    the next test."""
+    _use_session_compilation_cache()
     yield
 
 

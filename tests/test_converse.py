@@ -384,7 +384,7 @@ def test_a_system_that_reads_the_audio_alone_converses_without_a_transcript(tiny
     from convsynth_jax.io import load_audio, load_bvh
 
     tiny = ["width=16", "blocks=2", "time_embedding=8", "train_steps=20", "batch_size=8", "log_every=10",
-            "window_frames=16", "prefix_frames=4", "sample_steps=2"]
+            "window_frames=16", "prefix_frames=4", "sample_steps=2", "pca_max_components=8"]
     audio = {k: v for k, v in inputs.items() if k.startswith("audio")}
     s = run_task(converse_cfg(tiny_corpus_dir, cache, audio, "system=flow_matching", "task.video=false",
                               *[f"system.options.{o}" for o in tiny]), tmp_path)

@@ -13,8 +13,9 @@ from convsynth_jax.errors import ConfigError
 from convsynth_jax.flow.model import FlowParams, sample_batch, sample_sequence, train_flow
 from convsynth_jax.systems.base import SystemParams, make_system
 
+# pca_max_components: both characters get as many components, so their trainings share one compiled program
 TINY = dict(width=16, blocks=2, time_embedding=8, train_steps=60, batch_size=8, log_every=20, window_frames=16,
-            prefix_frames=4, sample_steps=4)
+            prefix_frames=4, sample_steps=4, pca_max_components=8)
 
 
 @pytest.fixture(scope="module")
@@ -39,15 +40,20 @@ def flow_system(cfg, **options):
 
 
 @pytest.fixture(scope="module")
-def fitted(annotated, tmp_path_factory):
-    """Both characters' models of fold 0 (session 0 held out), trained into a fresh cache."""
+def fitted(annotated, _shared_dir):
+    """Both characters' models of fold 0 (session 0 held out), trained once per test run into a fresh
+    cache that the pytest-xdist workers share: the first worker here trains them under a file lock,
+    another loads them from the cache."""
+    from filelock import FileLock
+
     from convsynth_jax.evaluation.loo import characters, training_clips
 
     cfg, ann = annotated
     sysm = flow_system(cfg)
     held = list(ann)[0]
-    cache = tmp_path_factory.mktemp("flow_cache")
-    models = {c: sysm.fit(training_clips(ann, held, c), c, "audio", cache) for c in characters(ann)}
+    cache = _shared_dir / "flow_cache"
+    with FileLock(str(_shared_dir / "flow_cache.lock")):
+        models = {c: sysm.fit(training_clips(ann, held, c), c, "audio", cache) for c in characters(ann)}
     char = next(iter(ann[held].values())).character
     return sysm, models[char], cache, ann, held, models
 
@@ -158,6 +164,27 @@ def test_determinism_under_a_seed(fitted):
     s1, s2, s3 = (sample_sequence(fit.model, cond, seed=s) for s in (7, 7, 8))
     np.testing.assert_array_equal(s1, s2)
     assert not np.allclose(s1, s3)
+
+
+def test_ema_weights_are_the_debiased_average_of_each_steps_weights():
+    """ema_decay d: the returned weights are sum_t (1 - d) d^(n - t) w_t / (1 - d^n) over the weights w_t
+    after each of the n steps. With one step per scanned chunk, step 1 of a 1-step run is step 1 of a
+    2-step run (same key, learning rate lr(0)), so the 2-step average at d = 0.5 is (w1 + 2 w2) / 3."""
+    import jax
+
+    rng = np.random.default_rng(0)
+    xs = [rng.normal(size=(40, 3)).astype(np.float32)]
+    cs = [rng.normal(size=(40, 2)).astype(np.float32)]
+    base = {**TINY, "blocks": 1, "log_every": 1}
+    leaves = lambda m: [np.asarray(a, np.float64) for a in jax.tree_util.tree_leaves(m.variables)]
+    w1 = leaves(train_flow(xs, cs, FlowParams(**{**base, "train_steps": 1})))
+    w2 = leaves(train_flow(xs, cs, FlowParams(**{**base, "train_steps": 2})))
+    ema = leaves(train_flow(xs, cs, FlowParams(**{**base, "train_steps": 2, "ema_decay": 0.5})))
+    assert any(np.abs(a - b).max() > 1e-4 for a, b in zip(w1, w2))     # the two steps moved the weights
+    for a, b, e in zip(w1, w2, ema):
+        np.testing.assert_allclose(e, (a + 2 * b) / 3, rtol=1e-5, atol=1e-6)
+    with pytest.raises(ConfigError, match="ema_decay"):
+        FlowParams(ema_decay=1.0)
 
 
 def test_loo_fold_with_the_flow_system(annotated, fitted, tmp_path):

@@ -51,6 +51,7 @@ class FlowParams:
     train_steps: int = 1600          # 800 (the earlier default) leaves the model undertrained: docs/flow_matching.md
     batch_size: int = 32
     learning_rate: float = 2e-3      # Adam, cosine decay to 10% over train_steps
+    ema_decay: float = 0.0           # ours: sample with an exponential moving average of the weights (debiased); 0: the last weights
     log_every: int = 100             # steps per scanned chunk (one loss-curve point each)
     sample_steps: int = 12
     sampler: str = "midpoint"        # euler | midpoint
@@ -74,6 +75,8 @@ class FlowParams:
         if min(self.width, self.blocks, self.train_steps, self.batch_size, self.sample_steps, self.log_every) < 1:
             raise ConfigError("flow_matching: width, blocks, train_steps, batch_size, sample_steps and log_every "
                               "must be positive (system.options)")
+        if not 0.0 <= self.ema_decay < 1.0:
+            raise ConfigError(f"flow_matching: ema_decay must be in [0, 1), got {self.ema_decay} (system.options.ema_decay)")
         if self.fps <= 0:
             raise ConfigError(f"flow_matching: fps must be positive, got {self.fps} (system.options.fps)")
 
@@ -175,6 +178,16 @@ def _windows_index(lengths: Sequence[int], window: int) -> np.ndarray:
     return np.concatenate(starts).astype(np.int32)
 
 
+def _padded(a: np.ndarray) -> np.ndarray:
+    """``a`` with zero rows appended up to a size bucket: steps of a quarter of the largest power of two
+    at most ``len(a)`` (at least 64), so the padding adds under a quarter and sizes within a few percent
+    of each other mostly share a bucket."""
+    n = len(a)
+    step = 2 ** max(int(np.floor(np.log2(max(n, 1)))) - 2, 6)
+    size = -(-n // step) * step
+    return np.concatenate([a, np.zeros((size - n, *a.shape[1:]), a.dtype)]) if size > n else a
+
+
 def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], params: FlowParams,
                progress: bool = False, label: str = "") -> FlowModel:
     """Train a velocity field on sequences ``motions`` (F_i, D) (normalised features) with their
@@ -189,9 +202,15 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
         raise ConfigError("flow_matching: need one condition sequence per motion sequence, and at least one")
     W, P, B = int(p.window_frames), int(p.prefix_frames), int(p.batch_size)
     lengths = [min(len(m), len(c)) for m, c in zip(motions, conds)]
-    X = jnp.asarray(np.concatenate([np.asarray(m, np.float32)[:n] for m, n in zip(motions, lengths)]))
-    C = jnp.asarray(np.concatenate([np.asarray(c, np.float32)[:n] for c, n in zip(conds, lengths)]))
-    starts = jnp.asarray(_windows_index(lengths, W))
+    # The data are arguments of the jitted training, padded to a size bucket, not constants folded into
+    # it: trainings whose arrays fall in one bucket (the folds of a sweep, the characters of a fold)
+    # share one compiled program. Windows start only at the real starts (the first n of them).
+    X = _padded(np.concatenate([np.asarray(m, np.float32)[:n] for m, n in zip(motions, lengths)]))
+    C = _padded(np.concatenate([np.asarray(c, np.float32)[:n] for c, n in zip(conds, lengths)]))
+    real_starts = _windows_index(lengths, W)
+    decay = float(p.ema_decay)
+    data = (jnp.asarray(X), jnp.asarray(C), jnp.asarray(_padded(real_starts)), jnp.asarray(len(real_starts), jnp.int32),
+            jnp.asarray(decay, jnp.float32))
     dim, cdim = int(X.shape[1]), int(C.shape[1])
     net = _network(dim, p)
     key = jax.random.PRNGKey(int(p.seed))
@@ -206,9 +225,10 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
     def crop(a, s):
         return jax.lax.dynamic_slice_in_dim(a, s, W, axis=0)
 
-    def loss_fn(v, k):
+    def loss_fn(v, k, data):
+        X, C, starts, n_starts, _ = data
         k1, k2, k3, k4 = jax.random.split(k, 4)
-        s = jax.random.choice(k1, starts, (B,))
+        s = starts[jax.random.randint(k1, (B,), 0, n_starts)]    # jax.random.choice(k1, starts[:n_starts], (B,))
         x1 = jax.vmap(lambda s_: crop(X, s_))(s)
         c = jax.vmap(lambda s_: crop(C, s_))(s)
         x0 = jax.random.normal(k2, x1.shape)
@@ -225,22 +245,28 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
             loss = loss + p.difference_weight * jnp.mean((jnp.diff(pred, axis=1) - jnp.diff(x1, axis=1)) ** 2)
         return loss
 
-    def step(carry, k):
-        v, s = carry
-        loss, g = jax.value_and_grad(loss_fn)(v, k)
+    def step(data, carry, k):
+        v, s, ema, n = carry
+        loss, g = jax.value_and_grad(loss_fn)(v, k, data)
         upd, s = opt.update(g, s, v)
-        return (optax.apply_updates(v, upd), s), loss
+        v = optax.apply_updates(v, upd)
+        # the moving average of the weights after each step, debiased below (it starts at zero); with
+        # decay 0 it is the last weights exactly, and the decay is an argument, so every decay shares
+        # one compiled program
+        d = data[4]
+        ema = jax.tree_util.tree_map(lambda a, b: d * a + (1.0 - d) * b, ema, v)
+        return (v, s, ema, n + 1), loss
 
     chunk = int(min(p.log_every, p.train_steps))
-    run_chunk = jax.jit(lambda carry, keys: jax.lax.scan(step, carry, keys))
+    run_chunk = jax.jit(lambda carry, keys, data: jax.lax.scan(lambda c, k: step(data, c, k), carry, keys))
     n_chunks = -(-int(p.train_steps) // chunk)
     losses = []
     t0, c0 = time.perf_counter(), time.process_time()
-    carry = (variables, opt_state)
+    carry = (variables, opt_state, jax.tree_util.tree_map(jnp.zeros_like, variables), jnp.zeros((), jnp.int32))
     with tqdm(total=n_chunks * chunk, desc=f"flow matching {label}".strip(), disable=not progress, leave=False) as bar:
         for i in range(n_chunks):
             keys = jax.random.split(jax.random.fold_in(key, i), chunk)
-            carry, ls = run_chunk(carry, keys)
+            carry, ls = run_chunk(carry, keys, data)
             losses.append(float(jnp.mean(ls)))
             bar.update(chunk)
             bar.set_postfix(loss=f"{losses[-1]:.4f}")
@@ -248,7 +274,11 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
     seconds, cpu = time.perf_counter() - t0, time.process_time() - c0
     log.info("flow matching %s: %d steps in %.1f s (%.1f s CPU), loss %.4f -> %.4f", label, n_chunks * chunk, seconds,
              cpu, losses[0], losses[-1])
-    return FlowModel(p, dim, cdim, jax.device_get(carry[0]), np.asarray(losses), seconds, cpu_seconds=cpu)
+    weights = carry[0]
+    if decay > 0:
+        debias = np.float32(1.0 - decay ** int(carry[3]))
+        weights = jax.tree_util.tree_map(lambda a: a / debias, carry[2])
+    return FlowModel(p, dim, cdim, jax.device_get(weights), np.asarray(losses), seconds, cpu_seconds=cpu)
 
 
 def _sampler(model: FlowModel):

@@ -35,13 +35,15 @@ from __future__ import annotations
 import abc
 import importlib
 from dataclasses import dataclass, field, fields, is_dataclass
-from typing import Any, Dict, Mapping, Sequence
+from typing import TYPE_CHECKING, Any, Dict, Mapping, Sequence
 
 import numpy as np
-import pandas as pd
 
 from ..errors import ConfigError
 from ..schema import build_params
+
+if TYPE_CHECKING:   # annotations only: importing the configuration does not import pandas
+    import pandas as pd
 
 
 @dataclass(frozen=True)

@@ -246,7 +246,7 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
         return loss
 
     def step(data, carry, k):
-        v, s, ema, n = carry
+        v, s, ema = carry
         loss, g = jax.value_and_grad(loss_fn)(v, k, data)
         upd, s = opt.update(g, s, v)
         v = optax.apply_updates(v, upd)
@@ -255,14 +255,14 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
         # one compiled program
         d = data[4]
         ema = jax.tree_util.tree_map(lambda a, b: d * a + (1.0 - d) * b, ema, v)
-        return (v, s, ema, n + 1), loss
+        return (v, s, ema), loss
 
     chunk = int(min(p.log_every, p.train_steps))
     run_chunk = jax.jit(lambda carry, keys, data: jax.lax.scan(lambda c, k: step(data, c, k), carry, keys))
     n_chunks = -(-int(p.train_steps) // chunk)
     losses = []
     t0, c0 = time.perf_counter(), time.process_time()
-    carry = (variables, opt_state, jax.tree_util.tree_map(jnp.zeros_like, variables), jnp.zeros((), jnp.int32))
+    carry = (variables, opt_state, jax.tree_util.tree_map(jnp.zeros_like, variables))
     with tqdm(total=n_chunks * chunk, desc=f"flow matching {label}".strip(), disable=not progress, leave=False) as bar:
         for i in range(n_chunks):
             keys = jax.random.split(jax.random.fold_in(key, i), chunk)
@@ -276,7 +276,7 @@ def train_flow(motions: Sequence[np.ndarray], conds: Sequence[np.ndarray], param
              cpu, losses[0], losses[-1])
     weights = carry[0]
     if decay > 0:
-        debias = np.float32(1.0 - decay ** int(carry[3]))
+        debias = np.float32(1.0 - decay ** (n_chunks * chunk))    # the steps taken
         weights = jax.tree_util.tree_map(lambda a: a / debias, carry[2])
     return FlowModel(p, dim, cdim, jax.device_get(weights), np.asarray(losses), seconds, cpu_seconds=cpu)
 
